@@ -1,0 +1,1 @@
+//! Placeholder: the wgpu runtime comes with its own issue.
