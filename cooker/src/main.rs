@@ -1,0 +1,51 @@
+//! `vdbcook`: the command-line front end. Each subcommand lives in its own module; this file
+//! parses arguments, sets up the thread pool, and turns errors into one-line messages (or one
+//! JSON document under `--json`) with a non-zero exit code.
+
+mod inspect;
+mod report;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "vdbcook",
+    version,
+    about = "Cook OpenVDB sequences into compact flip-book volume assets for games",
+    after_help = "Examples:\n  vdbcook inspect smoke.vdb\n  vdbcook inspect 'cache/smoke.####.vdb' --json\n  vdbcook inspect cache/ --allow-gaps"
+)]
+struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List the grids of VDB files: types, transforms, active voxels, bounds and value ranges.
+    #[command(
+        after_help = "INPUT may be files, a folder (all .vdb inside, in frame order), a frame \
+pattern (smoke.####.vdb, smoke.%04d.vdb) or a glob ('smoke.*.vdb').\n\nExamples:\n  vdbcook inspect smoke.vdb\n  vdbcook inspect 'cache/smoke.####.vdb' --json"
+    )]
+    Inspect(inspect::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+        {
+            eprintln!("warning: cannot set {n} threads: {e}");
+        }
+    }
+    let (json, result) = match &cli.command {
+        Command::Inspect(a) => (a.json, inspect::run(a)),
+    };
+    if let Err(e) = result {
+        report::fail(json, &e);
+    }
+}

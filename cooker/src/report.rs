@@ -1,0 +1,46 @@
+//! How the CLI reports failure: one line on stderr naming the file, and under `--json` one JSON
+//! document `{"error": {...}}` on stdout, then a non-zero exit code (1 for bad input).
+
+use vdbcook_vdb::{ErrorKind, VdbError};
+
+/// Any failure a subcommand can end with.
+#[derive(Debug)]
+pub enum CliError {
+    Vdb(VdbError),
+}
+
+impl From<VdbError> for CliError {
+    fn from(e: VdbError) -> Self {
+        CliError::Vdb(e)
+    }
+}
+
+impl std::fmt::Display for CliError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CliError::Vdb(e) => e.fmt(f),
+        }
+    }
+}
+
+pub fn fail(json: bool, e: &CliError) -> ! {
+    eprintln!("error: {e}");
+    if json {
+        let (kind, file, offset) = match e {
+            CliError::Vdb(v) => (
+                match v.kind {
+                    ErrorKind::Io => "io",
+                    ErrorKind::Corrupt => "corrupt",
+                    ErrorKind::Unsupported => "unsupported",
+                    ErrorKind::GridSelection => "grid_selection",
+                    ErrorKind::Sequence => "sequence",
+                },
+                Some(v.path.display().to_string()),
+                v.offset,
+            ),
+        };
+        let doc = serde_json::json!({"error": {"message": e.to_string(), "kind": kind, "file": file, "offset": offset}});
+        println!("{doc}");
+    }
+    std::process::exit(1);
+}

@@ -1,0 +1,28 @@
+# Development recipes. Each is a plain command; `just` is optional.
+
+# Run the whole test suite (the README's test command).
+test:
+    cargo test --workspace
+
+# Formatting and lints, as CI runs them.
+lint:
+    cargo fmt --all -- --check
+    cargo clippy --workspace --all-targets -- -D warnings
+
+# Reader throughput on a generated 256³ blosc fog, side by side with vdb-rs.
+# Needs python3-openvdb (apt) once, to write the input file with real OpenVDB.
+bench:
+    test -f bench-data/fog256.vdb || (mkdir -p bench-data && /usr/bin/python3 crates/vdb/benches/gen_fog.py bench-data/fog256.vdb 256)
+    cargo bench -p vdbcook-vdb --bench read -- "$(pwd)/bench-data/fog256.vdb"
+
+# Regenerate fixtures/ with OpenVDB (installs Debian's OpenVDB packages first).
+fixtures:
+    bash fixtures/gen/build.sh
+
+# Fuzz the reader (needs nightly-free cargo-fuzz: `cargo install cargo-fuzz`).
+fuzz seconds="60":
+    cd fuzz && cargo fuzz run read_vdb -- -max_total_time={{seconds}}
+
+# The main job on the built-in default input.
+run:
+    cargo run --release -- inspect fixtures/seq/smoke5
