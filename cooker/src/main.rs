@@ -2,7 +2,12 @@
 //! parses arguments, sets up the thread pool, and turns errors into one-line messages (or one
 //! JSON document under `--json`) with a non-zero exit code.
 
+mod build;
+mod cook;
+mod eval;
+mod info;
 mod inspect;
+mod pool;
 mod report;
 
 use clap::{Parser, Subcommand};
@@ -30,6 +35,21 @@ enum Command {
 pattern (smoke.####.vdb, smoke.%04d.vdb) or a glob ('smoke.*.vdb').\n\nExamples:\n  vdbcook inspect smoke.vdb\n  vdbcook inspect 'cache/smoke.####.vdb' --json"
     )]
     Inspect(inspect::Args),
+    /// Cook a VDB sequence into one flip-book asset.
+    #[command(
+        after_help = "Examples:\n  vdbcook cook 'cache/smoke.####.vdb' -o smoke.vdbc\n  vdbcook cook cache/ -o smoke.vdbc --format f16 --json\n  vdbcook cook fire.vdb -o fire.vdbc --grid temperature"
+    )]
+    Cook(cook::Args),
+    /// Describe an asset: header, frames, node counts, bytes by section.
+    #[command(
+        after_help = "Examples:\n  vdbcook info smoke.vdbc\n  vdbcook info smoke.vdbc --json"
+    )]
+    Info(info::Args),
+    /// Compare an asset with its source files, voxel by voxel (RMSE, PSNR, max error).
+    #[command(
+        after_help = "Examples:\n  vdbcook eval smoke.vdbc 'cache/smoke.####.vdb'\n  vdbcook eval smoke.vdbc cache/ --json"
+    )]
+    Eval(eval::Args),
 }
 
 fn main() {
@@ -44,6 +64,9 @@ fn main() {
     }
     let (json, result) = match &cli.command {
         Command::Inspect(a) => (a.json, inspect::run(a)),
+        Command::Cook(a) => (a.json, cook::run(a)),
+        Command::Info(a) => (a.json, info::run(a)),
+        Command::Eval(a) => (a.json, eval::run(a)),
     };
     if let Err(e) = result {
         report::fail(json, &e);

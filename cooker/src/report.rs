@@ -7,6 +7,8 @@ use vdbcook_vdb::{ErrorKind, VdbError};
 #[derive(Debug)]
 pub enum CliError {
     Vdb(VdbError),
+    /// A failure that is not about one input file (e.g. an internal check).
+    Other(String),
 }
 
 impl From<VdbError> for CliError {
@@ -19,6 +21,7 @@ impl std::fmt::Display for CliError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             CliError::Vdb(e) => e.fmt(f),
+            CliError::Other(m) => f.write_str(m),
         }
     }
 }
@@ -38,6 +41,7 @@ pub fn fail(json: bool, e: &CliError) -> ! {
                 Some(v.path.display().to_string()),
                 v.offset,
             ),
+            CliError::Other(_) => ("other", None, None),
         };
         let doc = serde_json::json!({"error": {"message": e.to_string(), "kind": kind, "file": file, "offset": offset}});
         println!("{doc}");

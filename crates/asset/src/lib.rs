@@ -1,1 +1,101 @@
-//! Placeholder: filled by a later issue.
+//! `vdbcook-asset`: the flip-book volume asset — its format, a writer, a validating loader and a
+//! CPU sampler. Both the cooker and the runtime depend on this crate, so it stays light (serde,
+//! bincode 2, zstd, half, xxhash).
+//!
+//! # The model
+//! Every frame is a sparse 5-4-3 tree over one shared brick pool, in an *asset index space*: source
+//! index `s` maps to asset index `a = s - index_offset` (`index_offset` is a multiple of 128, so
+//! OpenVDB's 8³ and 128³ tiles stay aligned), and the whole sequence must fit in 4096³.
+//!
+//! - **Root (L1)**: per frame, a dense grid of `root_dims` (≤ 32 per axis) entries, one per 128³
+//!   region of the asset's extent — only the extent the sequence covers, not 32³. Entry
+//!   `x + dx·(y + dy·z)` of frame `f` is `roots[f·root_len + …]`. Selecting a frame = one offset.
+//! - **L2 nodes**: 16³ slots of 8³ leaves. A 4096-bit `mask` says which slots exist; their refs are
+//!   stored contiguously from `l2_base[n]` in slot order, so slot `s`'s ref is at
+//!   `l2_base[n] + l2_prefix[n][s / 64] + popcount(mask[n][s / 64] & ((1 << s % 64) - 1))`.
+//!   Slot `s = x + 16·(y + 16·z)` for the leaf at `(8x, 8y, 8z)` inside the node.
+//!   Identical L2 nodes (same mask, same refs) are stored once, across all frames (a DAG over time).
+//! - **L3 refs** (`u32`): a brick index, or `TILE_BIT | t` for a leaf whose 512 values all equal
+//!   `tiles[t]`. Root entries use the same encoding (`TILE_BIT | t` = the whole 128³ region is
+//!   `tiles[t]`), plus `EMPTY` (the region is background).
+//! - **Bricks**: 8³ values, voxel `(x, y, z)` at `x + 8·(y + 8·z)`; identical bricks across all
+//!   frames are stored once. The payload holds them back to back in the asset's format.
+//! - **Ranges**: `[min, max]` of the *stored* values per brick, per L2 node (over its whole 128³
+//!   region, so background counts when a slot is empty) and per frame: majorants for empty-space
+//!   skipping and delta tracking.
+//! - Values are what OpenVDB reads for active voxels; inactive voxels are the background.
+//!
+//! # The file
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 8 | magic `b"VDBCOOK\x1a"` |
+//! | 8 | 4 | format version (`u32` LE, currently 1) |
+//! | 12 | 4 | header length `H` (`u32` LE) |
+//! | 16 | H | [`Header`], bincode 2 (standard config) |
+//! | 16 + H | … | sections: zstd frames at `Header::sections[i].offset` (relative to 16 + H) |
+//!
+//! Sections, in this order, each the little-endian array named: `roots` (u32), `frame_ranges`
+//! (f32 pairs), `l2_masks` (u64 × 64 per node), `l2_base` (u32), `l2_prefix` (u16 × 64 per node),
+//! `l2_ranges` (f32 pairs), `l3_refs` (u32), `tiles` (f32), `brick_ranges` (f32 pairs), `payload`
+//! (bytes). Each section records its raw length and an xxh3 hash; `content_hash` is the xxh3 of the header (with the hash
+//! zeroed) followed by all raw sections in order. Loading = read, decompress, validate every index and count; there is no
+//! per-node deserialization.
+
+mod error;
+mod format;
+mod load;
+pub mod payload;
+mod sample;
+mod write;
+
+pub use error::AssetError;
+pub use format::*;
+pub use sample::LeafRef;
+
+/// A flip-book asset in memory (as cooked, or as loaded and validated).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Asset {
+    pub header: Header,
+    /// `frames × root_len` entries: `EMPTY`, `TILE_BIT | tile`, or an L2 node index.
+    pub roots: Vec<u32>,
+    /// Per frame `[min, max]` of stored values over the frame's extent.
+    pub frame_ranges: Vec<[f32; 2]>,
+    /// Per L2 node, 64 words: which of the 4096 slots exist.
+    pub l2_masks: Vec<u64>,
+    /// Per L2 node: index of its first ref in `l3_refs`.
+    pub l2_base: Vec<u32>,
+    /// Per L2 node, 64 entries: set slots in the mask words before word `w`.
+    pub l2_prefix: Vec<u16>,
+    pub l2_ranges: Vec<[f32; 2]>,
+    /// Leaf refs: brick index or `TILE_BIT | tile`.
+    pub l3_refs: Vec<u32>,
+    /// Constant values of tiles (deduplicated).
+    pub tiles: Vec<f32>,
+    pub brick_ranges: Vec<[f32; 2]>,
+    /// Bricks in `header.options.format`, 512 voxels each.
+    pub payload: Vec<u8>,
+}
+
+impl Asset {
+    pub fn frame_count(&self) -> usize {
+        self.header.frames.len()
+    }
+    pub fn root_len(&self) -> usize {
+        self.header.root_dims.iter().map(|&d| d as usize).product()
+    }
+    pub fn l2_count(&self) -> usize {
+        self.l2_base.len()
+    }
+    pub fn brick_count(&self) -> usize {
+        self.brick_ranges.len()
+    }
+    /// The root entries of one frame.
+    pub fn frame_roots(&self, frame: usize) -> &[u32] {
+        let n = self.root_len();
+        &self.roots[frame * n..(frame + 1) * n]
+    }
+    /// The 64 mask words of L2 node `n`.
+    pub fn l2_mask(&self, n: usize) -> &[u64] {
+        &self.l2_masks[n * L2_WORDS..(n + 1) * L2_WORDS]
+    }
+}

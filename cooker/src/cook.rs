@@ -1,0 +1,457 @@
+//! `vdbcook cook`: read → build → dedup → encode → write, each stage timed. Frames stream
+//! through in chunks (read and built in parallel, added to the pool in sequence order), so memory
+//! holds the pool and a chunk of frames, never the whole sequence; the output is byte-identical at
+//! any thread count. The asset is written to a temporary file and renamed into place.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use vdbcook_asset::*;
+use vdbcook_vdb::sequence::{self, Frame};
+use vdbcook_vdb::{ErrorKind, Transform, VdbError};
+
+use crate::build::{build_frame, BuiltFrame, NonFinite};
+use crate::pool::{ranges, Pool};
+use crate::report::CliError;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// VDB files, folders, frame patterns (smoke.####.vdb, smoke.%04d.vdb) or globs.
+    #[arg(required = true, value_name = "INPUT")]
+    inputs: Vec<String>,
+    /// Output asset file.
+    #[arg(short, long, value_name = "OUT")]
+    output: PathBuf,
+    /// Brick payload: f32 (bit exact) or f16 (half precision; values beyond ±65504 are an error).
+    #[arg(long, default_value = "f32", value_parser = ["f32", "f16"])]
+    format: String,
+    /// Grid to cook: a name, `name[N]` for duplicates, or `#N` (default: `density`, else the only float grid).
+    #[arg(long)]
+    grid: Option<String>,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Accept gaps in the frame numbering.
+    #[arg(long)]
+    allow_gaps: bool,
+    /// Replace NaN and ±Inf active values with VALUE (by default they are an error).
+    #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
+    replace_non_finite: Option<f32>,
+}
+
+fn err(path: &Path, kind: ErrorKind, m: impl Into<String>) -> CliError {
+    CliError::Vdb(VdbError::new(kind, path, m))
+}
+
+/// Wall-clock seconds per stage.
+#[derive(Default)]
+struct Stages {
+    read: f64,
+    build: f64,
+    dedup: f64,
+    encode: f64,
+    write: f64,
+}
+
+/// Progress on a terminal only (never under --json or CI).
+struct Progress {
+    on: bool,
+    start: Instant,
+    total: usize,
+}
+
+impl Progress {
+    fn new(json: bool, total: usize) -> Self {
+        let on = !json && std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
+        Progress {
+            on,
+            start: Instant::now(),
+            total,
+        }
+    }
+    fn tick(&self, done: usize) {
+        if self.on {
+            let rate = done as f64 / self.start.elapsed().as_secs_f64().max(1e-9);
+            eprint!(
+                "\r  cooking: {done}/{} frames ({rate:.1} frames/s)   ",
+                self.total
+            );
+            let _ = std::io::stderr().flush();
+        }
+    }
+    fn done(&self) {
+        if self.on {
+            eprintln!();
+        }
+    }
+}
+
+pub fn run(a: &Args) -> Result<(), CliError> {
+    let t0 = Instant::now();
+    let format = PayloadFormat::parse(&a.format).expect("clap checked");
+    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    let nf = NonFinite {
+        replace_with: a.replace_non_finite,
+    };
+    if let Some(v) = a.replace_non_finite {
+        if !v.is_finite() {
+            return Err(err(
+                &a.output,
+                ErrorKind::Sequence,
+                "--replace-non-finite needs a finite value",
+            ));
+        }
+    }
+    let mut st = Stages::default();
+    let mut pool = Pool::default();
+    let mut first: Option<(Frame, Transform, f32, String)> = None;
+    let mut infos = Vec::with_capacity(frames.len());
+    let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
+    let progress = Progress::new(a.json, frames.len());
+    let chunk = (rayon::current_num_threads() * 2).max(2);
+    for (ci, group) in frames.chunks(chunk).enumerate() {
+        let t = Instant::now();
+        let loaded: Vec<Result<sequence::LoadedFrame, VdbError>> = group
+            .par_iter()
+            .map(|f| sequence::read_frame(f, a.grid.as_deref()))
+            .collect();
+        let loaded = loaded.into_iter().collect::<Result<Vec<_>, _>>()?;
+        st.read += t.elapsed().as_secs_f64();
+        for l in &loaded {
+            match &first {
+                None => {
+                    if !l.grid.transform.kind.is_linear() {
+                        return Err(err(&l.frame.path, ErrorKind::Unsupported, format!("grid '{}' has a {} transform; vdbcook cooks linear transforms only", l.grid_label, l.grid.transform.kind.type_name())));
+                    }
+                    first = Some((
+                        l.frame.clone(),
+                        l.grid.transform.clone(),
+                        l.grid.background,
+                        l.grid_label.clone(),
+                    ));
+                }
+                Some((f0, t0, bg0, _)) => {
+                    if !l.grid.transform.approx_eq(t0, 1e-9) {
+                        return Err(err(&l.frame.path, ErrorKind::Sequence, format!("grid '{}' has a different transform (voxel size {:?}) from frame {} (voxel size {:?}); all frames must share one transform", l.grid_label, l.grid.transform.voxel_size(), f0.path.display(), t0.voxel_size())));
+                    }
+                    if l.grid.background.to_bits() != bg0.to_bits() {
+                        return Err(err(
+                            &l.frame.path,
+                            ErrorKind::Sequence,
+                            format!(
+                                "background {} differs from frame {} ({bg0})",
+                                l.grid.background,
+                                f0.path.display()
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        let bg = first.as_ref().map(|f| f.2).unwrap_or(0.0);
+        let t = Instant::now();
+        let built: Vec<Result<BuiltFrame, String>> = loaded
+            .par_iter()
+            .map(|l| build_frame(&l.grid, bg, nf))
+            .collect();
+        st.build += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        for (l, b) in loaded.iter().zip(built) {
+            let b = b.map_err(|m| {
+                err(
+                    &l.frame.path,
+                    ErrorKind::Corrupt,
+                    format!("grid '{}': {m}", l.grid_label),
+                )
+            })?;
+            if let Some(r) = b.value_range {
+                value_range = [value_range[0].min(r[0]), value_range[1].max(r[1])];
+            }
+            infos.push(FrameInfo {
+                number: l.frame.number,
+                source: l
+                    .frame
+                    .path
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                active_voxels: b.active_voxels,
+            });
+            pool.add_frame(b);
+        }
+        st.dedup += t.elapsed().as_secs_f64();
+        progress.tick((ci * chunk + group.len()).min(frames.len()));
+    }
+    progress.done();
+    let (f0, transform, bg, label) = first.expect("at least one frame");
+    let (offset, root_dims) = pool
+        .extent()
+        .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
+
+    // Encode.
+    let t = Instant::now();
+    if let Some(v) = payload::check_representable(format, &pool.bricks) {
+        return Err(err(
+            &f0.path,
+            ErrorKind::Unsupported,
+            format!(
+                "value {v} is beyond the range of {} (±{}); cook with --format f32",
+                format.name(),
+                payload::F16_MAX
+            ),
+        ));
+    }
+    let mut payload_bytes = Vec::new();
+    payload::encode(format, &pool.bricks, &mut payload_bytes);
+    let mut decoded = vec![0f32; pool.bricks.len()];
+    for (b, out) in decoded.chunks_exact_mut(BRICK_VOXELS).enumerate() {
+        payload::decode_brick(format, &payload_bytes, b, out.try_into().expect("512"));
+    }
+    let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
+    let mut roots = vec![EMPTY; frames.len() * root_len];
+    for (fi, entries) in pool.frames.iter().enumerate() {
+        for (o, e) in entries {
+            let r = [0, 1, 2].map(|i| ((o[i] - offset[i]) / L2_SPAN) as usize);
+            roots[fi * root_len
+                + r[0]
+                + root_dims[0] as usize * (r[1] + root_dims[1] as usize * r[2])] = *e;
+        }
+    }
+    let rg = ranges(&decoded, &pool.tiles, &pool.l2_refs, &roots, root_len, bg);
+    let mut l2_base = Vec::with_capacity(pool.l2_refs.len());
+    let mut l2_prefix = Vec::with_capacity(pool.l2_refs.len() * L2_WORDS);
+    let mut l3_refs = Vec::new();
+    for (n, refs) in pool.l2_refs.iter().enumerate() {
+        l2_base.push(l3_refs.len() as u32);
+        let mut c = 0u16;
+        for w in &pool.l2_masks[n * L2_WORDS..(n + 1) * L2_WORDS] {
+            l2_prefix.push(c);
+            c += w.count_ones() as u16;
+        }
+        l3_refs.extend_from_slice(refs);
+    }
+    // Error over active voxels (every active use of a brick), tiles are exact.
+    let mut sum_sq = 0.0f64;
+    let mut max_abs = 0.0f64;
+    for ((o, d), &uses) in pool.bricks.iter().zip(&decoded).zip(&pool.active_uses) {
+        let e = (*d as f64 - *o as f64).abs();
+        max_abs = max_abs.max(e);
+        sum_sq += e * e * uses as f64;
+    }
+    let mut m = transform.index_to_world;
+    for (r, row) in m.iter_mut().enumerate().take(3) {
+        row[3] = transform.index_to_world[r][3]
+            + (0..3)
+                .map(|c| transform.index_to_world[r][c] * offset[c] as f64)
+                .sum::<f64>();
+    }
+    let asset = Asset {
+        header: Header {
+            tool: format!("vdbcook {}", env!("CARGO_PKG_VERSION")),
+            options: CookOptions {
+                format,
+                grid: a.grid.clone(),
+                replace_non_finite: a.replace_non_finite,
+                allow_gaps: a.allow_gaps,
+            },
+            grid_name: label,
+            frames: infos,
+            index_offset: offset,
+            root_dims,
+            index_to_world: m,
+            source_map: transform.kind.type_name().to_string(),
+            voxel_size: transform.voxel_size(),
+            background: bg,
+            sections: Vec::new(),
+            content_hash: 0,
+        },
+        roots,
+        frame_ranges: rg.frames,
+        l2_masks: pool.l2_masks.clone(),
+        l2_base,
+        l2_prefix,
+        l2_ranges: rg.l2,
+        l3_refs,
+        tiles: pool.tiles.clone(),
+        brick_ranges: rg.bricks,
+        payload: payload_bytes,
+    };
+    asset.validate().map_err(|e| {
+        CliError::Other(format!(
+            "internal error: cooked asset fails validation: {e}"
+        ))
+    })?;
+    let (bytes, _) = asset
+        .to_bytes()
+        .map_err(|e| CliError::Other(e.to_string()))?;
+    st.encode += t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    write_atomically(&a.output, &bytes)?;
+    st.write += t.elapsed().as_secs_f64();
+
+    let active: u64 = asset.header.frames.iter().map(|f| f.active_voxels).sum();
+    let sizes = section_sizes(&asset);
+    let (topology, atlas) = topology_and_atlas(&sizes);
+    let rmse = if active > 0 {
+        (sum_sq / active as f64).sqrt()
+    } else {
+        0.0
+    };
+    let peak = (value_range[1] - value_range[0]) as f64;
+    let psnr = (rmse > 0.0 && peak > 0.0).then(|| 20.0 * (peak / rmse).log10());
+    let bpv = |b: u64| {
+        if active > 0 {
+            b as f64 * 8.0 / active as f64
+        } else {
+            0.0
+        }
+    };
+    let doc = json!({
+        "output": a.output.display().to_string(),
+        "format": format.name(),
+        "grid": asset.header.grid_name,
+        "frames": asset.frame_count(),
+        "active_voxels": active,
+        "bricks": {"source": pool.source_bricks, "unique": pool.brick_count(), "after_clustering": pool.brick_count(), "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
+        "nodes": {"l2": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "root_dims": root_dims},
+        "bytes": {"topology": topology, "atlas": atlas, "file": bytes.len()},
+        "bits_per_active_voxel": bpv(bytes.len() as u64),
+        "bits_per_active_voxel_gpu": bpv(topology + atlas),
+        "topology_bits_per_active_voxel": bpv(topology),
+        "error": {"rmse": rmse, "psnr_db": psnr, "max_abs": max_abs, "exact": max_abs == 0.0},
+        "peak_memory_bytes": peak_memory_bytes(),
+        "seconds": {"total": t0.elapsed().as_secs_f64(), "read": st.read, "build": st.build, "dedup": st.dedup, "cluster": 0.0, "encode": st.encode, "write": st.write},
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+    } else {
+        print_summary(&doc);
+    }
+    Ok(())
+}
+
+/// Reads and validates an asset, with errors naming the file once.
+pub fn load_asset(path: &Path) -> Result<Asset, CliError> {
+    let bytes =
+        std::fs::read(path).map_err(|e| err(path, ErrorKind::Io, format!("cannot read: {e}")))?;
+    Asset::from_bytes(&bytes).map_err(|e| {
+        err(
+            path,
+            ErrorKind::Corrupt,
+            format!("not a valid asset: {}", e.0),
+        )
+    })
+}
+
+/// Peak resident memory of this process (Linux `VmHWM`), if known.
+fn peak_memory_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Raw bytes of each section (what a GPU upload holds).
+pub fn section_sizes(asset: &Asset) -> Vec<(&'static str, u64)> {
+    let pair = 8u64;
+    vec![
+        ("roots", asset.roots.len() as u64 * 4),
+        ("frame_ranges", asset.frame_ranges.len() as u64 * pair),
+        ("l2_masks", asset.l2_masks.len() as u64 * 8),
+        ("l2_base", asset.l2_base.len() as u64 * 4),
+        ("l2_prefix", asset.l2_prefix.len() as u64 * 2),
+        ("l2_ranges", asset.l2_ranges.len() as u64 * pair),
+        ("l3_refs", asset.l3_refs.len() as u64 * 4),
+        ("tiles", asset.tiles.len() as u64 * 4),
+        ("brick_ranges", asset.brick_ranges.len() as u64 * pair),
+        ("payload", asset.payload.len() as u64),
+    ]
+}
+
+/// GPU bytes split into topology (roots, nodes, refs, tiles, node ranges) and atlas (the brick
+/// payload and the per-brick value ranges that travel with it).
+pub fn topology_and_atlas(sizes: &[(&'static str, u64)]) -> (u64, u64) {
+    let atlas_part = |k: &str| k == "payload" || k == "brick_ranges";
+    let t = sizes
+        .iter()
+        .filter(|(k, _)| !atlas_part(k))
+        .map(|(_, n)| n)
+        .sum();
+    let a = sizes
+        .iter()
+        .filter(|(k, _)| atlas_part(k))
+        .map(|(_, n)| n)
+        .sum();
+    (t, a)
+}
+
+/// Writes `bytes` to a temporary file beside `out`, syncs it, and renames it over `out`: a
+/// failure or a kill never leaves a partial asset at `out`.
+fn write_atomically(out: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    let dir = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = out
+        .file_name()
+        .ok_or_else(|| err(out, ErrorKind::Io, "output path has no file name"))?;
+    let tmp = dir.join(format!(
+        ".{}.partial-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, out)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        err(out, ErrorKind::Io, format!("cannot write the asset: {e}"))
+    })
+}
+
+fn print_summary(d: &Value) {
+    println!(
+        "cooked {} frame(s) of '{}' into {} ({})",
+        d["frames"],
+        d["grid"].as_str().unwrap_or(""),
+        d["output"].as_str().unwrap_or(""),
+        d["format"].as_str().unwrap_or("")
+    );
+    println!("  active voxels  {}", d["active_voxels"]);
+    let b = &d["bricks"];
+    println!(
+        "  bricks         {} source -> {} unique, {} stored; {} tile values",
+        b["source"], b["unique"], b["stored"], b["tiles"]
+    );
+    let y = &d["bytes"];
+    println!(
+        "  bytes          file {}, GPU topology {} + atlas {}",
+        y["file"], y["topology"], y["atlas"]
+    );
+    println!(
+        "  bits/voxel     {:.3} (file), {:.3} (GPU), topology {:.3}",
+        d["bits_per_active_voxel"].as_f64().unwrap_or(0.0),
+        d["bits_per_active_voxel_gpu"].as_f64().unwrap_or(0.0),
+        d["topology_bits_per_active_voxel"].as_f64().unwrap_or(0.0)
+    );
+    let e = &d["error"];
+    println!(
+        "  error          rmse {:.3e}, max abs {:.3e}, psnr {}",
+        e["rmse"].as_f64().unwrap_or(0.0),
+        e["max_abs"].as_f64().unwrap_or(0.0),
+        e["psnr_db"]
+            .as_f64()
+            .map(|p| format!("{p:.1} dB"))
+            .unwrap_or_else(|| "exact".into())
+    );
+    let s = &d["seconds"];
+    let f = |k: &str| s[k].as_f64().unwrap_or(0.0);
+    println!("  seconds        total {:.2} (read {:.2}, build {:.2}, dedup {:.2}, encode {:.2}, write {:.2})", f("total"), f("read"), f("build"), f("dedup"), f("encode"), f("write"));
+}

@@ -1,0 +1,310 @@
+//! `vdbcook eval`: decodes every stored voxel of every frame and compares it with the source
+//! files — active voxels against their values, inactive ones against the background (a non-zero
+//! inactive voxel is an error too), including tiles at every level. Frames stream in chunks.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, TILE_BIT};
+use vdbcook_vdb::sequence;
+use vdbcook_vdb::{ErrorKind, FloatGrid, TileLevel, VdbError};
+
+use crate::report::CliError;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The cooked asset.
+    asset: PathBuf,
+    /// The source VDB files (files, folder, pattern or glob), one per asset frame.
+    #[arg(required = true, value_name = "INPUT")]
+    inputs: Vec<String>,
+    /// Grid to compare (default: the grid the asset was cooked from).
+    #[arg(long)]
+    grid: Option<String>,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Accept gaps in the frame numbering.
+    #[arg(long)]
+    allow_gaps: bool,
+}
+
+/// Error accumulator.
+#[derive(Default, Clone, Copy)]
+pub struct ErrStats {
+    pub compared: u64,
+    pub active: u64,
+    pub sum_sq: f64,
+    pub max_abs: f64,
+    pub inactive_errors: u64,
+    pub lo: f32,
+    pub hi: f32,
+}
+
+impl ErrStats {
+    fn new() -> Self {
+        ErrStats {
+            lo: f32::INFINITY,
+            hi: f32::NEG_INFINITY,
+            ..Default::default()
+        }
+    }
+    #[inline]
+    fn active(&mut self, asset: f32, src: f32) {
+        let e = (asset as f64 - src as f64).abs();
+        self.compared += 1;
+        self.active += 1;
+        self.sum_sq += e * e;
+        self.max_abs = self.max_abs.max(if e.is_nan() { f64::INFINITY } else { e });
+        if src.is_finite() {
+            self.lo = self.lo.min(src);
+            self.hi = self.hi.max(src);
+        }
+    }
+    /// `n` active voxels with the same pair of values.
+    fn active_n(&mut self, asset: f32, src: f32, n: u64) {
+        let e = (asset as f64 - src as f64).abs();
+        self.compared += n;
+        self.active += n;
+        self.sum_sq += e * e * n as f64;
+        self.max_abs = self.max_abs.max(if e.is_nan() { f64::INFINITY } else { e });
+        if src.is_finite() {
+            self.lo = self.lo.min(src);
+            self.hi = self.hi.max(src);
+        }
+    }
+    #[inline]
+    fn inactive(&mut self, asset: f32, bg: f32) {
+        self.compared += 1;
+        if asset.to_bits() != bg.to_bits() && asset != bg {
+            let e = (asset as f64 - bg as f64).abs();
+            self.inactive_errors += 1;
+            self.sum_sq += e * e;
+            self.max_abs = self.max_abs.max(e);
+        }
+    }
+    fn merge(&mut self, o: &ErrStats) {
+        self.compared += o.compared;
+        self.active += o.active;
+        self.sum_sq += o.sum_sq;
+        self.max_abs = self.max_abs.max(o.max_abs);
+        self.inactive_errors += o.inactive_errors;
+        self.lo = self.lo.min(o.lo);
+        self.hi = self.hi.max(o.hi);
+    }
+    pub fn rmse(&self) -> f64 {
+        if self.active == 0 {
+            0.0
+        } else {
+            (self.sum_sq / self.active as f64).sqrt()
+        }
+    }
+    pub fn psnr_db(&self) -> Option<f64> {
+        let peak = (self.hi - self.lo) as f64;
+        let r = self.rmse();
+        (r > 0.0 && peak > 0.0).then(|| 20.0 * (peak / r).log10())
+    }
+    pub fn to_json(self) -> Value {
+        json!({"rmse": self.rmse(), "psnr_db": self.psnr_db(), "max_abs": self.max_abs, "active_voxels": self.active, "voxels_compared": self.compared, "inactive_errors": self.inactive_errors, "exact": self.max_abs == 0.0})
+    }
+}
+
+fn leaf_values(asset: &Asset, frame: usize, a: [i64; 3], out: &mut [f32; BRICK_VOXELS]) {
+    match asset.leaf_at(frame, a) {
+        LeafRef::Empty => out.fill(asset.header.background),
+        LeafRef::Tile(v) => out.fill(v),
+        LeafRef::Brick(b) => asset.decode_brick(b, out),
+    }
+}
+
+/// Compares one frame of the asset with its source grid.
+pub fn compare_frame(asset: &Asset, frame: usize, grid: &FloatGrid) -> ErrStats {
+    let bg = asset.header.background;
+    let mut s = ErrStats::new();
+    let mut seen: HashSet<[i64; 3]> = HashSet::new();
+    let mut vals = [0f32; BRICK_VOXELS];
+    for (li, leaf) in grid.leaves.iter().enumerate() {
+        let a = asset.header.to_asset_index(leaf.origin);
+        leaf_values(asset, frame, a, &mut vals);
+        seen.insert(a);
+        let src = grid.leaf_values(li);
+        for (n, &sv) in src.iter().enumerate() {
+            let (x, y, z) = (n >> 6, (n >> 3) & 7, n & 7);
+            let av = vals[x + 8 * (y + 8 * z)];
+            if leaf.is_active(n) {
+                s.active(av, sv);
+            } else {
+                s.inactive(av, bg);
+            }
+        }
+    }
+    let mut seen_regions: HashSet<[i64; 3]> = HashSet::new();
+    for t in grid.tiles.iter().filter(|t| t.active) {
+        let o = asset.header.to_asset_index(t.origin);
+        // Large tiles are compared region by region (a tiled region once, weighted by its size).
+        let (step, n) = if t.level == TileLevel::L8 {
+            (8i64, 1i64)
+        } else {
+            (128, (t.level.dim() / 128) as i64)
+        };
+        for x in 0..n {
+            for y in 0..n {
+                for z in 0..n {
+                    let r = [o[0] + step * x, o[1] + step * y, o[2] + step * z];
+                    if step == 128 {
+                        let e = asset.root_entry(frame, r);
+                        if e != EMPTY && e & TILE_BIT != 0 {
+                            seen_regions.insert(r);
+                            s.active_n(
+                                asset.tiles[(e & !TILE_BIT) as usize],
+                                t.value,
+                                128 * 128 * 128,
+                            );
+                            continue;
+                        }
+                    }
+                    let leaves = step / 8;
+                    for lx in 0..leaves {
+                        for ly in 0..leaves {
+                            for lz in 0..leaves {
+                                let a = [r[0] + 8 * lx, r[1] + 8 * ly, r[2] + 8 * lz];
+                                seen.insert(a);
+                                match asset.leaf_at(frame, a) {
+                                    LeafRef::Brick(b) => {
+                                        asset.decode_brick(b, &mut vals);
+                                        for &av in vals.iter() {
+                                            s.active(av, t.value);
+                                        }
+                                    }
+                                    LeafRef::Tile(v) => s.active_n(v, t.value, 512),
+                                    LeafRef::Empty => s.active_n(bg, t.value, 512),
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // Whatever else the asset stores must be background.
+    asset.for_each_leaf(frame, |origin, r, region| {
+        if region && seen_regions.contains(&origin) {
+            return;
+        }
+        let leaves = if region { 16 } else { 1 };
+        for x in 0..leaves {
+            for y in 0..leaves {
+                for z in 0..leaves {
+                    let a = [origin[0] + 8 * x, origin[1] + 8 * y, origin[2] + 8 * z];
+                    if seen.contains(&a) {
+                        continue;
+                    }
+                    let mut v = [0f32; BRICK_VOXELS];
+                    match r {
+                        LeafRef::Brick(b) => asset.decode_brick(b, &mut v),
+                        LeafRef::Tile(t) => v.fill(t),
+                        LeafRef::Empty => v.fill(bg),
+                    }
+                    for &av in v.iter() {
+                        s.inactive(av, bg);
+                    }
+                }
+            }
+        }
+    });
+    s
+}
+
+pub fn run(a: &Args) -> Result<(), CliError> {
+    let asset = crate::cook::load_asset(&a.asset)?;
+    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    if frames.len() != asset.frame_count() {
+        return Err(CliError::Vdb(VdbError::new(
+            ErrorKind::Sequence,
+            &a.asset,
+            format!(
+                "the asset has {} frames but {} source files were given",
+                asset.frame_count(),
+                frames.len()
+            ),
+        )));
+    }
+    let grid = a.grid.clone().or_else(|| asset.header.options.grid.clone());
+    let mut per_frame = Vec::with_capacity(frames.len());
+    let mut total = ErrStats::new();
+    let chunk = (rayon::current_num_threads() * 2).max(2);
+    for (ci, group) in frames.chunks(chunk).enumerate() {
+        let res: Vec<Result<ErrStats, VdbError>> = group
+            .par_iter()
+            .enumerate()
+            .map(|(k, f)| {
+                let l = sequence::read_frame(f, grid.as_deref())?;
+                Ok(compare_frame(&asset, ci * chunk + k, &l.grid))
+            })
+            .collect();
+        for (k, r) in res.into_iter().enumerate() {
+            let s = r?;
+            total.merge(&s);
+            let f = &group[k];
+            let mut j = s.to_json();
+            j["frame"] = json!(ci * chunk + k);
+            j["number"] = json!(f.number);
+            j["source"] = json!(f.path.display().to_string());
+            per_frame.push(j);
+        }
+    }
+    let file_bytes = std::fs::metadata(&a.asset).map(|m| m.len()).unwrap_or(0);
+    let gpu: u64 = crate::cook::section_sizes(&asset)
+        .iter()
+        .map(|(_, n)| n)
+        .sum();
+    let bpv = |b: u64| {
+        if total.active > 0 {
+            b as f64 * 8.0 / total.active as f64
+        } else {
+            0.0
+        }
+    };
+    let mut doc = total.to_json();
+    doc["asset"] = json!(a.asset.display().to_string());
+    doc["format"] = json!(asset.header.options.format.name());
+    doc["bits_per_active_voxel"] = json!(bpv(file_bytes));
+    doc["bits_per_active_voxel_gpu"] = json!(bpv(gpu));
+    doc["frames"] = json!(per_frame);
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+    } else {
+        println!(
+            "{} ({}) against {} source frame(s):",
+            a.asset.display(),
+            asset.header.options.format.name(),
+            frames.len()
+        );
+        println!(
+            "  active voxels {}, compared {}",
+            total.active, total.compared
+        );
+        println!(
+            "  rmse {:.3e}, max abs {:.3e}, psnr {}, inactive voxels not background: {}",
+            total.rmse(),
+            total.max_abs,
+            total
+                .psnr_db()
+                .map(|p| format!("{p:.1} dB"))
+                .unwrap_or_else(|| if total.max_abs == 0.0 {
+                    "exact".into()
+                } else {
+                    "-".into()
+                }),
+            total.inactive_errors
+        );
+        println!(
+            "  bits per active voxel {:.3} (file), {:.3} (GPU)",
+            bpv(file_bytes),
+            bpv(gpu)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,156 @@
+//! `vdbcook info`: what an asset holds — header, cook options, frames with their node counts and
+//! bounds, the brick pool, bytes per section (raw = GPU, and compressed in the file), topology bits
+//! per active voxel, and the fixed cost of each extra frame.
+
+use std::path::PathBuf;
+
+use serde_json::json;
+use vdbcook_asset::{LeafRef, EMPTY, TILE_BIT};
+
+use crate::cook::{section_sizes, topology_and_atlas};
+use crate::report::CliError;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The cooked asset.
+    asset: PathBuf,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: &Args) -> Result<(), CliError> {
+    let asset = crate::cook::load_asset(&a.asset)?;
+    let h = &asset.header;
+    let file_bytes = std::fs::metadata(&a.asset).map(|m| m.len()).unwrap_or(0);
+    let sizes = section_sizes(&asset);
+    let (topology, atlas) = topology_and_atlas(&sizes);
+    let active: u64 = h.frames.iter().map(|f| f.active_voxels).sum();
+    let mut frames = Vec::new();
+    for (fi, f) in h.frames.iter().enumerate() {
+        let roots = asset.frame_roots(fi);
+        let nodes = roots
+            .iter()
+            .filter(|&&e| e != EMPTY && e & TILE_BIT == 0)
+            .count();
+        let (mut bricks, mut tiles) = (0u64, 0u64);
+        let mut lo = [i64::MAX; 3];
+        let mut hi = [i64::MIN; 3];
+        asset.for_each_leaf(fi, |o, r, region| {
+            match r {
+                LeafRef::Brick(_) => bricks += 1,
+                _ => tiles += 1,
+            }
+            let span = if region { 128 } else { 8 };
+            for i in 0..3 {
+                lo[i] = lo[i].min(o[i] + h.index_offset[i] as i64);
+                hi[i] = hi[i].max(o[i] + h.index_offset[i] as i64 + span - 1);
+            }
+        });
+        let bbox = (lo[0] != i64::MAX).then_some((lo, hi));
+        frames.push(json!({
+            "frame": fi, "number": f.number, "source": f.source, "active_voxels": f.active_voxels,
+            "l2_nodes": nodes, "bricks": bricks, "tile_leaves": tiles,
+            "bbox_min": bbox.map(|b| b.0), "bbox_max": bbox.map(|b| b.1),
+            "value_range": asset.frame_ranges[fi],
+        }));
+    }
+    let per_frame_bytes = asset.root_len() as u64 * 4 + 8;
+    let bpv = |b: u64| {
+        if active > 0 {
+            b as f64 * 8.0 / active as f64
+        } else {
+            0.0
+        }
+    };
+    let sections: Vec<_> = h
+        .sections
+        .iter()
+        .zip(&sizes)
+        .map(|(s, (name, raw))| json!({"name": name, "raw_bytes": raw, "file_bytes": s.compressed_len}))
+        .collect();
+    let doc = json!({
+        "asset": a.asset.display().to_string(),
+        "tool": h.tool,
+        "format_version": vdbcook_asset::FORMAT_VERSION,
+        "content_hash": format!("{:016x}", h.content_hash),
+        "options": {"format": h.options.format.name(), "grid": h.options.grid, "replace_non_finite": h.options.replace_non_finite, "allow_gaps": h.options.allow_gaps},
+        "grid": h.grid_name,
+        "frame_count": asset.frame_count(),
+        "active_voxels": active,
+        "background": h.background,
+        "index_offset": h.index_offset,
+        "root_dims": h.root_dims,
+        "extent_voxels": h.root_dims.map(|d| d * 128),
+        "transform": {"source_map": h.source_map, "voxel_size": h.voxel_size, "matrix": h.index_to_world},
+        "pool": {"format": h.options.format.name(), "bricks": asset.brick_count(), "tiles": asset.tiles.len(), "l2_nodes": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "bytes": asset.payload.len()},
+        "bytes": {"file": file_bytes, "topology": topology, "atlas": atlas, "gpu": topology + atlas},
+        "sections": sections,
+        "topology_bits_per_active_voxel": bpv(topology),
+        "bits_per_active_voxel": bpv(file_bytes),
+        "bytes_per_extra_static_frame": per_frame_bytes,
+        "frames": frames,
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+        return Ok(());
+    }
+    println!(
+        "{}  ({}, asset format {}, content {})",
+        a.asset.display(),
+        h.tool,
+        vdbcook_asset::FORMAT_VERSION,
+        doc["content_hash"].as_str().unwrap_or("")
+    );
+    println!(
+        "  grid '{}', {} frame(s), {} active voxels, background {}",
+        h.grid_name,
+        asset.frame_count(),
+        active,
+        h.background
+    );
+    println!(
+        "  pool: {} bricks ({}), {} tile values, {} L2 nodes, {} leaf refs",
+        asset.brick_count(),
+        h.options.format.name(),
+        asset.tiles.len(),
+        asset.l2_count(),
+        asset.l3_refs.len()
+    );
+    println!(
+        "  extent {:?} voxels from source index {:?}; {} map, voxel size {:?}",
+        h.root_dims.map(|d| d * 128),
+        h.index_offset,
+        h.source_map,
+        h.voxel_size
+    );
+    println!(
+        "  bytes: file {file_bytes}, GPU {} (topology {topology}, atlas {atlas})",
+        topology + atlas
+    );
+    println!("  topology {:.3} bit per active voxel; each extra frame of a static volume costs {per_frame_bytes} bytes", bpv(topology));
+    println!("  sections (raw / in file):");
+    for s in &sections {
+        println!(
+            "    {:<13} {:>12} / {:>12}",
+            s["name"].as_str().unwrap_or(""),
+            s["raw_bytes"],
+            s["file_bytes"]
+        );
+    }
+    println!("  frames:");
+    for f in &frames {
+        println!(
+            "    {:>4} {:<40} {:>10} voxels  {:>4} nodes {:>7} bricks {:>5} tiles  bbox {} .. {}",
+            f["frame"],
+            f["source"].as_str().unwrap_or(""),
+            f["active_voxels"],
+            f["l2_nodes"],
+            f["bricks"],
+            f["tile_leaves"],
+            f["bbox_min"],
+            f["bbox_max"]
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,227 @@
+//! Dedup stage: frames are added in order; identical bricks (hash, then a full bitwise compare)
+//! are stored once, constant leaves and regions become tile values, and identical L2 nodes are
+//! shared across frames (a DAG over time). `finish` lays the per-frame roots out over the
+//! sequence's extent and encodes the payload.
+
+use std::collections::HashMap;
+
+use vdbcook_asset::*;
+
+use crate::build::{BuiltFrame, LeafContent, Region};
+
+#[derive(Default)]
+pub struct Pool {
+    /// Unique bricks, 512 f32 each, in first-seen order.
+    pub bricks: Vec<f32>,
+    /// Per unique brick and voxel: how many leaf uses have that voxel active (for error stats).
+    pub active_uses: Vec<u32>,
+    brick_index: HashMap<u64, Vec<u32>>,
+    pub tiles: Vec<f32>,
+    tile_index: HashMap<u32, u32>,
+    pub l2_masks: Vec<u64>,
+    pub l2_refs: Vec<Vec<u32>>,
+    l2_index: HashMap<u64, Vec<u32>>,
+    /// Per frame: (region source origin, root entry).
+    pub frames: Vec<Vec<([i32; 3], u32)>>,
+    /// Leaves that became bricks, over all frames, before dedup.
+    pub source_bricks: u64,
+    pub source_tiles: u64,
+}
+
+impl Pool {
+    pub fn brick_count(&self) -> usize {
+        self.bricks.len() / BRICK_VOXELS
+    }
+
+    fn tile(&mut self, v: f32) -> u32 {
+        let n = self.tiles.len() as u32;
+        let idx = *self.tile_index.entry(v.to_bits()).or_insert(n);
+        if idx == n {
+            self.tiles.push(v);
+        }
+        TILE_BIT | idx
+    }
+
+    fn brick(&mut self, values: &[f32; BRICK_VOXELS], active: &[u64; 8], hash: u64) -> u32 {
+        let bits = |s: &[f32]| -> bool {
+            s.iter()
+                .zip(values.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        let found = self.brick_index.get(&hash).and_then(|c| {
+            c.iter().copied().find(|&b| {
+                bits(&self.bricks[b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS])
+            })
+        });
+        let b = match found {
+            Some(b) => b,
+            None => {
+                let b = self.brick_count() as u32;
+                self.bricks.extend_from_slice(values);
+                self.active_uses
+                    .extend(std::iter::repeat_n(0, BRICK_VOXELS));
+                self.brick_index.entry(hash).or_default().push(b);
+                b
+            }
+        };
+        let uses =
+            &mut self.active_uses[b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS];
+        for (w, &word) in active.iter().enumerate() {
+            let mut m = word;
+            while m != 0 {
+                uses[w * 64 + m.trailing_zeros() as usize] += 1;
+                m &= m - 1;
+            }
+        }
+        b
+    }
+
+    fn node(&mut self, mask: [u64; L2_WORDS], refs: Vec<u32>) -> u32 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(bytemuck::cast_slice(&mask));
+        h.update(bytemuck::cast_slice(&refs));
+        let hash = h.digest();
+        if let Some(c) = self.l2_index.get(&hash) {
+            for &n in c {
+                if self.l2_masks[n as usize * L2_WORDS..(n as usize + 1) * L2_WORDS] == mask[..]
+                    && self.l2_refs[n as usize] == refs
+                {
+                    return n;
+                }
+            }
+        }
+        let n = self.l2_refs.len() as u32;
+        self.l2_masks.extend_from_slice(&mask);
+        self.l2_refs.push(refs);
+        self.l2_index.entry(hash).or_default().push(n);
+        n
+    }
+
+    /// Adds the next frame (frames must come in sequence order).
+    pub fn add_frame(&mut self, f: BuiltFrame) {
+        let mut entries = Vec::with_capacity(f.regions.len());
+        for (origin, region) in f.regions {
+            let entry = match region {
+                Region::Tile(v) => self.tile(v),
+                Region::Leaves(leaves) => {
+                    let mut mask = [0u64; L2_WORDS];
+                    let mut refs = Vec::with_capacity(leaves.len());
+                    for l in leaves {
+                        mask[l.slot as usize >> 6] |= 1 << (l.slot & 63);
+                        refs.push(match l.content {
+                            LeafContent::Tile(v) => {
+                                self.source_tiles += 1;
+                                self.tile(v)
+                            }
+                            LeafContent::Brick {
+                                values,
+                                active,
+                                hash,
+                            } => {
+                                self.source_bricks += 1;
+                                self.brick(&values, &active, hash)
+                            }
+                        });
+                    }
+                    self.node(mask, refs)
+                }
+            };
+            entries.push((origin, entry));
+        }
+        self.frames.push(entries);
+    }
+
+    /// The extent every frame fits in: (index offset, root dims), or an error naming the extent.
+    pub fn extent(&self) -> Result<([i32; 3], [u32; 3]), String> {
+        let mut lo = [i32::MAX; 3];
+        let mut hi = [i32::MIN; 3];
+        for (o, _) in self.frames.iter().flatten() {
+            for a in 0..3 {
+                lo[a] = lo[a].min(o[a]);
+                hi[a] = hi[a].max(o[a]);
+            }
+        }
+        if lo[0] == i32::MAX {
+            return Ok(([0; 3], [1; 3]));
+        }
+        let dims = [0, 1, 2].map(|a| ((hi[a] as i64 - lo[a] as i64) / L2_SPAN as i64 + 1) as u64);
+        if dims.iter().any(|&d| d > ROOT_DIM_MAX as u64) {
+            let vox = dims.map(|d| d * L2_SPAN as u64);
+            return Err(format!(
+                "the sequence spans {}x{}x{} voxels (from index {:?}); one asset holds at most 4096 per axis",
+                vox[0], vox[1], vox[2], lo
+            ));
+        }
+        Ok((lo, dims.map(|d| d as u32)))
+    }
+}
+
+/// Value range of stored bricks, L2 nodes and frames, computed from decoded payload values.
+pub struct Ranges {
+    pub bricks: Vec<[f32; 2]>,
+    pub l2: Vec<[f32; 2]>,
+    pub frames: Vec<[f32; 2]>,
+}
+
+fn widen(r: &mut [f32; 2], lo: f32, hi: f32) {
+    r[0] = r[0].min(lo);
+    r[1] = r[1].max(hi);
+}
+
+pub fn ranges(
+    decoded: &[f32],
+    tiles: &[f32],
+    l2_refs: &[Vec<u32>],
+    roots: &[u32],
+    root_len: usize,
+    bg: f32,
+) -> Ranges {
+    let range_of = |s: &[f32]| {
+        s.iter()
+            .fold([f32::INFINITY, f32::NEG_INFINITY], |mut r, &v| {
+                widen(&mut r, v, v);
+                r
+            })
+    };
+    let bricks: Vec<[f32; 2]> = decoded.chunks_exact(BRICK_VOXELS).map(range_of).collect();
+    let ref_range = |r: u32| {
+        if r & TILE_BIT != 0 {
+            let v = tiles[(r & !TILE_BIT) as usize];
+            [v, v]
+        } else {
+            bricks[r as usize]
+        }
+    };
+    let l2: Vec<[f32; 2]> = l2_refs
+        .iter()
+        .map(|refs| {
+            let mut r = [f32::INFINITY, f32::NEG_INFINITY];
+            for &c in refs {
+                let x = ref_range(c);
+                widen(&mut r, x[0], x[1]);
+            }
+            if refs.len() < L2_SLOTS {
+                widen(&mut r, bg, bg);
+            }
+            r
+        })
+        .collect();
+    let frames = roots
+        .chunks_exact(root_len)
+        .map(|entries| {
+            let mut r = [f32::INFINITY, f32::NEG_INFINITY];
+            for &e in entries {
+                let x = if e == EMPTY {
+                    [bg, bg]
+                } else if e & TILE_BIT != 0 {
+                    ref_range(e)
+                } else {
+                    l2[e as usize]
+                };
+                widen(&mut r, x[0], x[1]);
+            }
+            r
+        })
+        .collect();
+    Ranges { bricks, l2, frames }
+}

@@ -1,0 +1,410 @@
+//! `cook`, `info` and `eval` end to end through the binary: lossless f32 on every fixture and on
+//! the real samples (checked voxel by voxel against the source files by `eval`, whose reader is
+//! itself checked against OpenVDB), f16 within half-precision rounding of each value,
+//! deterministic bytes across thread counts, the topology bars, and clean failures.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_vdbcook"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+fn json(args: &[&str]) -> Value {
+    let (code, out, err) = run(args);
+    assert_eq!(code, 0, "vdbcook {args:?} failed: {err}");
+    serde_json::from_str(&out)
+        .unwrap_or_else(|e| panic!("{args:?}: not one JSON document ({e}): {out}"))
+}
+
+fn truth_active(inputs: &[&str]) -> u64 {
+    let mut n = 0;
+    for i in inputs {
+        let p = root().join(i);
+        let files: Vec<PathBuf> = if p.is_dir() {
+            std::fs::read_dir(&p)
+                .unwrap()
+                .flatten()
+                .map(|e| e.path())
+                .filter(|f| f.extension().is_some_and(|x| x == "vdb"))
+                .collect()
+        } else {
+            vec![p]
+        };
+        for f in files {
+            let t: Value = serde_json::from_str(
+                &std::fs::read_to_string(f.with_extension("truth.json")).unwrap(),
+            )
+            .unwrap();
+            n += t["grids"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|g| g["name"] == "density" || g["name"] == "temperature")
+                .map(|g| g["active_voxels"].as_u64().unwrap())
+                .unwrap_or(0);
+        }
+    }
+    n
+}
+
+/// Cooks and evals; asserts exactness; returns (cook json, eval json).
+fn cook_exact(inputs: &[&str], extra: &[&str], out: &Path) -> (Value, Value) {
+    let o = out.to_str().unwrap();
+    let mut args = vec!["cook", "--json", "-o", o];
+    args.extend_from_slice(inputs);
+    args.extend_from_slice(extra);
+    let c = json(&args);
+    let mut eargs = vec!["eval", "--json", o];
+    eargs.extend_from_slice(inputs);
+    let e = json(&eargs);
+    assert_eq!(e["max_abs"], 0.0, "{inputs:?}: eval {e}");
+    assert_eq!(e["inactive_errors"], 0, "{inputs:?}");
+    assert_eq!(c["error"]["max_abs"], 0.0);
+    assert_eq!(c["active_voxels"], e["active_voxels"]);
+    (c, e)
+}
+
+#[test]
+fn f32_cooks_every_fixture_exactly() {
+    let d = tempfile::tempdir().unwrap();
+    let mut cases: Vec<Vec<&str>> = vec![
+        vec!["fixtures/seq/smoke5"],
+        vec!["fixtures/seq/static3"],
+        vec!["fixtures/vdb/levelset_sphere.vdb"],
+        vec!["fixtures/vdb/negative_coords.vdb"],
+        vec!["fixtures/vdb/double_only.vdb"],
+        vec!["fixtures/vdb/large_values.vdb"],
+        vec!["fixtures/vdb/empty.vdb"],
+    ];
+    let fogs: Vec<String> = ["f32", "f16"]
+        .iter()
+        .flat_map(|h| {
+            ["none", "zip", "blosc"].iter().flat_map(move |c| {
+                ["mask", "nomask"]
+                    .iter()
+                    .map(move |m| format!("fixtures/vdb/fog_{h}_{c}_{m}.vdb"))
+            })
+        })
+        .collect();
+    for f in &fogs {
+        cases.push(vec![f.as_str()]);
+    }
+    for (i, inputs) in cases.iter().enumerate() {
+        let (c, _) = cook_exact(inputs, &[], &d.path().join(format!("a{i}.vdbc")));
+        if !inputs[0].contains("levelset") {
+            // Level sets count their narrow band: compare active voxels with OpenVDB's truth.
+            assert_eq!(
+                c["active_voxels"].as_u64().unwrap(),
+                truth_active(inputs),
+                "{inputs:?}"
+            );
+        }
+    }
+    // A non-default grid.
+    cook_exact(
+        &["fixtures/vdb/multi_grids.vdb"],
+        &["--grid", "temperature"],
+        &d.path().join("t.vdbc"),
+    );
+}
+
+#[test]
+fn frames_keep_their_order_and_an_empty_middle_frame_works() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s.vdbc");
+    cook_exact(&["fixtures/seq/smoke5"], &[], &out);
+    let info = json(&["info", "--json", out.to_str().unwrap()]);
+    let frames = info["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 5);
+    for (i, f) in frames.iter().enumerate() {
+        assert_eq!(f["number"], i as u64 + 1);
+        assert_eq!(f["source"], format!("smoke.000{}.vdb", i + 1));
+    }
+    let em = root().join("fixtures/seq/empty_mid");
+    if em.is_dir() {
+        let out = d.path().join("e.vdbc");
+        cook_exact(&["fixtures/seq/empty_mid"], &[], &out);
+        let info = json(&["info", "--json", out.to_str().unwrap()]);
+        assert_eq!(info["frames"][1]["active_voxels"], 0);
+        assert_eq!(info["frames"][1]["bricks"], 0);
+        assert!(info["frames"][0]["bricks"].as_u64().unwrap() > 0);
+    }
+}
+
+#[test]
+fn identical_frames_cost_about_one_frame() {
+    let d = tempfile::tempdir().unwrap();
+    let one = d.path().join("one.vdbc");
+    let three = d.path().join("three.vdbc");
+    let (c1, _) = cook_exact(&["fixtures/seq/static3/s.0001.vdb"], &[], &one);
+    let (c3, _) = cook_exact(&["fixtures/seq/static3"], &[], &three);
+    assert_eq!(c3["frames"], 3);
+    assert_eq!(c1["bricks"]["stored"], c3["bricks"]["stored"]);
+    assert_eq!(
+        c1["nodes"]["l2"], c3["nodes"]["l2"],
+        "L2 nodes are shared across frames"
+    );
+    let extra = (c3["bytes"]["file"].as_u64().unwrap() - c1["bytes"]["file"].as_u64().unwrap()) / 2;
+    assert!(extra <= 8192, "each extra static frame costs {extra} bytes");
+    let info = json(&["info", "--json", three.to_str().unwrap()]);
+    assert!(info["bytes_per_extra_static_frame"].as_u64().unwrap() <= 8192);
+}
+
+#[test]
+fn output_is_byte_identical_at_any_thread_count() {
+    let d = tempfile::tempdir().unwrap();
+    let mut inputs = vec!["fixtures/seq/smoke5".to_string()];
+    if root().join("../shared/samples").is_dir() {
+        inputs.push("../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb".into());
+    }
+    for (i, inp) in inputs.iter().enumerate() {
+        for fmt in ["f32", "f16"] {
+            let a = d.path().join(format!("{i}-{fmt}-1.vdbc"));
+            let b = d.path().join(format!("{i}-{fmt}-2.vdbc"));
+            assert_eq!(
+                run(&[
+                    "--threads",
+                    "1",
+                    "cook",
+                    inp,
+                    "-o",
+                    a.to_str().unwrap(),
+                    "--format",
+                    fmt
+                ])
+                .0,
+                0
+            );
+            assert_eq!(
+                run(&[
+                    "--threads",
+                    "2",
+                    "cook",
+                    inp,
+                    "-o",
+                    b.to_str().unwrap(),
+                    "--format",
+                    fmt
+                ])
+                .0,
+                0
+            );
+            assert_eq!(
+                std::fs::read(&a).unwrap(),
+                std::fs::read(&b).unwrap(),
+                "{inp} {fmt}"
+            );
+        }
+    }
+}
+
+#[test]
+fn f16_error_is_within_half_rounding_of_each_value() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("h.vdbc");
+    let src = root().join("fixtures/seq/smoke5");
+    assert_eq!(
+        run(&[
+            "cook",
+            src.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            "f16"
+        ])
+        .0,
+        0
+    );
+    let asset = vdbcook_asset::Asset::load(&out).unwrap();
+    let frames = vdbcook_vdb::sequence::resolve_inputs(&[src.to_str().unwrap()], false).unwrap();
+    let mut checked = 0;
+    let mut max_err = 0.0f64;
+    for (fi, f) in frames.iter().enumerate() {
+        let g = vdbcook_vdb::sequence::read_frame(f, None).unwrap().grid;
+        g.for_each_active_leaf_voxel(|ijk, s| {
+            let a = asset.value_at_source(fi, ijk);
+            let bound = (s.abs() as f64 * 2f64.powi(-11)).max(2f64.powi(-25));
+            let e = (a as f64 - s as f64).abs();
+            assert!(
+                e <= bound,
+                "frame {fi} {ijk:?}: {a} vs {s} (error {e}, bound {bound})"
+            );
+            max_err = max_err.max(e);
+            checked += 1;
+        });
+    }
+    assert!(
+        checked > 1000 && max_err > 0.0,
+        "f16 must round something ({checked} voxels, max error {max_err})"
+    );
+    // Beyond f16's range: refused, naming the fix.
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/vdb/large_values.vdb",
+        "-o",
+        d.path().join("x.vdbc").to_str().unwrap(),
+        "--format",
+        "f16",
+    ]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("beyond the range of f16") && err.contains("--format f32"),
+        "{err}"
+    );
+}
+
+#[test]
+fn failures_leave_no_output_and_name_the_file() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("nan.vdbc");
+    let (code, _, err) = run(&["cook", "fixtures/vdb/nan.vdb", "-o", out.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("nan.vdb")
+            && err.contains("NaN or infinite")
+            && err.contains("--replace-non-finite"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(d.path()).unwrap().count(),
+        0,
+        "no partial files left behind"
+    );
+    // With the explicit option it cooks.
+    let (c, _) = cook_exact_replaced(&out);
+    assert_eq!(c["frames"], 1);
+    // Frustum maps and oversized extents are refused with clear messages.
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/vdb/xform_frustum.vdb",
+        "-o",
+        d.path().join("f.vdbc").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("NonlinearFrustumMap"), "{err}");
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/vdb/tiles_all_levels.vdb",
+        "-o",
+        d.path().join("t.vdbc").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("at most 4096"), "{err}");
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/seq/xform_mismatch",
+        "-o",
+        d.path().join("m.vdbc").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("f.0001.vdb") && err.contains("f.0002.vdb"),
+        "{err}"
+    );
+    if root().join("fixtures/seq/bigext").is_dir() {
+        let (code, _, err) = run(&[
+            "cook",
+            "fixtures/seq/bigext",
+            "-o",
+            d.path().join("b.vdbc").to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1);
+        assert!(err.contains("at most 4096"), "{err}");
+    }
+    assert!(std::fs::read_dir(d.path())
+        .unwrap()
+        .flatten()
+        .all(|e| !e.file_name().to_string_lossy().contains("partial")));
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/seq/smoke5",
+        "-o",
+        "/nonexistent-dir/x.vdbc",
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("/nonexistent-dir/x.vdbc"), "{err}");
+}
+
+fn cook_exact_replaced(out: &Path) -> (Value, Value) {
+    let c = json(&[
+        "cook",
+        "--json",
+        "fixtures/vdb/nan.vdb",
+        "-o",
+        out.to_str().unwrap(),
+        "--replace-non-finite",
+        "0",
+    ]);
+    let e = json(&[
+        "eval",
+        "--json",
+        out.to_str().unwrap(),
+        "fixtures/vdb/nan.vdb",
+    ]);
+    (c, e)
+}
+
+#[test]
+fn corrupt_assets_are_refused_by_info_and_eval() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s.vdbc");
+    assert_eq!(
+        run(&["cook", "fixtures/seq/smoke5", "-o", out.to_str().unwrap()]).0,
+        0
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    for (i, cut) in [10, bytes.len() / 2, bytes.len() - 1].iter().enumerate() {
+        let bad = d.path().join(format!("bad{i}.vdbc"));
+        std::fs::write(&bad, &bytes[..*cut]).unwrap();
+        let (code, _, err) = run(&["info", bad.to_str().unwrap()]);
+        assert_eq!(code, 1);
+        assert!(err.contains(&format!("bad{i}.vdbc")), "{err}");
+        let (code, _, _) = run(&["eval", bad.to_str().unwrap(), "fixtures/seq/smoke5"]);
+        assert_eq!(code, 1);
+    }
+    let (code, _, err) = run(&["eval", out.to_str().unwrap(), "fixtures/seq/static3"]);
+    assert_eq!(code, 1, "frame count mismatch must fail");
+    assert!(err.contains("5 frames"), "{err}");
+}
+
+#[test]
+fn real_samples_cook_exactly_within_the_topology_bar() {
+    let s = root().join("../shared/samples");
+    if !s.is_dir() {
+        eprintln!("skipping: ../shared/samples is not present");
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    for (i, inp) in [
+        "../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb",
+        "../shared/samples/stormscape-cloud-seq",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let out = d.path().join(format!("{i}.vdbc"));
+        let (c, e) = cook_exact(&[inp], &[], &out);
+        let info = json(&["info", "--json", out.to_str().unwrap()]);
+        let t = info["topology_bits_per_active_voxel"].as_f64().unwrap();
+        assert!(t <= 0.25, "{inp}: topology {t} bit per active voxel");
+        assert!(info["bytes_per_extra_static_frame"].as_u64().unwrap() <= 8192);
+        assert!(e["voxels_compared"].as_u64().unwrap() >= c["active_voxels"].as_u64().unwrap());
+    }
+}

@@ -1,0 +1,161 @@
+//! Constants and the serialized header of the asset format (see the crate docs for the layout).
+
+use serde::{Deserialize, Serialize};
+
+pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
+pub const FORMAT_VERSION: u32 = 1;
+/// Root entry: the 128³ region is background.
+pub const EMPTY: u32 = u32::MAX;
+/// Ref flag: the low 31 bits index `tiles`.
+pub const TILE_BIT: u32 = 1 << 31;
+/// Voxels along an L2 node (16 leaves of 8).
+pub const L2_SPAN: i32 = 128;
+/// Leaf slots per L2 node and mask words per node.
+pub const L2_SLOTS: usize = 4096;
+pub const L2_WORDS: usize = 64;
+pub const BRICK_DIM: i32 = 8;
+pub const BRICK_VOXELS: usize = 512;
+/// Root entries per axis at most (32 × 128 = 4096 voxels).
+pub const ROOT_DIM_MAX: u32 = 32;
+/// Largest header accepted when loading.
+pub const MAX_HEADER_BYTES: usize = 64 << 20;
+
+/// How brick voxels are stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum PayloadFormat {
+    /// 32-bit float, bit exact.
+    F32,
+    /// IEEE half float (round to nearest even).
+    F16,
+}
+
+impl PayloadFormat {
+    pub fn bytes_per_voxel(self) -> usize {
+        match self {
+            PayloadFormat::F32 => 4,
+            PayloadFormat::F16 => 2,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            PayloadFormat::F32 => "f32",
+            PayloadFormat::F16 => "f16",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "f32" => Some(PayloadFormat::F32),
+            "f16" => Some(PayloadFormat::F16),
+            _ => None,
+        }
+    }
+}
+
+/// The options a cook ran with (recorded so an asset says how it was made).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CookOptions {
+    pub format: PayloadFormat,
+    /// `--grid` as given (`None`: the default choice).
+    pub grid: Option<String>,
+    /// `--replace-non-finite`: the value NaN/±Inf were replaced with.
+    pub replace_non_finite: Option<f32>,
+    pub allow_gaps: bool,
+}
+
+/// One frame's source.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameInfo {
+    /// Frame number parsed from the file name.
+    pub number: Option<i64>,
+    /// Source file name (no directories, so cooks are reproducible across machines).
+    pub source: String,
+    /// Active voxels in the source grid (tiles counted by size).
+    pub active_voxels: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SectionKind {
+    Roots,
+    FrameRanges,
+    L2Masks,
+    L2Base,
+    L2Prefix,
+    L2Ranges,
+    L3Refs,
+    Tiles,
+    BrickRanges,
+    Payload,
+}
+
+impl SectionKind {
+    pub const ALL: [SectionKind; 10] = [
+        SectionKind::Roots,
+        SectionKind::FrameRanges,
+        SectionKind::L2Masks,
+        SectionKind::L2Base,
+        SectionKind::L2Prefix,
+        SectionKind::L2Ranges,
+        SectionKind::L3Refs,
+        SectionKind::Tiles,
+        SectionKind::BrickRanges,
+        SectionKind::Payload,
+    ];
+    pub fn name(self) -> &'static str {
+        match self {
+            SectionKind::Roots => "roots",
+            SectionKind::FrameRanges => "frame_ranges",
+            SectionKind::L2Masks => "l2_masks",
+            SectionKind::L2Base => "l2_base",
+            SectionKind::L2Prefix => "l2_prefix",
+            SectionKind::L2Ranges => "l2_ranges",
+            SectionKind::L3Refs => "l3_refs",
+            SectionKind::Tiles => "tiles",
+            SectionKind::BrickRanges => "brick_ranges",
+            SectionKind::Payload => "payload",
+        }
+    }
+}
+
+/// Where a section lies (offset from the end of the header) and how to check it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SectionInfo {
+    pub kind: SectionKind,
+    pub offset: u64,
+    pub compressed_len: u64,
+    pub raw_len: u64,
+    pub hash: u64,
+}
+
+/// Everything about an asset but its arrays.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// e.g. `vdbcook 0.1.0`.
+    pub tool: String,
+    pub options: CookOptions,
+    /// Label of the grid that was cooked.
+    pub grid_name: String,
+    pub frames: Vec<FrameInfo>,
+    /// Asset index + offset = source index. A multiple of 128 per axis.
+    pub index_offset: [i32; 3],
+    /// Root entries per axis (each covers 128³ voxels).
+    pub root_dims: [u32; 3],
+    /// Asset index → world, row-major, column vectors (`world = M · [i j k 1]ᵀ`); the source
+    /// transform with `index_offset` folded in.
+    pub index_to_world: [[f64; 4]; 4],
+    /// The source map type (e.g. `UniformScaleMap`).
+    pub source_map: String,
+    pub voxel_size: [f64; 3],
+    /// Value of every voxel the asset does not store.
+    pub background: f32,
+    /// Filled in by the writer.
+    pub sections: Vec<SectionInfo>,
+    /// xxh3-64 of the header (this field zeroed) and all raw sections. Filled in by the writer.
+    pub content_hash: u64,
+}
+
+impl Header {
+    /// Source index → asset index.
+    pub fn to_asset_index(&self, source: [i32; 3]) -> [i64; 3] {
+        [0, 1, 2].map(|a| source[a] as i64 - self.index_offset[a] as i64)
+    }
+}

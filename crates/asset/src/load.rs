@@ -1,0 +1,256 @@
+//! Loading = read, decompress, validate. Every section's size is checked against the counts it
+//! implies before decompressing (into exactly that size), hashes are compared, and every index is
+//! checked to be in range, so a corrupt or hostile asset is refused before it reaches a GPU.
+
+use crate::error::{bad, AssetError};
+use crate::format::*;
+use crate::Asset;
+
+/// Largest raw section accepted (16 GiB).
+const MAX_SECTION: u64 = 16 << 30;
+
+fn u32s(b: &[u8]) -> Vec<u32> {
+    b.chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+fn u16s(b: &[u8]) -> Vec<u16> {
+    b.chunks_exact(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect()
+}
+fn u64s(b: &[u8]) -> Vec<u64> {
+    b.chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().expect("8")))
+        .collect()
+}
+fn f32s(b: &[u8]) -> Vec<f32> {
+    b.chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+fn pairs(b: &[u8]) -> Vec<[f32; 2]> {
+    f32s(b).chunks_exact(2).map(|p| [p[0], p[1]]).collect()
+}
+
+impl Asset {
+    /// Reads and validates an asset file.
+    pub fn load(path: impl AsRef<std::path::Path>) -> Result<Asset, AssetError> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path)
+            .map_err(|e| AssetError(format!("{}: cannot read: {e}", path.display())))?;
+        Asset::from_bytes(&bytes).map_err(|e| AssetError(format!("{}: {}", path.display(), e.0)))
+    }
+
+    /// Parses and validates asset bytes.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Asset, AssetError> {
+        if bytes.len() < 16 || bytes[..8] != MAGIC {
+            return bad("not a vdbcook asset (magic number missing)");
+        }
+        let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4"));
+        if version != FORMAT_VERSION {
+            return bad(format!(
+                "asset format version {version}; this build reads version {FORMAT_VERSION}"
+            ));
+        }
+        let hlen = u32::from_le_bytes(bytes[12..16].try_into().expect("4")) as usize;
+        if hlen > MAX_HEADER_BYTES || 16 + hlen > bytes.len() {
+            return bad(format!(
+                "header length {hlen} does not fit the {}-byte file",
+                bytes.len()
+            ));
+        }
+        let config = bincode::config::standard().with_limit::<MAX_HEADER_BYTES>();
+        let (header, used): (Header, usize) =
+            bincode::serde::decode_from_slice(&bytes[16..16 + hlen], config)
+                .map_err(|e| AssetError(format!("corrupt header: {e}")))?;
+        if used != hlen {
+            return bad(format!("header is {used} bytes, the file says {hlen}"));
+        }
+        let body = &bytes[16 + hlen..];
+        let nframes = header.frames.len();
+        if nframes == 0 {
+            return bad("asset has no frames");
+        }
+        if header.root_dims.iter().any(|&d| d == 0 || d > ROOT_DIM_MAX) {
+            return bad(format!(
+                "root dimensions {:?} out of range 1..={ROOT_DIM_MAX}",
+                header.root_dims
+            ));
+        }
+        if header.sections.len() != SectionKind::ALL.len()
+            || header
+                .sections
+                .iter()
+                .zip(SectionKind::ALL)
+                .any(|(s, k)| s.kind != k)
+        {
+            return bad("section table does not list the expected sections in order");
+        }
+        let mut raw = Vec::with_capacity(SectionKind::ALL.len());
+        for s in &header.sections {
+            let name = s.kind.name();
+            let end = s.offset.checked_add(s.compressed_len);
+            if end.is_none_or(|e| e > body.len() as u64) {
+                return bad(format!(
+                    "section {name} ({} bytes at {}) lies outside the file",
+                    s.compressed_len, s.offset
+                ));
+            }
+            if s.raw_len > MAX_SECTION {
+                return bad(format!(
+                    "section {name} claims an absurd size of {} bytes",
+                    s.raw_len
+                ));
+            }
+            let src = &body[s.offset as usize..(s.offset + s.compressed_len) as usize];
+            // The frame must state its content size, and it must match before we allocate.
+            match zstd::zstd_safe::get_frame_content_size(src) {
+                Ok(Some(n)) if n == s.raw_len => {}
+                _ => {
+                    return bad(format!(
+                        "section {name}: compressed frame does not declare {} bytes",
+                        s.raw_len
+                    ))
+                }
+            }
+            let data = zstd::bulk::decompress(src, s.raw_len as usize)
+                .map_err(|e| AssetError(format!("section {name}: {e}")))?;
+            if data.len() as u64 != s.raw_len {
+                return bad(format!(
+                    "section {name} decompressed to {} bytes, expected {}",
+                    data.len(),
+                    s.raw_len
+                ));
+            }
+            if xxhash_rust::xxh3::xxh3_64(&data) != s.hash {
+                return bad(format!("section {name} is corrupt (hash mismatch)"));
+            }
+            raw.push(data);
+        }
+        if crate::write::content_hash(&header, &raw)? != header.content_hash {
+            return bad("content hash mismatch (header or sections corrupt)");
+        }
+        let root_len: usize = header.root_dims.iter().map(|&d| d as usize).product();
+        let bpv = header.options.format.bytes_per_voxel() as u64;
+        // Element counts implied by the sections, checked for consistency.
+        let n_l2 = raw[3].len() / 4;
+        let n_bricks = raw[8].len() / 8;
+        let expect: [(usize, u64); 10] = [
+            (0, (nframes * root_len * 4) as u64),
+            (1, nframes as u64 * 8),
+            (2, n_l2 as u64 * L2_WORDS as u64 * 8),
+            (3, n_l2 as u64 * 4),
+            (4, n_l2 as u64 * L2_WORDS as u64 * 2),
+            (5, n_l2 as u64 * 8),
+            (6, raw[6].len() as u64 / 4 * 4),
+            (7, raw[7].len() as u64 / 4 * 4),
+            (8, n_bricks as u64 * 8),
+            (9, n_bricks as u64 * BRICK_VOXELS as u64 * bpv),
+        ];
+        for (i, want) in expect {
+            if raw[i].len() as u64 != want {
+                return bad(format!(
+                    "section {} has {} bytes, the counts imply {want}",
+                    SectionKind::ALL[i].name(),
+                    raw[i].len()
+                ));
+            }
+        }
+        let asset = Asset {
+            roots: u32s(&raw[0]),
+            frame_ranges: pairs(&raw[1]),
+            l2_masks: u64s(&raw[2]),
+            l2_base: u32s(&raw[3]),
+            l2_prefix: u16s(&raw[4]),
+            l2_ranges: pairs(&raw[5]),
+            l3_refs: u32s(&raw[6]),
+            tiles: f32s(&raw[7]),
+            brick_ranges: pairs(&raw[8]),
+            payload: std::mem::take(&mut raw[9]),
+            header,
+        };
+        asset.validate()?;
+        Ok(asset)
+    }
+
+    /// Checks every index and count (also used on freshly cooked assets in tests).
+    pub fn validate(&self) -> Result<(), AssetError> {
+        let n_l2 = self.l2_count();
+        let n_tiles = self.tiles.len();
+        let n_bricks = self.brick_count();
+        let n_refs = self.l3_refs.len();
+        let ok_ref = |r: u32| {
+            if r & TILE_BIT != 0 {
+                ((r & !TILE_BIT) as usize) < n_tiles
+            } else {
+                (r as usize) < n_bricks
+            }
+        };
+        for (i, &e) in self.roots.iter().enumerate() {
+            let fine = e == EMPTY
+                || if e & TILE_BIT != 0 {
+                    ((e & !TILE_BIT) as usize) < n_tiles
+                } else {
+                    (e as usize) < n_l2
+                };
+            if !fine {
+                return bad(format!(
+                    "root entry {i} of {} points outside the node pools ({e:#x})",
+                    self.roots.len()
+                ));
+            }
+        }
+        for n in 0..n_l2 {
+            let mask = self.l2_mask(n);
+            let mut count = 0usize;
+            for (w, &word) in mask.iter().enumerate() {
+                if self.l2_prefix[n * L2_WORDS + w] as usize != count {
+                    return bad(format!(
+                        "L2 node {n}: prefix count of word {w} is inconsistent with its mask"
+                    ));
+                }
+                count += word.count_ones() as usize;
+            }
+            let base = self.l2_base[n] as usize;
+            if base + count > n_refs {
+                return bad(format!(
+                    "L2 node {n}: children {base}..{} exceed the {n_refs} leaf refs",
+                    base + count
+                ));
+            }
+            if count == 0 {
+                return bad(format!("L2 node {n} has no children"));
+            }
+        }
+        if let Some(i) = self.l3_refs.iter().position(|&r| !ok_ref(r)) {
+            return bad(format!(
+                "leaf ref {i} ({:#x}) points outside the tiles/bricks",
+                self.l3_refs[i]
+            ));
+        }
+        let finite = |v: &f32| v.is_finite();
+        if !self.tiles.iter().all(finite) || !self.header.background.is_finite() {
+            return bad("non-finite tile or background value");
+        }
+        for (what, r) in [
+            ("frame", &self.frame_ranges),
+            ("L2 node", &self.l2_ranges),
+            ("brick", &self.brick_ranges),
+        ] {
+            if let Some(i) = r
+                .iter()
+                .position(|p| !(p[0].is_finite() && p[1].is_finite() && p[0] <= p[1]))
+            {
+                return bad(format!("{what} {i} has an invalid value range {:?}", r[i]));
+            }
+        }
+        if self.header.index_offset.iter().any(|o| o % L2_SPAN != 0) {
+            return bad(format!(
+                "index offset {:?} is not a multiple of {L2_SPAN}",
+                self.header.index_offset
+            ));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,133 @@
+//! The CPU sampler: the value at (frame, index) straight from the asset's arrays — what `eval`,
+//! the tests and the CPU reference tracer read, and the same walk the WGSL does.
+
+use crate::format::*;
+use crate::payload;
+use crate::Asset;
+
+/// What a leaf position holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LeafRef {
+    /// Background.
+    Empty,
+    /// Every voxel has this value.
+    Tile(f32),
+    /// A brick in the pool.
+    Brick(u32),
+}
+
+impl Asset {
+    /// The L2 node slot of leaf `(lx, ly, lz)` (in leaves, relative to the node).
+    #[inline]
+    fn slot_ref(&self, node: usize, slot: usize) -> Option<u32> {
+        let w = slot >> 6;
+        let word = self.l2_masks[node * L2_WORDS + w];
+        let bit = 1u64 << (slot & 63);
+        if word & bit == 0 {
+            return None;
+        }
+        let idx = self.l2_base[node] as usize
+            + self.l2_prefix[node * L2_WORDS + w] as usize
+            + (word & (bit - 1)).count_ones() as usize;
+        Some(self.l3_refs[idx])
+    }
+
+    fn decode_ref(&self, r: u32) -> LeafRef {
+        if r & TILE_BIT != 0 {
+            LeafRef::Tile(self.tiles[(r & !TILE_BIT) as usize])
+        } else {
+            LeafRef::Brick(r)
+        }
+    }
+
+    /// The root entry (`EMPTY`, `TILE_BIT | t` or an L2 node) of the 128³ region holding `a`.
+    pub fn root_entry(&self, frame: usize, a: [i64; 3]) -> u32 {
+        let d = self.header.root_dims;
+        if a.iter()
+            .zip(d)
+            .any(|(&c, dim)| c < 0 || c >= dim as i64 * L2_SPAN as i64)
+        {
+            return EMPTY;
+        }
+        let r = [0, 1, 2].map(|i| (a[i] / L2_SPAN as i64) as usize);
+        let root = r[0] + d[0] as usize * (r[1] + d[1] as usize * r[2]);
+        self.roots[frame * self.root_len() + root]
+    }
+
+    /// What the leaf containing asset index `a` holds in `frame`.
+    pub fn leaf_at(&self, frame: usize, a: [i64; 3]) -> LeafRef {
+        let e = self.root_entry(frame, a);
+        if e == EMPTY {
+            return LeafRef::Empty;
+        }
+        if e & TILE_BIT != 0 {
+            return LeafRef::Tile(self.tiles[(e & !TILE_BIT) as usize]);
+        }
+        let l = [0, 1, 2].map(|i| ((a[i] & 127) >> 3) as usize);
+        match self.slot_ref(e as usize, l[0] + 16 * (l[1] + 16 * l[2])) {
+            None => LeafRef::Empty,
+            Some(r) => self.decode_ref(r),
+        }
+    }
+
+    /// Value at asset index `a` of `frame` (background outside what is stored).
+    pub fn value(&self, frame: usize, a: [i64; 3]) -> f32 {
+        match self.leaf_at(frame, a) {
+            LeafRef::Empty => self.header.background,
+            LeafRef::Tile(v) => v,
+            LeafRef::Brick(b) => {
+                let v = (a[0] & 7) + 8 * ((a[1] & 7) + 8 * (a[2] & 7));
+                payload::decode_voxel(
+                    self.header.options.format,
+                    &self.payload,
+                    b as usize,
+                    v as usize,
+                )
+            }
+        }
+    }
+
+    /// Value at a *source* index coordinate.
+    pub fn value_at_source(&self, frame: usize, s: [i32; 3]) -> f32 {
+        self.value(frame, self.header.to_asset_index(s))
+    }
+
+    /// All 512 values of brick `b`, voxel `(x, y, z)` at `x + 8·(y + 8·z)`.
+    pub fn decode_brick(&self, b: u32, out: &mut [f32; BRICK_VOXELS]) {
+        payload::decode_brick(self.header.options.format, &self.payload, b as usize, out)
+    }
+
+    /// Calls `f(leaf asset origin, ref)` for every stored leaf of `frame` (tiled root regions are
+    /// reported once as `(region origin, Tile)` with `region = true`).
+    pub fn for_each_leaf(&self, frame: usize, mut f: impl FnMut([i64; 3], LeafRef, bool)) {
+        let d = self.header.root_dims.map(|x| x as usize);
+        for (i, &e) in self.frame_roots(frame).iter().enumerate() {
+            if e == EMPTY {
+                continue;
+            }
+            let r = [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])];
+            let o = r.map(|c| c as i64 * L2_SPAN as i64);
+            if e & TILE_BIT != 0 {
+                f(o, LeafRef::Tile(self.tiles[(e & !TILE_BIT) as usize]), true);
+                continue;
+            }
+            let node = e as usize;
+            let mask = self.l2_mask(node);
+            let mut k = self.l2_base[node] as usize;
+            for (w, &word) in mask.iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let s = w * 64 + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let l = [s % 16, (s / 16) % 16, s / 256];
+                    f(
+                        [0, 1, 2].map(|a| o[a] + 8 * l[a] as i64),
+                        self.decode_ref(self.l3_refs[k]),
+                        false,
+                    );
+                    k += 1;
+                }
+            }
+        }
+    }
+}
