@@ -16,10 +16,10 @@ pub struct BuiltLeaf {
 pub enum LeafContent {
     /// All 512 voxels have this value (not the background).
     Tile(f32),
-    /// Values in asset voxel order (`x + 8·(y + 8·z)`), the active mask in the same order, and
-    /// a hash of the value bits.
+    /// Brick `index` of the frame's `bricks` (values in voxel order `64·x + 8·y + z`),
+    /// its active mask in the same order, and a hash of the value bits.
     Brick {
-        values: Box<[f32; BRICK_VOXELS]>,
+        index: u32,
         active: [u64; 8],
         hash: u64,
     },
@@ -33,6 +33,8 @@ pub enum Region {
 }
 
 pub struct BuiltFrame {
+    /// The frame's bricks, 512 values each, in one allocation.
+    pub bricks: Vec<f32>,
     /// Non-empty regions by their 128-aligned source origin (sorted: deterministic).
     pub regions: BTreeMap<[i32; 3], Region>,
     pub active_voxels: u64,
@@ -57,12 +59,56 @@ fn slot_of(c: [i32; 3]) -> u16 {
 
 /// Builds one frame. `Err` carries a message (NaN/Inf without a replacement).
 pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFrame, String> {
-    let stats = grid.stats();
-    if stats.non_finite > 0 && nf.replace_with.is_none() {
+    // One pass for the source statistics and the non-finite check (cheaper than `grid.stats()`).
+    let mut active_voxels = 0u64;
+    let mut range = [f32::INFINITY, f32::NEG_INFINITY];
+    let mut non_finite = 0u64;
+    let mut first_bad = None;
+    for (li, leaf) in grid.leaves.iter().enumerate() {
+        active_voxels += leaf.active_count() as u64;
+        let vals = grid.leaf_values(li);
+        let full = leaf.mask.iter().all(|&w| w == u64::MAX);
+        if full && vals.iter().all(|v| v.is_finite()) {
+            // Fully active, all finite (the common case): a loop the compiler vectorises.
+            let (lo, hi) = vals.iter().fold((range[0], range[1]), |(lo, hi), &v| {
+                (if v < lo { v } else { lo }, if v > hi { v } else { hi })
+            });
+            range = [lo, hi];
+            continue;
+        }
+        for (w, &word) in leaf.mask.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let n = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let v = vals[n];
+                if v.is_finite() {
+                    if v < range[0] {
+                        range[0] = v;
+                    }
+                    if v > range[1] {
+                        range[1] = v;
+                    }
+                } else {
+                    non_finite += 1;
+                    first_bad.get_or_insert_with(|| vdbcook_vdb::leaf_voxel(leaf.origin, n));
+                }
+            }
+        }
+    }
+    for t in grid.tiles.iter().filter(|t| t.active) {
+        active_voxels += t.level.voxels();
+        if t.value.is_finite() {
+            range = [range[0].min(t.value), range[1].max(t.value)];
+        } else {
+            non_finite += t.level.voxels();
+            first_bad.get_or_insert(t.origin);
+        }
+    }
+    if non_finite > 0 && nf.replace_with.is_none() {
         return Err(format!(
-            "{} active voxel(s) are NaN or infinite (first at index {:?}); fix the source or pass --replace-non-finite VALUE",
-            stats.non_finite,
-            stats.first_non_finite.unwrap_or_default()
+            "{non_finite} active voxel(s) are NaN or infinite (first at index {:?}); fix the source or pass --replace-non-finite VALUE",
+            first_bad.unwrap_or_default()
         ));
     }
     let fix = |v: f32| {
@@ -81,22 +127,27 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
             Region::Leaves(v) => v.push(leaf),
             Region::Tile(_) => {}
         };
+    let mut bricks: Vec<f32> = Vec::with_capacity(grid.leaves.len() * BRICK_VOXELS);
+    let mut values = [bg; BRICK_VOXELS];
     for (li, leaf) in grid.leaves.iter().enumerate() {
         let src = grid.leaf_values(li);
-        let mut values = Box::new([bg; BRICK_VOXELS]);
-        let mut active = [0u64; 8];
-        // Source order is x-slowest (n = x·64 + y·8 + z); the asset's is x-fastest.
-        for (w, &word) in leaf.mask.iter().enumerate() {
-            let mut bits = word;
-            while bits != 0 {
-                let n = w * 64 + bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let (x, y, z) = (n >> 6, (n >> 3) & 7, n & 7);
-                let a = x + 8 * (y + 8 * z);
-                values[a] = fix(src[n]);
-                active[a >> 6] |= 1 << (a & 63);
+        values.fill(bg);
+        // Bricks keep OpenVDB's voxel order (n = 64·x + 8·y + z); inactive voxels become bg.
+        if leaf.mask.iter().all(|&w| w == u64::MAX) {
+            for (d, &v) in values.iter_mut().zip(src) {
+                *d = fix(v);
+            }
+        } else {
+            for (w, &word) in leaf.mask.iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let n = w * 64 + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    values[n] = fix(src[n]);
+                }
             }
         }
+        let active = leaf.mask;
         let first = values[0].to_bits();
         if values.iter().all(|v| v.to_bits() == first) {
             if values[0] != bg {
@@ -112,12 +163,14 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
             continue;
         }
         let hash = xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&values[..]));
+        let index = (bricks.len() / BRICK_VOXELS) as u32;
+        bricks.extend_from_slice(&values);
         leaves_of(
             leaf.origin,
             BuiltLeaf {
                 slot: slot_of(leaf.origin),
                 content: LeafContent::Brick {
-                    values,
+                    index,
                     active,
                     hash,
                 },
@@ -164,8 +217,9 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
         }
     }
     Ok(BuiltFrame {
+        bricks,
         regions,
-        active_voxels: stats.active_voxels,
-        value_range: stats.value_min.zip(stats.value_max).map(|(a, b)| [a, b]),
+        active_voxels,
+        value_range: (range[0] <= range[1]).then_some(range),
     })
 }

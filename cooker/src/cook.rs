@@ -46,6 +46,59 @@ fn err(path: &Path, kind: ErrorKind, m: impl Into<String>) -> CliError {
     CliError::Vdb(VdbError::new(kind, path, m))
 }
 
+/// One frame read and built (in a parallel task), with the time each step took.
+struct Prepared {
+    result: Result<PreparedFrame, CliError>,
+    read_s: f64,
+    build_s: f64,
+}
+
+struct PreparedFrame {
+    frame: Frame,
+    label: String,
+    transform: Transform,
+    background: f32,
+    built: BuiltFrame,
+}
+
+fn prepare(f: &Frame, grid: Option<&str>, nf: NonFinite) -> Prepared {
+    let t = Instant::now();
+    let loaded = match sequence::read_frame(f, grid) {
+        Ok(l) => l,
+        Err(e) => {
+            return Prepared {
+                result: Err(e.into()),
+                read_s: t.elapsed().as_secs_f64(),
+                build_s: 0.0,
+            }
+        }
+    };
+    let read_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let built = build_frame(&loaded.grid, loaded.grid.background, nf);
+    let build_s = t.elapsed().as_secs_f64();
+    let result = built
+        .map(|built| PreparedFrame {
+            frame: loaded.frame.clone(),
+            label: loaded.grid_label.clone(),
+            transform: loaded.grid.transform.clone(),
+            background: loaded.grid.background,
+            built,
+        })
+        .map_err(|m| {
+            err(
+                &loaded.frame.path,
+                ErrorKind::Corrupt,
+                format!("grid '{}': {m}", loaded.grid_label),
+            )
+        });
+    Prepared {
+        result,
+        read_s,
+        build_s,
+    }
+}
+
 /// Wall-clock seconds per stage.
 #[derive(Default)]
 struct Stages {
@@ -106,85 +159,96 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
     }
     let mut st = Stages::default();
-    let mut pool = Pool::default();
+    // Lossless payloads need no per-voxel use counts: their error is checked to be zero below.
+    let mut pool = Pool::new(format != PayloadFormat::F32);
     let mut first: Option<(Frame, Transform, f32, String)> = None;
     let mut infos = Vec::with_capacity(frames.len());
     let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
     let progress = Progress::new(a.json, frames.len());
-    let chunk = (rayon::current_num_threads() * 2).max(2);
-    for (ci, group) in frames.chunks(chunk).enumerate() {
-        let t = Instant::now();
-        let loaded: Vec<Result<sequence::LoadedFrame, VdbError>> = group
-            .par_iter()
-            .map(|f| sequence::read_frame(f, a.grid.as_deref()))
-            .collect();
-        let loaded = loaded.into_iter().collect::<Result<Vec<_>, _>>()?;
-        st.read += t.elapsed().as_secs_f64();
-        for l in &loaded {
-            match &first {
-                None => {
-                    if !l.grid.transform.kind.is_linear() {
-                        return Err(err(&l.frame.path, ErrorKind::Unsupported, format!("grid '{}' has a {} transform; vdbcook cooks linear transforms only", l.grid_label, l.grid.transform.kind.type_name())));
+    let threads = rayon::current_num_threads().max(1);
+    let chunk = (threads * 2).max(2);
+    // Pipeline: while the frames of chunk k are read and built in parallel, chunk k-1 is added to
+    // the pool (in sequence order, so the output does not depend on scheduling).
+    let mut pending: Vec<Prepared> = Vec::new();
+    let mut done = 0usize;
+    let mut read_cpu = 0.0f64;
+    let mut build_cpu = 0.0f64;
+    let groups: Vec<&[Frame]> = frames.chunks(chunk).collect();
+    for gi in 0..=groups.len() {
+        let todo = std::mem::take(&mut pending);
+        let (prepared, added) = rayon::join(
+            || {
+                groups.get(gi).map(|g| {
+                    g.par_iter()
+                        .map(|f| prepare(f, a.grid.as_deref(), nf))
+                        .collect::<Vec<_>>()
+                })
+            },
+            || -> Result<f64, CliError> {
+                let t = Instant::now();
+                for p in todo {
+                    let PreparedFrame {
+                        frame,
+                        label,
+                        transform,
+                        background,
+                        built,
+                    } = p.result?;
+                    match &first {
+                        None => {
+                            if !transform.kind.is_linear() {
+                                return Err(err(&frame.path, ErrorKind::Unsupported, format!("grid '{label}' has a {} transform; vdbcook cooks linear transforms only", transform.kind.type_name())));
+                            }
+                            first = Some((frame.clone(), transform, background, label));
+                        }
+                        Some((f0, t0, bg0, _)) => {
+                            if !transform.approx_eq(t0, 1e-9) {
+                                return Err(err(&frame.path, ErrorKind::Sequence, format!("grid '{label}' has a different transform (voxel size {:?}) from frame {} (voxel size {:?}); all frames must share one transform", transform.voxel_size(), f0.path.display(), t0.voxel_size())));
+                            }
+                            if background.to_bits() != bg0.to_bits() {
+                                return Err(err(
+                                    &frame.path,
+                                    ErrorKind::Sequence,
+                                    format!(
+                                        "background {background} differs from frame {} ({bg0})",
+                                        f0.path.display()
+                                    ),
+                                ));
+                            }
+                        }
                     }
-                    first = Some((
-                        l.frame.clone(),
-                        l.grid.transform.clone(),
-                        l.grid.background,
-                        l.grid_label.clone(),
-                    ));
+                    if let Some(r) = built.value_range {
+                        value_range = [value_range[0].min(r[0]), value_range[1].max(r[1])];
+                    }
+                    infos.push(FrameInfo {
+                        number: frame.number,
+                        source: frame
+                            .path
+                            .file_name()
+                            .map(|n| n.to_string_lossy().into_owned())
+                            .unwrap_or_default(),
+                        active_voxels: built.active_voxels,
+                    });
+                    pool.add_frame(built);
+                    done += 1;
                 }
-                Some((f0, t0, bg0, _)) => {
-                    if !l.grid.transform.approx_eq(t0, 1e-9) {
-                        return Err(err(&l.frame.path, ErrorKind::Sequence, format!("grid '{}' has a different transform (voxel size {:?}) from frame {} (voxel size {:?}); all frames must share one transform", l.grid_label, l.grid.transform.voxel_size(), f0.path.display(), t0.voxel_size())));
-                    }
-                    if l.grid.background.to_bits() != bg0.to_bits() {
-                        return Err(err(
-                            &l.frame.path,
-                            ErrorKind::Sequence,
-                            format!(
-                                "background {} differs from frame {} ({bg0})",
-                                l.grid.background,
-                                f0.path.display()
-                            ),
-                        ));
-                    }
-                }
+                Ok(t.elapsed().as_secs_f64())
+            },
+        );
+        st.dedup += added?;
+        progress.tick(done);
+        if let Some(p) = prepared {
+            for x in &p {
+                read_cpu += x.read_s;
+                build_cpu += x.build_s;
             }
+            pending = p;
         }
-        let bg = first.as_ref().map(|f| f.2).unwrap_or(0.0);
-        let t = Instant::now();
-        let built: Vec<Result<BuiltFrame, String>> = loaded
-            .par_iter()
-            .map(|l| build_frame(&l.grid, bg, nf))
-            .collect();
-        st.build += t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        for (l, b) in loaded.iter().zip(built) {
-            let b = b.map_err(|m| {
-                err(
-                    &l.frame.path,
-                    ErrorKind::Corrupt,
-                    format!("grid '{}': {m}", l.grid_label),
-                )
-            })?;
-            if let Some(r) = b.value_range {
-                value_range = [value_range[0].min(r[0]), value_range[1].max(r[1])];
-            }
-            infos.push(FrameInfo {
-                number: l.frame.number,
-                source: l
-                    .frame
-                    .path
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                active_voxels: b.active_voxels,
-            });
-            pool.add_frame(b);
-        }
-        st.dedup += t.elapsed().as_secs_f64();
-        progress.tick((ci * chunk + group.len()).min(frames.len()));
     }
+    // Read and build overlap (per-frame tasks on all threads): report each as its share of the
+    // worker time, in wall-clock seconds.
+    st.read = read_cpu / threads as f64;
+    st.build = build_cpu / threads as f64;
     progress.done();
     let (f0, transform, bg, label) = first.expect("at least one frame");
     let (offset, root_dims) = pool
@@ -206,10 +270,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     let mut payload_bytes = Vec::new();
     payload::encode(format, &pool.bricks, &mut payload_bytes);
-    let mut decoded = vec![0f32; pool.bricks.len()];
-    for (b, out) in decoded.chunks_exact_mut(BRICK_VOXELS).enumerate() {
-        payload::decode_brick(format, &payload_bytes, b, out.try_into().expect("512"));
-    }
+    // What the asset will hold, decoded (lossless f32 is the pool itself: no copy).
+    let decoded_lossy = pool.track_uses.then(|| {
+        let mut d = vec![0f32; pool.bricks.len()];
+        for (b, out) in d.chunks_exact_mut(BRICK_VOXELS).enumerate() {
+            payload::decode_brick(format, &payload_bytes, b, out.try_into().expect("512"));
+        }
+        d
+    });
+    let decoded: &[f32] = decoded_lossy.as_deref().unwrap_or(&pool.bricks);
     let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
     let mut roots = vec![EMPTY; frames.len() * root_len];
     for (fi, entries) in pool.frames.iter().enumerate() {
@@ -220,7 +289,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 + root_dims[0] as usize * (r[1] + root_dims[1] as usize * r[2])] = *e;
         }
     }
-    let rg = ranges(&decoded, &pool.tiles, &pool.l2_refs, &roots, root_len, bg);
+    let rg = ranges(decoded, &pool.tiles, &pool.l2_refs, &roots, root_len, bg);
     let mut l2_base = Vec::with_capacity(pool.l2_refs.len());
     let mut l2_prefix = Vec::with_capacity(pool.l2_refs.len() * L2_WORDS);
     let mut l3_refs = Vec::new();
@@ -233,14 +302,21 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         l3_refs.extend_from_slice(refs);
     }
-    // Error over active voxels (every active use of a brick), tiles are exact.
+    // Error over active voxels (every active use of a brick); tiles are stored exactly.
     let mut sum_sq = 0.0f64;
     let mut max_abs = 0.0f64;
-    for ((o, d), &uses) in pool.bricks.iter().zip(&decoded).zip(&pool.active_uses) {
-        let e = (*d as f64 - *o as f64).abs();
-        max_abs = max_abs.max(e);
-        sum_sq += e * e * uses as f64;
+    if pool.track_uses {
+        for ((o, d), &uses) in pool.bricks.iter().zip(decoded).zip(&pool.active_uses) {
+            let e = (*d as f64 - *o as f64).abs();
+            max_abs = max_abs.max(e);
+            sum_sq += e * e * uses as f64;
+        }
     }
+    drop(decoded_lossy);
+    // The f32 pool is no longer needed: free it before serializing.
+    let unique_bricks = pool.brick_count();
+    pool.bricks = Vec::new();
+    pool.active_uses = Vec::new();
     let mut m = transform.index_to_world;
     for (r, row) in m.iter_mut().enumerate().take(3) {
         row[3] = transform.index_to_world[r][3]
@@ -270,12 +346,12 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         },
         roots,
         frame_ranges: rg.frames,
-        l2_masks: pool.l2_masks.clone(),
+        l2_masks: std::mem::take(&mut pool.l2_masks),
         l2_base,
         l2_prefix,
         l2_ranges: rg.l2,
         l3_refs,
-        tiles: pool.tiles.clone(),
+        tiles: std::mem::take(&mut pool.tiles),
         brick_ranges: rg.bricks,
         payload: payload_bytes,
     };
@@ -316,7 +392,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "grid": asset.header.grid_name,
         "frames": asset.frame_count(),
         "active_voxels": active,
-        "bricks": {"source": pool.source_bricks, "unique": pool.brick_count(), "after_clustering": pool.brick_count(), "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
+        "bricks": {"source": pool.source_bricks, "unique": unique_bricks, "after_clustering": unique_bricks, "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
         "nodes": {"l2": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "root_dims": root_dims},
         "bytes": {"topology": topology, "atlas": atlas, "file": bytes.len()},
         "bits_per_active_voxel": bpv(bytes.len() as u64),

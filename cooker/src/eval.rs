@@ -131,8 +131,7 @@ pub fn compare_frame(asset: &Asset, frame: usize, grid: &FloatGrid) -> ErrStats 
         seen.insert(a);
         let src = grid.leaf_values(li);
         for (n, &sv) in src.iter().enumerate() {
-            let (x, y, z) = (n >> 6, (n >> 3) & 7, n & 7);
-            let av = vals[x + 8 * (y + 8 * z)];
+            let av = vals[n];
             if leaf.is_active(n) {
                 s.active(av, sv);
             } else {

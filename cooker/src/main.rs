@@ -53,6 +53,12 @@ pattern (smoke.####.vdb, smoke.%04d.vdb) or a glob ('smoke.*.vdb').\n\nExamples:
 }
 
 fn main() {
+    // Piping into `head` must end the program quietly, not panic on a broken pipe.
+    #[cfg(unix)]
+    // SAFETY: restoring the default SIGPIPE action before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()

@@ -11,6 +11,8 @@ use crate::build::{BuiltFrame, LeafContent, Region};
 
 #[derive(Default)]
 pub struct Pool {
+    /// Track `active_uses` (needed only when the payload is lossy).
+    pub track_uses: bool,
     /// Unique bricks, 512 f32 each, in first-seen order.
     pub bricks: Vec<f32>,
     /// Per unique brick and voxel: how many leaf uses have that voxel active (for error stats).
@@ -29,6 +31,13 @@ pub struct Pool {
 }
 
 impl Pool {
+    pub fn new(track_uses: bool) -> Self {
+        Pool {
+            track_uses,
+            ..Pool::default()
+        }
+    }
+
     pub fn brick_count(&self) -> usize {
         self.bricks.len() / BRICK_VOXELS
     }
@@ -43,11 +52,9 @@ impl Pool {
     }
 
     fn brick(&mut self, values: &[f32; BRICK_VOXELS], active: &[u64; 8], hash: u64) -> u32 {
-        let bits = |s: &[f32]| -> bool {
-            s.iter()
-                .zip(values.iter())
-                .all(|(a, b)| a.to_bits() == b.to_bits())
-        };
+        // Bitwise equality (so -0.0 and 0.0 differ, and NaN payloads are kept apart), as memcmp.
+        let want: &[u32] = bytemuck::cast_slice(&values[..]);
+        let bits = |s: &[f32]| -> bool { bytemuck::cast_slice::<f32, u32>(s) == want };
         let found = self.brick_index.get(&hash).and_then(|c| {
             c.iter().copied().find(|&b| {
                 bits(&self.bricks[b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS])
@@ -98,9 +105,10 @@ impl Pool {
     }
 
     /// Adds the next frame (frames must come in sequence order).
-    pub fn add_frame(&mut self, f: BuiltFrame) {
+    pub fn add_frame(&mut self, mut f: BuiltFrame) {
         let mut entries = Vec::with_capacity(f.regions.len());
-        for (origin, region) in f.regions {
+        let regions = std::mem::take(&mut f.regions);
+        for (origin, region) in regions {
             let entry = match region {
                 Region::Tile(v) => self.tile(v),
                 Region::Leaves(leaves) => {
@@ -114,12 +122,15 @@ impl Pool {
                                 self.tile(v)
                             }
                             LeafContent::Brick {
-                                values,
+                                index,
                                 active,
                                 hash,
                             } => {
                                 self.source_bricks += 1;
-                                self.brick(&values, &active, hash)
+                                let i = index as usize * BRICK_VOXELS;
+                                let values: &[f32; BRICK_VOXELS] =
+                                    f.bricks[i..i + BRICK_VOXELS].try_into().expect("512");
+                                self.brick(values, &active, hash)
                             }
                         });
                     }

@@ -18,8 +18,9 @@
 //! - **L3 refs** (`u32`): a brick index, or `TILE_BIT | t` for a leaf whose 512 values all equal
 //!   `tiles[t]`. Root entries use the same encoding (`TILE_BIT | t` = the whole 128³ region is
 //!   `tiles[t]`), plus `EMPTY` (the region is background).
-//! - **Bricks**: 8³ values, voxel `(x, y, z)` at `x + 8·(y + 8·z)`; identical bricks across all
-//!   frames are stored once. The payload holds them back to back in the asset's format.
+//! - **Bricks**: 8³ values, voxel `(x, y, z)` at `64·x + 8·y + z` (OpenVDB's leaf order, so a
+//!   source leaf becomes a brick without reordering); identical bricks across all frames are
+//!   stored once. The payload holds them back to back in the asset's format.
 //! - **Ranges**: `[min, max]` of the *stored* values per brick, per L2 node (over its whole 128³
 //!   region, so background counts when a slot is empty) and per frame: majorants for empty-space
 //!   skipping and delta tracking.

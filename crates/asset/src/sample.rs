@@ -76,7 +76,7 @@ impl Asset {
             LeafRef::Empty => self.header.background,
             LeafRef::Tile(v) => v,
             LeafRef::Brick(b) => {
-                let v = (a[0] & 7) + 8 * ((a[1] & 7) + 8 * (a[2] & 7));
+                let v = ((a[0] & 7) << 6) | ((a[1] & 7) << 3) | (a[2] & 7);
                 payload::decode_voxel(
                     self.header.options.format,
                     &self.payload,
@@ -92,7 +92,7 @@ impl Asset {
         self.value(frame, self.header.to_asset_index(s))
     }
 
-    /// All 512 values of brick `b`, voxel `(x, y, z)` at `x + 8·(y + 8·z)`.
+    /// All 512 values of brick `b`, voxel `(x, y, z)` at `64·x + 8·y + z`.
     pub fn decode_brick(&self, b: u32, out: &mut [f32; BRICK_VOXELS]) {
         payload::decode_brick(self.header.options.format, &self.payload, b as usize, out)
     }

@@ -6,7 +6,7 @@ use crate::format::*;
 use crate::Asset;
 
 /// zstd level for sections (level 3 ≈ 1 GB/s here, both ways).
-const ZSTD_LEVEL: i32 = 3;
+const ZSTD_LEVEL: i32 = 1;
 
 fn le_u32(v: &[u32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
@@ -25,22 +25,24 @@ fn le_pairs(v: &[[f32; 2]]) -> Vec<u8> {
 }
 
 impl Asset {
-    /// Raw (uncompressed) bytes of each section, in `SectionKind::ALL` order.
-    pub fn raw_sections(&self) -> Vec<(SectionKind, Vec<u8>)> {
+    /// Raw (uncompressed) bytes of each section, in `SectionKind::ALL` order; the payload is
+    /// borrowed, not copied.
+    pub fn raw_sections(&self) -> Vec<(SectionKind, std::borrow::Cow<'_, [u8]>)> {
+        use std::borrow::Cow;
         SectionKind::ALL
             .iter()
             .map(|&k| {
-                let bytes = match k {
-                    SectionKind::Roots => le_u32(&self.roots),
-                    SectionKind::FrameRanges => le_pairs(&self.frame_ranges),
-                    SectionKind::L2Masks => le_u64(&self.l2_masks),
-                    SectionKind::L2Base => le_u32(&self.l2_base),
-                    SectionKind::L2Prefix => le_u16(&self.l2_prefix),
-                    SectionKind::L2Ranges => le_pairs(&self.l2_ranges),
-                    SectionKind::L3Refs => le_u32(&self.l3_refs),
-                    SectionKind::Tiles => le_f32(&self.tiles),
-                    SectionKind::BrickRanges => le_pairs(&self.brick_ranges),
-                    SectionKind::Payload => self.payload.clone(),
+                let bytes: Cow<'_, [u8]> = match k {
+                    SectionKind::Roots => Cow::Owned(le_u32(&self.roots)),
+                    SectionKind::FrameRanges => Cow::Owned(le_pairs(&self.frame_ranges)),
+                    SectionKind::L2Masks => Cow::Owned(le_u64(&self.l2_masks)),
+                    SectionKind::L2Base => Cow::Owned(le_u32(&self.l2_base)),
+                    SectionKind::L2Prefix => Cow::Owned(le_u16(&self.l2_prefix)),
+                    SectionKind::L2Ranges => Cow::Owned(le_pairs(&self.l2_ranges)),
+                    SectionKind::L3Refs => Cow::Owned(le_u32(&self.l3_refs)),
+                    SectionKind::Tiles => Cow::Owned(le_f32(&self.tiles)),
+                    SectionKind::BrickRanges => Cow::Owned(le_pairs(&self.brick_ranges)),
+                    SectionKind::Payload => Cow::Borrowed(&self.payload[..]),
                 };
                 (k, bytes)
             })
@@ -68,6 +70,7 @@ impl Asset {
             raws.push(raw);
         }
         header.content_hash = content_hash(&header, &raws)?;
+        drop(raws);
         let hbytes = bincode::serde::encode_to_vec(&header, bincode::config::standard())
             .map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))?;
         let mut out = Vec::with_capacity(16 + hbytes.len() + body.len());
@@ -81,7 +84,10 @@ impl Asset {
 }
 
 /// xxh3-64 over the header (with `content_hash` zeroed) and every raw section in order.
-pub(crate) fn content_hash(header: &Header, raws: &[Vec<u8>]) -> Result<u64, crate::AssetError> {
+pub(crate) fn content_hash<T: AsRef<[u8]>>(
+    header: &Header,
+    raws: &[T],
+) -> Result<u64, crate::AssetError> {
     let mut h = header.clone();
     h.content_hash = 0;
     let hb = bincode::serde::encode_to_vec(&h, bincode::config::standard())
@@ -89,7 +95,7 @@ pub(crate) fn content_hash(header: &Header, raws: &[Vec<u8>]) -> Result<u64, cra
     let mut all = xxhash_rust::xxh3::Xxh3::new();
     all.update(&hb);
     for r in raws {
-        all.update(r);
+        all.update(r.as_ref());
     }
     Ok(all.digest())
 }

@@ -9,7 +9,8 @@ use vdbcook_asset::*;
 /// Frame 1 shares the node (a DAG) and leaves region 1 empty.
 fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
     let brick: Vec<f32> = (0..512)
-        .map(|i| ((i % 8) + 10 * ((i / 8) % 8) + 100 * (i / 64)) as f32)
+        // Voxel (x, y, z) is at 64x + 8y + z and holds x + 10y + 100z.
+        .map(|i| ((i / 64) + 10 * ((i / 8) % 8) + 100 * (i % 8)) as f32)
         .collect();
     let mut payload = Vec::new();
     payload::encode(format, &brick, &mut payload);
@@ -90,8 +91,10 @@ fn sampler_returns_the_constructed_values() {
     for z in 0..8 {
         for y in 0..8 {
             for x in 0..8 {
-                assert_eq!(a.value(0, [x, y, z]), brick[(x + 8 * (y + 8 * z)) as usize]);
-                assert_eq!(a.value(1, [x, y, z]), brick[(x + 8 * (y + 8 * z)) as usize]);
+                let want = (x + 10 * y + 100 * z) as f32;
+                assert_eq!(brick[(64 * x + 8 * y + z) as usize], want);
+                assert_eq!(a.value(0, [x, y, z]), want);
+                assert_eq!(a.value(1, [x, y, z]), want);
                 assert_eq!(a.value(0, [8 + x, y, z]), 7.5, "tile leaf at slot 1");
             }
         }
