@@ -58,7 +58,10 @@ fn slot_of(c: [i32; 3]) -> u16 {
 }
 
 /// Builds one frame. `Err` carries a message (NaN/Inf without a replacement).
-pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFrame, String> {
+/// Consumes the grid: its value array becomes the frame's brick storage (inactive voxels are set
+/// to the background in place), so no voxel is copied.
+pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String> {
+    let bg = grid.background;
     // One pass for the source statistics and the non-finite check (cheaper than `grid.stats()`).
     let mut active_voxels = 0u64;
     let mut range = [f32::INFINITY, f32::NEG_INFINITY];
@@ -76,6 +79,21 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
             range = [lo, hi];
             continue;
         }
+        if vals.iter().all(|v| v.is_finite()) {
+            // Partially active, all finite: visit the active bits with the range in registers.
+            let (mut lo, mut hi) = (range[0], range[1]);
+            for (w, &word) in leaf.mask.iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let v = vals[w * 64 + bits.trailing_zeros() as usize];
+                    bits &= bits - 1;
+                    lo = if v < lo { v } else { lo };
+                    hi = if v > hi { v } else { hi };
+                }
+            }
+            range = [lo, hi];
+            continue;
+        }
         for (w, &word) in leaf.mask.iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
@@ -83,12 +101,7 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
                 bits &= bits - 1;
                 let v = vals[n];
                 if v.is_finite() {
-                    if v < range[0] {
-                        range[0] = v;
-                    }
-                    if v > range[1] {
-                        range[1] = v;
-                    }
+                    range = [range[0].min(v), range[1].max(v)];
                 } else {
                     non_finite += 1;
                     first_bad.get_or_insert_with(|| vdbcook_vdb::leaf_voxel(leaf.origin, n));
@@ -127,24 +140,27 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
             Region::Leaves(v) => v.push(leaf),
             Region::Tile(_) => {}
         };
-    let mut bricks: Vec<f32> = Vec::with_capacity(grid.leaves.len() * BRICK_VOXELS);
-    let mut values = [bg; BRICK_VOXELS];
-    for (li, leaf) in grid.leaves.iter().enumerate() {
-        let src = grid.leaf_values(li);
-        values.fill(bg);
+    let FloatGrid {
+        leaves,
+        values: mut bricks,
+        tiles,
+        ..
+    } = grid;
+    for (li, leaf) in leaves.iter().enumerate() {
+        let values = &mut bricks[li * BRICK_VOXELS..(li + 1) * BRICK_VOXELS];
         // Bricks keep OpenVDB's voxel order (n = 64·x + 8·y + z); inactive voxels become bg.
-        if leaf.mask.iter().all(|&w| w == u64::MAX) {
-            for (d, &v) in values.iter_mut().zip(src) {
-                *d = fix(v);
-            }
-        } else {
+        if leaf.mask.iter().any(|&w| w != u64::MAX) {
             for (w, &word) in leaf.mask.iter().enumerate() {
-                let mut bits = word;
-                while bits != 0 {
-                    let n = w * 64 + bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    values[n] = fix(src[n]);
+                let mut off = !word;
+                while off != 0 {
+                    values[w * 64 + off.trailing_zeros() as usize] = bg;
+                    off &= off - 1;
                 }
+            }
+        }
+        if non_finite > 0 {
+            for v in values.iter_mut() {
+                *v = fix(*v);
             }
         }
         let active = leaf.mask;
@@ -163,8 +179,7 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
             continue;
         }
         let hash = xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&values[..]));
-        let index = (bricks.len() / BRICK_VOXELS) as u32;
-        bricks.extend_from_slice(&values);
+        let index = li as u32;
         leaves_of(
             leaf.origin,
             BuiltLeaf {
@@ -178,7 +193,7 @@ pub fn build_frame(grid: &FloatGrid, bg: f32, nf: NonFinite) -> Result<BuiltFram
             &mut regions,
         );
     }
-    for t in grid.tiles.iter().filter(|t| t.active) {
+    for t in tiles.iter().filter(|t| t.active) {
         let v = fix(t.value);
         if v == bg {
             continue;

@@ -75,21 +75,27 @@ fn prepare(f: &Frame, grid: Option<&str>, nf: NonFinite) -> Prepared {
     };
     let read_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let built = build_frame(&loaded.grid, loaded.grid.background, nf);
+    let sequence::LoadedFrame {
+        frame,
+        grid_label: label,
+        grid,
+    } = loaded;
+    let (transform, background) = (grid.transform.clone(), grid.background);
+    let built = build_frame(grid, nf);
     let build_s = t.elapsed().as_secs_f64();
     let result = built
         .map(|built| PreparedFrame {
-            frame: loaded.frame.clone(),
-            label: loaded.grid_label.clone(),
-            transform: loaded.grid.transform.clone(),
-            background: loaded.grid.background,
+            frame: frame.clone(),
+            label: label.clone(),
+            transform,
+            background,
             built,
         })
         .map_err(|m| {
             err(
-                &loaded.frame.path,
+                &frame.path,
                 ErrorKind::Corrupt,
-                format!("grid '{}': {m}", loaded.grid_label),
+                format!("grid '{label}': {m}"),
             )
         });
     Prepared {

@@ -9,6 +9,33 @@ use vdbcook_asset::*;
 
 use crate::build::{BuiltFrame, LeafContent, Region};
 
+/// Keys of the dedup maps are already xxh3 hashes: use them as they are.
+#[derive(Default, Clone, Copy)]
+pub struct KeyIsHash;
+
+pub struct PassThrough(u64);
+
+impl std::hash::Hasher for PassThrough {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = self.0.rotate_left(8) ^ b as u64;
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = v;
+    }
+}
+
+impl std::hash::BuildHasher for KeyIsHash {
+    type Hasher = PassThrough;
+    fn build_hasher(&self) -> PassThrough {
+        PassThrough(0)
+    }
+}
+
 #[derive(Default)]
 pub struct Pool {
     /// Track `active_uses` (needed only when the payload is lossy).
@@ -17,12 +44,12 @@ pub struct Pool {
     pub bricks: Vec<f32>,
     /// Per unique brick and voxel: how many leaf uses have that voxel active (for error stats).
     pub active_uses: Vec<u32>,
-    brick_index: HashMap<u64, Vec<u32>>,
+    brick_index: HashMap<u64, Vec<u32>, KeyIsHash>,
     pub tiles: Vec<f32>,
     tile_index: HashMap<u32, u32>,
     pub l2_masks: Vec<u64>,
     pub l2_refs: Vec<Vec<u32>>,
-    l2_index: HashMap<u64, Vec<u32>>,
+    l2_index: HashMap<u64, Vec<u32>, KeyIsHash>,
     /// Per frame: (region source origin, root entry).
     pub frames: Vec<Vec<([i32; 3], u32)>>,
     /// Leaves that became bricks, over all frames, before dedup.
@@ -187,12 +214,14 @@ pub fn ranges(
     root_len: usize,
     bg: f32,
 ) -> Ranges {
+    // Stored values are finite: plain comparisons (vectorisable).
     let range_of = |s: &[f32]| {
-        s.iter()
-            .fold([f32::INFINITY, f32::NEG_INFINITY], |mut r, &v| {
-                widen(&mut r, v, v);
-                r
-            })
+        let (lo, hi) = s
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (if v < lo { v } else { lo }, if v > hi { v } else { hi })
+            });
+        [lo, hi]
     };
     let bricks: Vec<[f32; 2]> = decoded.chunks_exact(BRICK_VOXELS).map(range_of).collect();
     let ref_range = |r: u32| {
