@@ -9,11 +9,13 @@ lint:
     cargo fmt --all -- --check
     cargo clippy --workspace --all-targets -- -D warnings
 
-# Reader throughput on a generated 256³ blosc fog, side by side with vdb-rs.
+# Reader throughput on a generated 256³ blosc fog, side by side with vdb-rs; then cook vs read
+# on the 200-frame stormscape sequence (needs ../shared/samples).
 # Needs python3-openvdb (apt) once, to write the input file with real OpenVDB.
 bench:
     test -f bench-data/fog256.vdb || (mkdir -p bench-data && /usr/bin/python3 crates/vdb/benches/gen_fog.py bench-data/fog256.vdb 256)
     cargo bench -p vdbcook-vdb --bench read -- "$(pwd)/bench-data/fog256.vdb"
+    cargo bench -p vdbcook --bench cook -- "$(realpath ../shared/samples/stormscape-cloud-seq)" 9
 
 # Regenerate fixtures/ with OpenVDB (installs Debian's OpenVDB packages first).
 fixtures:
@@ -25,4 +27,4 @@ fuzz seconds="60":
 
 # The main job on the built-in default input.
 run:
-    cargo run --release -- inspect fixtures/seq/smoke5
+    cargo run --release -- cook fixtures/seq/smoke5 -o smoke5.vdbc
