@@ -13,7 +13,9 @@ use vdbcook_asset::*;
 use vdbcook_vdb::sequence::{self, Frame};
 use vdbcook_vdb::{ErrorKind, Transform, VdbError};
 
+use crate::bcenc::Bc7Quality;
 use crate::build::{build_frame, BuiltFrame, NonFinite};
+use crate::encode;
 use crate::pool::{ranges, Pool};
 use crate::report::CliError;
 
@@ -25,9 +27,21 @@ pub struct Args {
     /// Output asset file.
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
-    /// Brick payload: f32 (bit exact) or f16 (half precision; values beyond ±65504 are an error).
-    #[arg(long, default_value = "f32", value_parser = ["f32", "f16"])]
-    format: String,
+    /// Brick payload: f32 (bit exact), f16, unorm8 (8 bit), bc4 (4 bit) or bc7 (2 bit per voxel).
+    /// Default f32; with --max-error and no --format, the smallest that meets the error.
+    #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
+    format: Option<String>,
+    /// Every voxel of every frame decodes within E of its source value: each brick takes the
+    /// cheapest representation that meets E (tile, bc7, bc4, unorm8, f16, f32), starting at
+    /// --format when one is given.
+    #[arg(long, value_name = "E")]
+    max_error: Option<f32>,
+    /// Quantization range of unorm8/bc4/bc7 bricks: each brick's own min/max, or one global range.
+    #[arg(long, default_value = "brick", value_parser = ["brick", "global"])]
+    range: String,
+    /// BC7 encoder quality: ultra-fast, very-fast, fast, basic, slow.
+    #[arg(long, default_value = "fast")]
+    bc7_quality: String,
     /// Grid to cook: a name, `name[N]` for duplicates, or `#N` (default: `density`, else the only float grid).
     #[arg(long)]
     grid: Option<String>,
@@ -150,7 +164,44 @@ impl Progress {
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
-    let format = PayloadFormat::parse(&a.format).expect("clap checked");
+    let format = a
+        .format
+        .as_deref()
+        .map(|f| PayloadFormat::parse(f).expect("clap checked"));
+    let eopts = encode::EncodeOptions {
+        format: format.unwrap_or(if a.max_error.is_some() {
+            PayloadFormat::Bc7
+        } else {
+            PayloadFormat::F32
+        }),
+        format_given: format.is_some(),
+        max_error: a.max_error,
+        range: if a.range == "global" {
+            RangeMode::Global
+        } else {
+            RangeMode::Brick
+        },
+        bc7_quality: Bc7Quality::parse(&a.bc7_quality).ok_or_else(|| {
+            err(
+                &a.output,
+                ErrorKind::Sequence,
+                format!(
+                    "unknown --bc7-quality '{}' (ultra-fast, very-fast, fast, basic, slow)",
+                    a.bc7_quality
+                ),
+            )
+        })?,
+    };
+    if let Some(e) = a.max_error {
+        if !(e.is_finite() && e >= 0.0) {
+            return Err(err(
+                &a.output,
+                ErrorKind::Sequence,
+                "--max-error needs a finite value >= 0",
+            ));
+        }
+    }
+    let format = eopts.format;
     let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
     let nf = NonFinite {
         replace_with: a.replace_non_finite,
@@ -166,7 +217,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     let mut st = Stages::default();
     // Lossless payloads need no per-voxel use counts: their error is checked to be zero below.
-    let mut pool = Pool::new(format != PayloadFormat::F32);
+    let mut pool = Pool::new(format != PayloadFormat::F32 || a.max_error.is_some());
     let mut first: Option<(Frame, Transform, f32, String)> = None;
     let mut infos = Vec::with_capacity(frames.len());
     let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
@@ -263,28 +314,30 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 
     // Encode.
     let t = Instant::now();
-    if let Some(v) = payload::check_representable(format, &pool.bricks) {
-        return Err(err(
-            &f0.path,
-            ErrorKind::Unsupported,
-            format!(
-                "value {v} is beyond the range of {} (±{}); cook with --format f32",
-                format.name(),
-                payload::F16_MAX
-            ),
-        ));
-    }
-    let mut payload_bytes = Vec::new();
-    payload::encode(format, &pool.bricks, &mut payload_bytes);
-    // What the asset will hold, decoded (lossless f32 is the pool itself: no copy).
-    let decoded_lossy = pool.track_uses.then(|| {
-        let mut d = vec![0f32; pool.bricks.len()];
-        for (b, out) in d.chunks_exact_mut(BRICK_VOXELS).enumerate() {
-            payload::decode_brick(format, &payload_bytes, b, out.try_into().expect("512"));
+    let enc = encode::encode(&pool.bricks, &eopts)
+        .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
+    // Bricks that became tiles append their values to the pool's tiles.
+    let first_new_tile = pool.tiles.len() as u32;
+    pool.tiles.extend_from_slice(&enc.new_tiles);
+    let remap: Vec<u32> = enc
+        .remap
+        .iter()
+        .map(|&r| {
+            if r & TILE_BIT != 0 {
+                TILE_BIT | (first_new_tile + (r & !TILE_BIT))
+            } else {
+                r
+            }
+        })
+        .collect();
+    for refs in pool.l2_refs.iter_mut() {
+        for r in refs.iter_mut() {
+            if *r & TILE_BIT == 0 {
+                *r = remap[*r as usize];
+            }
         }
-        d
-    });
-    let decoded: &[f32] = decoded_lossy.as_deref().unwrap_or(&pool.bricks);
+    }
+    let decoded: &[f32] = &enc.decoded;
     let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
     let mut roots = vec![EMPTY; frames.len() * root_len];
     for (fi, entries) in pool.frames.iter().enumerate() {
@@ -295,7 +348,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 + root_dims[0] as usize * (r[1] + root_dims[1] as usize * r[2])] = *e;
         }
     }
-    let rg = ranges(decoded, &pool.tiles, &pool.l2_refs, &roots, root_len, bg);
+    let rg = ranges(
+        &enc.final_decoded,
+        &pool.tiles,
+        &pool.l2_refs,
+        &roots,
+        root_len,
+        bg,
+    );
     let mut l2_base = Vec::with_capacity(pool.l2_refs.len());
     let mut l2_prefix = Vec::with_capacity(pool.l2_refs.len() * L2_WORDS);
     let mut l3_refs = Vec::new();
@@ -318,7 +378,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             sum_sq += e * e * uses as f64;
         }
     }
-    drop(decoded_lossy);
     // The f32 pool is no longer needed: free it before serializing.
     let unique_bricks = pool.brick_count();
     pool.bricks = Vec::new();
@@ -335,6 +394,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             tool: format!("vdbcook {}", env!("CARGO_PKG_VERSION")),
             options: CookOptions {
                 format,
+                max_error: a.max_error,
+                range: eopts.range,
+                bc7_quality: eopts.bc7_quality.name().to_string(),
                 grid: a.grid.clone(),
                 replace_non_finite: a.replace_non_finite,
                 allow_gaps: a.allow_gaps,
@@ -347,6 +409,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             source_map: transform.kind.type_name().to_string(),
             voxel_size: transform.voxel_size(),
             background: bg,
+            brick_counts: enc.brick_counts,
             sections: Vec::new(),
             content_hash: 0,
         },
@@ -359,7 +422,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         l3_refs,
         tiles: std::mem::take(&mut pool.tiles),
         brick_ranges: rg.bricks,
-        payload: payload_bytes,
+        brick_quant: enc.brick_quant,
+        payloads: enc.payloads,
     };
     asset.validate().map_err(|e| {
         CliError::Other(format!(
@@ -405,6 +469,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "bits_per_active_voxel_gpu": bpv(topology + atlas),
         "topology_bits_per_active_voxel": bpv(topology),
         "error": {"rmse": rmse, "psnr_db": psnr, "max_abs": max_abs, "exact": max_abs == 0.0},
+        "representations": {
+            "tile": enc.representation.tile,
+            "bc7": enc.representation.per_format[0], "bc4": enc.representation.per_format[1],
+            "unorm8": enc.representation.per_format[2], "f16": enc.representation.per_format[3], "f32": enc.representation.per_format[4],
+        },
+        "max_error": a.max_error,
+        "bc7_quality": eopts.bc7_quality.name(),
+        "range": match eopts.range { RangeMode::Brick => "brick", RangeMode::Global => "global" },
         "peak_memory_bytes": peak_memory_bytes(),
         "seconds": {"total": t0.elapsed().as_secs_f64(), "read": st.read, "build": st.build, "dedup": st.dedup, "cluster": 0.0, "encode": st.encode, "write": st.write},
     });
@@ -440,7 +512,7 @@ fn peak_memory_bytes() -> Option<u64> {
 /// Raw bytes of each section (what a GPU upload holds).
 pub fn section_sizes(asset: &Asset) -> Vec<(&'static str, u64)> {
     let pair = 8u64;
-    vec![
+    let mut v = vec![
         ("roots", asset.roots.len() as u64 * 4),
         ("frame_ranges", asset.frame_ranges.len() as u64 * pair),
         ("l2_masks", asset.l2_masks.len() as u64 * 8),
@@ -450,14 +522,19 @@ pub fn section_sizes(asset: &Asset) -> Vec<(&'static str, u64)> {
         ("l3_refs", asset.l3_refs.len() as u64 * 4),
         ("tiles", asset.tiles.len() as u64 * 4),
         ("brick_ranges", asset.brick_ranges.len() as u64 * pair),
-        ("payload", asset.payload.len() as u64),
-    ]
+        ("brick_quant", asset.brick_quant.len() as u64 * pair),
+    ];
+    for (f, p) in PayloadFormat::ORDER.iter().zip(&asset.payloads) {
+        v.push((SectionKind::payload(*f).name(), p.len() as u64));
+    }
+    v
 }
 
 /// GPU bytes split into topology (roots, nodes, refs, tiles, node ranges) and atlas (the brick
-/// payload and the per-brick value ranges that travel with it).
+/// payloads and the per-brick value and quantization ranges that travel with them).
 pub fn topology_and_atlas(sizes: &[(&'static str, u64)]) -> (u64, u64) {
-    let atlas_part = |k: &str| k == "payload" || k == "brick_ranges";
+    let atlas_part =
+        |k: &str| k.starts_with("payload") || k == "brick_ranges" || k == "brick_quant";
     let t = sizes
         .iter()
         .filter(|(k, _)| !atlas_part(k))

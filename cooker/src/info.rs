@@ -19,6 +19,17 @@ pub struct Args {
     pub json: bool,
 }
 
+fn bricks_by_format(asset: &vdbcook_asset::Asset) -> serde_json::Value {
+    let mut m = serde_json::Map::new();
+    for (f, n) in vdbcook_asset::PayloadFormat::ORDER
+        .iter()
+        .zip(asset.header.brick_counts)
+    {
+        m.insert(f.name().to_string(), json!(n));
+    }
+    serde_json::Value::Object(m)
+}
+
 pub fn run(a: &Args) -> Result<(), CliError> {
     let asset = crate::cook::load_asset(&a.asset)?;
     let h = &asset.header;
@@ -83,7 +94,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "root_dims": h.root_dims,
         "extent_voxels": h.root_dims.map(|d| d * 128),
         "transform": {"source_map": h.source_map, "voxel_size": h.voxel_size, "matrix": h.index_to_world},
-        "pool": {"format": h.options.format.name(), "bricks": asset.brick_count(), "tiles": asset.tiles.len(), "l2_nodes": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "bytes": asset.payload.len()},
+        "pool": {"format": h.options.format.name(), "bricks": asset.brick_count(), "tiles": asset.tiles.len(), "l2_nodes": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "bytes": asset.payload_bytes(), "bricks_by_format": bricks_by_format(&asset)},
         "bytes": {"file": file_bytes, "topology": topology, "atlas": atlas, "gpu": topology + atlas},
         "sections": sections,
         "topology_bits_per_active_voxel": bpv(topology),
@@ -112,7 +123,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     println!(
         "  pool: {} bricks ({}), {} tile values, {} L2 nodes, {} leaf refs",
         asset.brick_count(),
-        h.options.format.name(),
+        bricks_by_format(&asset),
         asset.tiles.len(),
         asset.l2_count(),
         asset.l3_refs.len()

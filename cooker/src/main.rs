@@ -2,8 +2,10 @@
 //! parses arguments, sets up the thread pool, and turns errors into one-line messages (or one
 //! JSON document under `--json`) with a non-zero exit code.
 
+mod bcenc;
 mod build;
 mod cook;
+mod encode;
 mod eval;
 mod info;
 mod inspect;

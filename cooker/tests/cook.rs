@@ -174,7 +174,7 @@ fn output_is_byte_identical_at_any_thread_count() {
         inputs.push("../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb".into());
     }
     for (i, inp) in inputs.iter().enumerate() {
-        for fmt in ["f32", "f16"] {
+        for fmt in ["f32", "f16", "unorm8", "bc4", "bc7"] {
             let a = d.path().join(format!("{i}-{fmt}-1.vdbc"));
             let b = d.path().join(format!("{i}-{fmt}-2.vdbc"));
             assert_eq!(
@@ -406,5 +406,84 @@ fn real_samples_cook_exactly_within_the_topology_bar() {
         assert!(t <= 0.25, "{inp}: topology {t} bit per active voxel");
         assert!(info["bytes_per_extra_static_frame"].as_u64().unwrap() <= 8192);
         assert!(e["voxels_compared"].as_u64().unwrap() >= c["active_voxels"].as_u64().unwrap());
+    }
+}
+
+#[test]
+fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
+    let d = tempfile::tempdir().unwrap();
+    let mut inputs = vec!["fixtures/seq/smoke5", "fixtures/vdb/fog_f32_blosc_mask.vdb"];
+    if root().join("../shared/samples").is_dir() {
+        inputs.push("../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb");
+    }
+    for (i, inp) in inputs.iter().enumerate() {
+        for e in ["0.001", "0.01", "0.05"] {
+            for fmt in [None, Some("bc7"), Some("unorm8")] {
+                let out = d.path().join(format!("{i}-{e}.vdbc"));
+                let mut args = vec![
+                    "cook",
+                    "--json",
+                    inp,
+                    "-o",
+                    out.to_str().unwrap(),
+                    "--max-error",
+                    e,
+                ];
+                if let Some(f) = fmt {
+                    args.extend(["--format", f]);
+                }
+                let c = json(&args);
+                let ev = json(&["eval", "--json", out.to_str().unwrap(), inp]);
+                let limit: f64 = e.parse().unwrap();
+                assert!(
+                    ev["max_abs"].as_f64().unwrap() <= limit * (1.0 + 1e-6),
+                    "{inp} E={e} {fmt:?}: eval max error {}",
+                    ev["max_abs"]
+                );
+                let reps = &c["representations"];
+                let total: u64 = ["tile", "bc7", "bc4", "unorm8", "f16", "f32"]
+                    .iter()
+                    .map(|k| reps[k].as_u64().unwrap())
+                    .sum();
+                assert_eq!(
+                    total,
+                    c["bricks"]["unique"].as_u64().unwrap(),
+                    "every brick has one representation"
+                );
+                if fmt == Some("unorm8") {
+                    assert_eq!(reps["bc7"], 0);
+                    assert_eq!(reps["bc4"], 0);
+                }
+            }
+        }
+    }
+    // Without a bound, the cook's error report agrees with eval's independent decode.
+    for fmt in ["unorm8", "bc4", "bc7"] {
+        let out = d.path().join(format!("{fmt}.vdbc"));
+        let c = json(&[
+            "cook",
+            "--json",
+            "fixtures/seq/smoke5",
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            fmt,
+        ]);
+        let ev = json(&[
+            "eval",
+            "--json",
+            out.to_str().unwrap(),
+            "fixtures/seq/smoke5",
+        ]);
+        let (a, b) = (
+            c["error"]["max_abs"].as_f64().unwrap(),
+            ev["max_abs"].as_f64().unwrap(),
+        );
+        assert!(b >= a && b > 0.0, "{fmt}: cook max {a}, eval max {b}");
+        let (ra, rb) = (
+            c["error"]["rmse"].as_f64().unwrap(),
+            ev["rmse"].as_f64().unwrap(),
+        );
+        assert!(rb >= ra * 0.999, "{fmt}: cook rmse {ra}, eval rmse {rb}");
     }
 }

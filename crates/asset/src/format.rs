@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Root entry: the 128³ region is background.
 pub const EMPTY: u32 = u32::MAX;
 /// Ref flag: the low 31 bits index `tiles`.
@@ -20,41 +20,93 @@ pub const ROOT_DIM_MAX: u32 = 32;
 /// Largest header accepted when loading.
 pub const MAX_HEADER_BYTES: usize = 64 << 20;
 
-/// How brick voxels are stored.
+/// How brick voxels are stored. An asset may mix formats (one atlas per format): bricks are
+/// grouped by format in [`PayloadFormat::ORDER`], so brick `b`'s format follows from
+/// `Header::brick_counts`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum PayloadFormat {
-    /// 32-bit float, bit exact.
+    /// 32-bit float, bit exact; voxel order `64·x + 8·y + z`.
     F32,
-    /// IEEE half float (round to nearest even).
+    /// IEEE half float (round to nearest even); voxel order `64·x + 8·y + z`.
     F16,
+    /// 8-bit unsigned normalized over the brick's quantization range; texture order
+    /// `x + 8·y + 64·z` (8 slices of 8×8 texels).
+    Unorm8,
+    /// BC4 (one channel, 4 bit/voxel) over the brick's range: 8 slices × 2×2 blocks of 8 bytes.
+    Bc4,
+    /// BC7 (RGBA, 2 bit/voxel) over the brick's range: texel (x, y) of slice `s` holds voxels
+    /// z = 4s..4s+3 in R, G, B, A; 2 slices × 2×2 blocks of 16 bytes.
+    Bc7,
 }
 
 impl PayloadFormat {
-    pub fn bytes_per_voxel(self) -> usize {
+    /// Atlas order, cheapest first (also the fallback order of `--max-error`).
+    pub const ORDER: [PayloadFormat; 5] = [
+        PayloadFormat::Bc7,
+        PayloadFormat::Bc4,
+        PayloadFormat::Unorm8,
+        PayloadFormat::F16,
+        PayloadFormat::F32,
+    ];
+
+    /// Bytes one 8³ brick takes in this format.
+    pub fn bytes_per_brick(self) -> usize {
         match self {
-            PayloadFormat::F32 => 4,
-            PayloadFormat::F16 => 2,
+            PayloadFormat::F32 => 2048,
+            PayloadFormat::F16 => 1024,
+            PayloadFormat::Unorm8 => 512,
+            PayloadFormat::Bc4 => 256,
+            PayloadFormat::Bc7 => 128,
         }
+    }
+    /// Position in [`PayloadFormat::ORDER`].
+    pub fn rank(self) -> usize {
+        Self::ORDER
+            .iter()
+            .position(|&f| f == self)
+            .expect("in ORDER")
+    }
+    /// Stored through a per-brick `[lo, hi]` quantization range.
+    pub fn is_quantized(self) -> bool {
+        matches!(
+            self,
+            PayloadFormat::Unorm8 | PayloadFormat::Bc4 | PayloadFormat::Bc7
+        )
     }
     pub fn name(self) -> &'static str {
         match self {
             PayloadFormat::F32 => "f32",
             PayloadFormat::F16 => "f16",
+            PayloadFormat::Unorm8 => "unorm8",
+            PayloadFormat::Bc4 => "bc4",
+            PayloadFormat::Bc7 => "bc7",
         }
     }
     pub fn parse(s: &str) -> Option<Self> {
-        match s {
-            "f32" => Some(PayloadFormat::F32),
-            "f16" => Some(PayloadFormat::F16),
-            _ => None,
-        }
+        Self::ORDER.iter().copied().find(|f| f.name() == s)
     }
+}
+
+/// Where the quantization range of unorm8 / BC bricks comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RangeMode {
+    /// Each brick's own min/max (default: faint bricks keep their precision).
+    Brick,
+    /// One range for the whole asset (the thesis's method; loses faint densities).
+    Global,
 }
 
 /// The options a cook ran with (recorded so an asset says how it was made).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CookOptions {
+    /// `--format` (with `--max-error`: the preferred format).
     pub format: PayloadFormat,
+    /// `--max-error`: every voxel decodes within this of its source value.
+    pub max_error: Option<f32>,
+    /// Quantization range of unorm8 / BC bricks.
+    pub range: RangeMode,
+    /// BC7 encoder quality name.
+    pub bc7_quality: String,
     /// `--grid` as given (`None`: the default choice).
     pub grid: Option<String>,
     /// `--replace-non-finite`: the value NaN/±Inf were replaced with.
@@ -84,11 +136,16 @@ pub enum SectionKind {
     L3Refs,
     Tiles,
     BrickRanges,
-    Payload,
+    BrickQuant,
+    PayloadBc7,
+    PayloadBc4,
+    PayloadUnorm8,
+    PayloadF16,
+    PayloadF32,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 10] = [
+    pub const ALL: [SectionKind; 15] = [
         SectionKind::Roots,
         SectionKind::FrameRanges,
         SectionKind::L2Masks,
@@ -98,8 +155,23 @@ impl SectionKind {
         SectionKind::L3Refs,
         SectionKind::Tiles,
         SectionKind::BrickRanges,
-        SectionKind::Payload,
+        SectionKind::BrickQuant,
+        SectionKind::PayloadBc7,
+        SectionKind::PayloadBc4,
+        SectionKind::PayloadUnorm8,
+        SectionKind::PayloadF16,
+        SectionKind::PayloadF32,
     ];
+    /// The payload section of a format.
+    pub fn payload(f: PayloadFormat) -> SectionKind {
+        match f {
+            PayloadFormat::Bc7 => SectionKind::PayloadBc7,
+            PayloadFormat::Bc4 => SectionKind::PayloadBc4,
+            PayloadFormat::Unorm8 => SectionKind::PayloadUnorm8,
+            PayloadFormat::F16 => SectionKind::PayloadF16,
+            PayloadFormat::F32 => SectionKind::PayloadF32,
+        }
+    }
     pub fn name(self) -> &'static str {
         match self {
             SectionKind::Roots => "roots",
@@ -111,7 +183,12 @@ impl SectionKind {
             SectionKind::L3Refs => "l3_refs",
             SectionKind::Tiles => "tiles",
             SectionKind::BrickRanges => "brick_ranges",
-            SectionKind::Payload => "payload",
+            SectionKind::BrickQuant => "brick_quant",
+            SectionKind::PayloadBc7 => "payload_bc7",
+            SectionKind::PayloadBc4 => "payload_bc4",
+            SectionKind::PayloadUnorm8 => "payload_unorm8",
+            SectionKind::PayloadF16 => "payload_f16",
+            SectionKind::PayloadF32 => "payload_f32",
         }
     }
 }
@@ -147,6 +224,8 @@ pub struct Header {
     pub voxel_size: [f64; 3],
     /// Value of every voxel the asset does not store.
     pub background: f32,
+    /// Bricks per format, in [`PayloadFormat::ORDER`]; brick indices run through the groups.
+    pub brick_counts: [u64; 5],
     /// Filled in by the writer.
     pub sections: Vec<SectionInfo>,
     /// xxh3-64 of the header (this field zeroed) and all raw sections. Filled in by the writer.

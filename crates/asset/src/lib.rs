@@ -18,9 +18,12 @@
 //! - **L3 refs** (`u32`): a brick index, or `TILE_BIT | t` for a leaf whose 512 values all equal
 //!   `tiles[t]`. Root entries use the same encoding (`TILE_BIT | t` = the whole 128³ region is
 //!   `tiles[t]`), plus `EMPTY` (the region is background).
-//! - **Bricks**: 8³ values, voxel `(x, y, z)` at `64·x + 8·y + z` (OpenVDB's leaf order, so a
-//!   source leaf becomes a brick without reordering); identical bricks across all frames are
-//!   stored once. The payload holds them back to back in the asset's format.
+//! - **Bricks**: 8³ values; identical bricks across all frames are stored once. Each brick is in
+//!   one of five formats (see [`PayloadFormat`]), grouped by format in [`PayloadFormat::ORDER`]
+//!   (BC7, BC4, unorm8, f16, f32): brick `b` belongs to the group its index falls in according to
+//!   `Header::brick_counts`, and each group has its own payload section (one atlas per format).
+//!   f32/f16 bricks keep OpenVDB's voxel order `64·x + 8·y + z`; unorm8/BC bricks are texture
+//!   tiles (slices along z of 8×8 texels) over the brick's `[lo, hi]` in `brick_quant`.
 //! - **Ranges**: `[min, max]` of the *stored* values per brick, per L2 node (over its whole 128³
 //!   region, so background counts when a slot is empty) and per frame: majorants for empty-space
 //!   skipping and delta tracking.
@@ -37,11 +40,13 @@
 //!
 //! Sections, in this order, each the little-endian array named: `roots` (u32), `frame_ranges`
 //! (f32 pairs), `l2_masks` (u64 × 64 per node), `l2_base` (u32), `l2_prefix` (u16 × 64 per node),
-//! `l2_ranges` (f32 pairs), `l3_refs` (u32), `tiles` (f32), `brick_ranges` (f32 pairs), `payload`
-//! (bytes). Each section records its raw length and an xxh3 hash; `content_hash` is the xxh3 of the header (with the hash
+//! `l2_ranges` (f32 pairs), `l3_refs` (u32), `tiles` (f32), `brick_ranges` (f32 pairs),
+//! `brick_quant` (f32 pairs: the `[lo, hi]` of quantized bricks, `[0, 0]` for float ones), then one
+//! payload section per format in `PayloadFormat::ORDER` (bytes, `bytes_per_brick` each). Each section records its raw length and an xxh3 hash; `content_hash` is the xxh3 of the header (with the hash
 //! zeroed) followed by all raw sections in order. Loading = read, decompress, validate every index and count; there is no
 //! per-node deserialization.
 
+pub mod bc;
 mod error;
 mod format;
 mod load;
@@ -73,8 +78,10 @@ pub struct Asset {
     /// Constant values of tiles (deduplicated).
     pub tiles: Vec<f32>,
     pub brick_ranges: Vec<[f32; 2]>,
-    /// Bricks in `header.options.format`, 512 voxels each.
-    pub payload: Vec<u8>,
+    /// Per brick `[lo, hi]` of its quantization range (quantized formats; `[0, 0]` otherwise).
+    pub brick_quant: Vec<[f32; 2]>,
+    /// One atlas per format, in [`PayloadFormat::ORDER`].
+    pub payloads: [Vec<u8>; 5],
 }
 
 impl Asset {
@@ -94,6 +101,27 @@ impl Asset {
     pub fn frame_roots(&self, frame: usize) -> &[u32] {
         let n = self.root_len();
         &self.roots[frame * n..(frame + 1) * n]
+    }
+    /// Format of brick `b` and its index inside that format's atlas.
+    pub fn brick_format(&self, b: u32) -> (PayloadFormat, usize) {
+        let mut b = b as u64;
+        for (i, &n) in self.header.brick_counts.iter().enumerate() {
+            if b < n {
+                return (PayloadFormat::ORDER[i], b as usize);
+            }
+            b -= n;
+        }
+        panic!("brick index beyond the pool (validated assets never get here)")
+    }
+    /// The stored bytes of brick `b`.
+    pub fn brick_bytes(&self, b: u32) -> (PayloadFormat, &[u8]) {
+        let (f, i) = self.brick_format(b);
+        let n = f.bytes_per_brick();
+        (f, &self.payloads[f.rank()][i * n..(i + 1) * n])
+    }
+    /// Total payload bytes over all formats.
+    pub fn payload_bytes(&self) -> usize {
+        self.payloads.iter().map(|p| p.len()).sum()
     }
     /// The 64 mask words of L2 node `n`.
     pub fn l2_mask(&self, n: usize) -> &[u64] {

@@ -132,11 +132,21 @@ impl Asset {
             return bad("content hash mismatch (header or sections corrupt)");
         }
         let root_len: usize = header.root_dims.iter().map(|&d| d as usize).product();
-        let bpv = header.options.format.bytes_per_voxel() as u64;
         // Element counts implied by the sections, checked for consistency.
         let n_l2 = raw[3].len() / 4;
         let n_bricks = raw[8].len() / 8;
-        let expect: [(usize, u64); 10] = [
+        if header
+            .brick_counts
+            .iter()
+            .try_fold(0u64, |a, &n| a.checked_add(n))
+            != Some(n_bricks as u64)
+        {
+            return bad(format!(
+                "brick counts per format {:?} do not add up to the {n_bricks} bricks",
+                header.brick_counts
+            ));
+        }
+        let mut expect: Vec<(usize, u64)> = vec![
             (0, (nframes * root_len * 4) as u64),
             (1, nframes as u64 * 8),
             (2, n_l2 as u64 * L2_WORDS as u64 * 8),
@@ -146,8 +156,11 @@ impl Asset {
             (6, raw[6].len() as u64 / 4 * 4),
             (7, raw[7].len() as u64 / 4 * 4),
             (8, n_bricks as u64 * 8),
-            (9, n_bricks as u64 * BRICK_VOXELS as u64 * bpv),
+            (9, n_bricks as u64 * 8),
         ];
+        for (i, f) in PayloadFormat::ORDER.iter().enumerate() {
+            expect.push((10 + i, header.brick_counts[i] * f.bytes_per_brick() as u64));
+        }
         for (i, want) in expect {
             if raw[i].len() as u64 != want {
                 return bad(format!(
@@ -156,6 +169,10 @@ impl Asset {
                     raw[i].len()
                 ));
             }
+        }
+        let mut payloads: [Vec<u8>; 5] = Default::default();
+        for (i, p) in payloads.iter_mut().enumerate() {
+            *p = std::mem::take(&mut raw[10 + i]);
         }
         let asset = Asset {
             roots: u32s(&raw[0]),
@@ -167,7 +184,8 @@ impl Asset {
             l3_refs: u32s(&raw[6]),
             tiles: f32s(&raw[7]),
             brick_ranges: pairs(&raw[8]),
-            payload: std::mem::take(&mut raw[9]),
+            brick_quant: pairs(&raw[9]),
+            payloads,
             header,
         };
         asset.validate()?;
@@ -233,10 +251,26 @@ impl Asset {
         if !self.tiles.iter().all(finite) || !self.header.background.is_finite() {
             return bad("non-finite tile or background value");
         }
+        if self.brick_quant.len() != n_bricks
+            || self.header.brick_counts.iter().sum::<u64>() != n_bricks as u64
+        {
+            return bad("per-brick quantization ranges or format counts do not match the bricks");
+        }
+        for (f, p) in PayloadFormat::ORDER.iter().zip(&self.payloads) {
+            if p.len() as u64 != self.header.brick_counts[f.rank()] * f.bytes_per_brick() as u64 {
+                return bad(format!(
+                    "{} atlas has {} bytes for {} bricks",
+                    f.name(),
+                    p.len(),
+                    self.header.brick_counts[f.rank()]
+                ));
+            }
+        }
         for (what, r) in [
             ("frame", &self.frame_ranges),
             ("L2 node", &self.l2_ranges),
             ("brick", &self.brick_ranges),
+            ("brick quantization", &self.brick_quant),
         ] {
             if let Some(i) = r
                 .iter()

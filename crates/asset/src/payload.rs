@@ -1,14 +1,29 @@
-//! Brick payload encodings: f32 (bit exact) and f16. The encoder stage is a function of the
-//! format so later formats (unorm8, BC4, BC7) plug in beside these.
+//! Brick payload encodings and their CPU decoders. Float formats (f32, f16) keep OpenVDB's voxel
+//! order `64·x + 8·y + z`; quantized formats (unorm8, BC4, BC7) are laid out as texture tiles
+//! (slices along z of 8×8 texels) over a per-brick `[lo, hi]` range, value = lo + (hi − lo)·q/255.
+//! BC encoding needs intel_tex_2 and lives in the cooker; decoding is here (pure Rust), so the
+//! runtime, `eval` and the tests read every format.
 
+use crate::bc;
 use crate::format::{PayloadFormat, BRICK_VOXELS};
 
 /// Largest finite f16 magnitude.
 pub const F16_MAX: f32 = 65504.0;
 
-/// Appends `values` (a whole number of bricks) to `out` in `format`. Values must be
-/// representable (see [`check_representable`]).
-pub fn encode(format: PayloadFormat, values: &[f32], out: &mut Vec<u8>) {
+/// Index of voxel (x, y, z) in a float brick (OpenVDB's leaf order).
+#[inline]
+pub fn vox_index(x: usize, y: usize, z: usize) -> usize {
+    (x << 6) | (y << 3) | z
+}
+
+/// Index of voxel (x, y, z) in an unorm8 brick (texture order: slices of 8×8 texels).
+#[inline]
+pub fn tex_index(x: usize, y: usize, z: usize) -> usize {
+    x + 8 * y + 64 * z
+}
+
+/// Appends float bricks (`values`: whole bricks in voxel order) to `out`.
+pub fn encode_float(format: PayloadFormat, values: &[f32], out: &mut Vec<u8>) {
     match format {
         PayloadFormat::F32 => {
             out.reserve(values.len() * 4);
@@ -22,30 +37,61 @@ pub fn encode(format: PayloadFormat, values: &[f32], out: &mut Vec<u8>) {
                 out.extend_from_slice(&half::f16::from_f32(*v).to_bits().to_le_bytes());
             }
         }
+        other => panic!(
+            "encode_float called with the quantized format {}",
+            other.name()
+        ),
     }
 }
 
 /// The first value that `format` cannot store (beyond f16's range), if any.
 pub fn check_representable(format: PayloadFormat, values: &[f32]) -> Option<f32> {
     match format {
-        PayloadFormat::F32 => None,
-        // Values that round to infinity in f16 (≥ 65520 in magnitude).
         PayloadFormat::F16 => values
             .iter()
             .copied()
             .find(|v| half::f16::from_f32(*v).is_infinite()),
+        _ => None,
     }
 }
 
-/// Decodes brick `b` of a payload into `out`.
+/// `v` quantized to 8 bits over `[lo, hi]` (round to nearest, clamped).
+#[inline]
+pub fn quantize(v: f32, lo: f32, hi: f32) -> u8 {
+    if hi <= lo {
+        return 0;
+    }
+    let t = ((v as f64 - lo as f64) / (hi as f64 - lo as f64) * 255.0).round();
+    t.clamp(0.0, 255.0) as u8
+}
+
+/// The value an 8-bit code stands for over `[lo, hi]` (the formula the GPU uses too).
+#[inline]
+pub fn dequantize(q: u8, lo: f32, hi: f32) -> f32 {
+    lo + (hi - lo) * (q as f32 / 255.0)
+}
+
+/// An unorm8 brick in texture order from float values in voxel order.
+pub fn encode_unorm8(values: &[f32], lo: f32, hi: f32) -> [u8; BRICK_VOXELS] {
+    let mut out = [0u8; BRICK_VOXELS];
+    for x in 0..8 {
+        for y in 0..8 {
+            for z in 0..8 {
+                out[tex_index(x, y, z)] = quantize(values[vox_index(x, y, z)], lo, hi);
+            }
+        }
+    }
+    out
+}
+
+/// Decodes one brick's bytes into values in voxel order (`64·x + 8·y + z`).
 pub fn decode_brick(
     format: PayloadFormat,
-    payload: &[u8],
-    b: usize,
+    bytes: &[u8],
+    quant: [f32; 2],
     out: &mut [f32; BRICK_VOXELS],
 ) {
-    let bpv = format.bytes_per_voxel();
-    let bytes = &payload[b * BRICK_VOXELS * bpv..(b + 1) * BRICK_VOXELS * bpv];
+    let [lo, hi] = quant;
     match format {
         PayloadFormat::F32 => {
             for (o, c) in out.iter_mut().zip(bytes.chunks_exact(4)) {
@@ -57,19 +103,69 @@ pub fn decode_brick(
                 *o = half::f16::from_bits(u16::from_le_bytes([c[0], c[1]])).to_f32();
             }
         }
+        PayloadFormat::Unorm8 => {
+            for x in 0..8 {
+                for y in 0..8 {
+                    for z in 0..8 {
+                        out[vox_index(x, y, z)] = dequantize(bytes[tex_index(x, y, z)], lo, hi);
+                    }
+                }
+            }
+        }
+        PayloadFormat::Bc4 => {
+            for (bi, block) in bytes.chunks_exact(8).enumerate() {
+                let texels = bc::decode_bc4_block(block.try_into().expect("8"));
+                let (z, by, bx) = (bi / 4, (bi / 2) % 2, bi % 2);
+                for (t, &q) in texels.iter().enumerate() {
+                    let (x, y) = (4 * bx + t % 4, 4 * by + t / 4);
+                    out[vox_index(x, y, z)] = dequantize(q, lo, hi);
+                }
+            }
+        }
+        PayloadFormat::Bc7 => {
+            for (bi, block) in bytes.chunks_exact(16).enumerate() {
+                let texels = bc::decode_bc7_block(block.try_into().expect("16"));
+                let (s, by, bx) = (bi / 4, (bi / 2) % 2, bi % 2);
+                for (t, rgba) in texels.iter().enumerate() {
+                    let (x, y) = (4 * bx + t % 4, 4 * by + t / 4);
+                    for (c, &q) in rgba.iter().enumerate() {
+                        out[vox_index(x, y, 4 * s + c)] = dequantize(q, lo, hi);
+                    }
+                }
+            }
+        }
     }
 }
 
-/// Decodes voxel `v` of brick `b`.
-pub fn decode_voxel(format: PayloadFormat, payload: &[u8], b: usize, v: usize) -> f32 {
-    let bpv = format.bytes_per_voxel();
-    let i = (b * BRICK_VOXELS + v) * bpv;
+/// Decodes voxel (x, y, z) of one brick's bytes.
+pub fn decode_voxel(
+    format: PayloadFormat,
+    bytes: &[u8],
+    quant: [f32; 2],
+    x: usize,
+    y: usize,
+    z: usize,
+) -> f32 {
+    let [lo, hi] = quant;
     match format {
         PayloadFormat::F32 => {
-            f32::from_le_bytes([payload[i], payload[i + 1], payload[i + 2], payload[i + 3]])
+            let i = vox_index(x, y, z) * 4;
+            f32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]])
         }
         PayloadFormat::F16 => {
-            half::f16::from_bits(u16::from_le_bytes([payload[i], payload[i + 1]])).to_f32()
+            let i = vox_index(x, y, z) * 2;
+            half::f16::from_bits(u16::from_le_bytes([bytes[i], bytes[i + 1]])).to_f32()
+        }
+        PayloadFormat::Unorm8 => dequantize(bytes[tex_index(x, y, z)], lo, hi),
+        PayloadFormat::Bc4 => {
+            let bi = z * 4 + (y / 4) * 2 + x / 4;
+            let texels = bc::decode_bc4_block(bytes[bi * 8..bi * 8 + 8].try_into().expect("8"));
+            dequantize(texels[(y % 4) * 4 + x % 4], lo, hi)
+        }
+        PayloadFormat::Bc7 => {
+            let bi = (z / 4) * 4 + (y / 4) * 2 + x / 4;
+            let texels = bc::decode_bc7_block(bytes[bi * 16..bi * 16 + 16].try_into().expect("16"));
+            dequantize(texels[(y % 4) * 4 + x % 4][z % 4], lo, hi)
         }
     }
 }

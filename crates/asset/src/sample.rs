@@ -76,12 +76,15 @@ impl Asset {
             LeafRef::Empty => self.header.background,
             LeafRef::Tile(v) => v,
             LeafRef::Brick(b) => {
-                let v = ((a[0] & 7) << 6) | ((a[1] & 7) << 3) | (a[2] & 7);
+                let (f, bytes) = self.brick_bytes(b);
+                let q = self.brick_quant[b as usize];
                 payload::decode_voxel(
-                    self.header.options.format,
-                    &self.payload,
-                    b as usize,
-                    v as usize,
+                    f,
+                    bytes,
+                    q,
+                    (a[0] & 7) as usize,
+                    (a[1] & 7) as usize,
+                    (a[2] & 7) as usize,
                 )
             }
         }
@@ -94,7 +97,8 @@ impl Asset {
 
     /// All 512 values of brick `b`, voxel `(x, y, z)` at `64·x + 8·y + z`.
     pub fn decode_brick(&self, b: u32, out: &mut [f32; BRICK_VOXELS]) {
-        payload::decode_brick(self.header.options.format, &self.payload, b as usize, out)
+        let (f, bytes) = self.brick_bytes(b);
+        payload::decode_brick(f, bytes, self.brick_quant[b as usize], out)
     }
 
     /// Calls `f(leaf asset origin, ref)` for every stored leaf of `frame` (tiled root regions are

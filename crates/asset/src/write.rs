@@ -42,7 +42,12 @@ impl Asset {
                     SectionKind::L3Refs => Cow::Owned(le_u32(&self.l3_refs)),
                     SectionKind::Tiles => Cow::Owned(le_f32(&self.tiles)),
                     SectionKind::BrickRanges => Cow::Owned(le_pairs(&self.brick_ranges)),
-                    SectionKind::Payload => Cow::Borrowed(&self.payload[..]),
+                    SectionKind::BrickQuant => Cow::Owned(le_pairs(&self.brick_quant)),
+                    SectionKind::PayloadBc7 => Cow::Borrowed(&self.payloads[0][..]),
+                    SectionKind::PayloadBc4 => Cow::Borrowed(&self.payloads[1][..]),
+                    SectionKind::PayloadUnorm8 => Cow::Borrowed(&self.payloads[2][..]),
+                    SectionKind::PayloadF16 => Cow::Borrowed(&self.payloads[3][..]),
+                    SectionKind::PayloadF32 => Cow::Borrowed(&self.payloads[4][..]),
                 };
                 (k, bytes)
             })

@@ -12,8 +12,22 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
         // Voxel (x, y, z) is at 64x + 8y + z and holds x + 10y + 100z.
         .map(|i| ((i / 64) + 10 * ((i / 8) % 8) + 100 * (i % 8)) as f32)
         .collect();
-    let mut payload = Vec::new();
-    payload::encode(format, &brick, &mut payload);
+    let mut bytes = Vec::new();
+    let quant = if format.is_quantized() {
+        [0.0, 777.0]
+    } else {
+        [0.0, 0.0]
+    };
+    match format {
+        PayloadFormat::Unorm8 => {
+            bytes.extend_from_slice(&payload::encode_unorm8(&brick, 0.0, 777.0))
+        }
+        f => payload::encode_float(f, &brick, &mut bytes),
+    }
+    let mut payloads: [Vec<u8>; 5] = Default::default();
+    payloads[format.rank()] = bytes;
+    let mut brick_counts = [0u64; 5];
+    brick_counts[format.rank()] = 1;
     let mut mask = vec![0u64; L2_WORDS];
     mask[0] = 0b11;
     let mut prefix = vec![0u16; L2_WORDS];
@@ -25,6 +39,9 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
             tool: "test".into(),
             options: CookOptions {
                 format,
+                max_error: None,
+                range: RangeMode::Brick,
+                bc7_quality: "fast".into(),
                 grid: None,
                 replace_non_finite: None,
                 allow_gaps: false,
@@ -53,6 +70,7 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
             source_map: "UniformScaleTranslateMap".into(),
             voxel_size: [0.5; 3],
             background: 0.0,
+            brick_counts,
             sections: vec![],
             content_hash: 0,
         },
@@ -65,14 +83,19 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
         l3_refs: vec![0, TILE_BIT],
         tiles: vec![7.5, 2.0],
         brick_ranges: vec![[0.0, 777.0]],
-        payload,
+        brick_quant: vec![quant],
+        payloads,
     };
     (asset, brick)
 }
 
 #[test]
 fn round_trip_is_lossless_and_deterministic() {
-    for f in [PayloadFormat::F32, PayloadFormat::F16] {
+    for f in [
+        PayloadFormat::F32,
+        PayloadFormat::F16,
+        PayloadFormat::Unorm8,
+    ] {
         let (a, _) = sample_asset(f);
         a.validate().unwrap();
         let (bytes, header) = a.to_bytes().unwrap();
@@ -112,6 +135,19 @@ fn sampler_returns_the_constructed_values() {
     );
     let (h, _) = sample_asset(PayloadFormat::F16);
     assert_eq!(h.value(0, [7, 7, 7]), 777.0, "777 is exact in f16");
+    // unorm8 over [0, 777]: every voxel within half a quantization step.
+    let (u, _) = sample_asset(PayloadFormat::Unorm8);
+    for z in 0..8 {
+        for y in 0..8 {
+            for x in 0..8 {
+                let want = (x + 10 * y + 100 * z) as f32;
+                assert!(
+                    (u.value(0, [x, y, z]) - want).abs() <= 777.0 / 510.0 + 1e-3,
+                    "{x},{y},{z}"
+                );
+            }
+        }
+    }
 }
 
 #[test]
@@ -128,7 +164,15 @@ fn validation_refuses_out_of_range_indices() {
         |a| a.brick_ranges[0] = [2.0, 1.0],
         |a| a.header.index_offset[0] = 5,
     ];
-    for (i, c) in cases.iter().enumerate() {
+    let more: [fn(&mut Asset); 3] = [
+        |a| a.header.brick_counts[4] += 1,
+        |a| a.brick_quant[0] = [f32::NAN, 1.0],
+        |a| {
+            let r = a.header.options.format.rank();
+            a.payloads[r].pop();
+        },
+    ];
+    for (i, c) in cases.iter().chain(more.iter()).enumerate() {
         let (mut a, _) = sample_asset(PayloadFormat::F32);
         c(&mut a);
         assert!(a.validate().is_err(), "case {i} accepted");

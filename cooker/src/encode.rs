@@ -1,0 +1,503 @@
+//! Encode stage: turns the deduplicated f32 brick pool into per-format atlases. Without
+//! `--max-error` every brick takes `--format`. With `--max-error E`, each brick takes the first
+//! representation in the candidate list whose decoded voxels are all within E of the source —
+//! a (lossy) tile value, then BC7, BC4, unorm8, f16, f32 — starting at `--format` when one is
+//! given ("this format where it meets E, fall back where it does not"). Every check decodes
+//! with the same CPU decoders `eval` and the runtime's reference use.
+
+use rayon::prelude::*;
+use vdbcook_asset::payload::{self, vox_index};
+use vdbcook_asset::{PayloadFormat, RangeMode, BRICK_VOXELS, TILE_BIT};
+
+use crate::bcenc::{encode_bc4, encode_bc7, Bc7Quality};
+
+#[derive(Clone, Copy, Debug)]
+pub struct EncodeOptions {
+    pub format: PayloadFormat,
+    /// `--format` was given explicitly (matters only with `max_error`).
+    pub format_given: bool,
+    pub max_error: Option<f32>,
+    pub range: RangeMode,
+    pub bc7_quality: Bc7Quality,
+}
+
+/// How many bricks went to each representation.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Representation {
+    pub tile: u64,
+    pub per_format: [u64; 5],
+}
+
+pub struct Encoded {
+    /// For each pool brick: its final ref (brick index in format-grouped order, or
+    /// `TILE_BIT | (first_new_tile + k)` when it became a tile).
+    pub remap: Vec<u32>,
+    pub payloads: [Vec<u8>; 5],
+    pub brick_counts: [u64; 5],
+    /// Per final brick `[lo, hi]` of its quantization range (`[0, 0]` for float formats).
+    pub brick_quant: Vec<[f32; 2]>,
+    /// Decoded values of every *pool* brick (voxel order), whatever it became — for error stats.
+    pub decoded: Vec<f32>,
+    /// Decoded values of the final bricks, in final order (for value ranges).
+    pub final_decoded: Vec<f32>,
+    /// Tile values created from bricks (to append to the pool's tiles).
+    pub new_tiles: Vec<f32>,
+    pub representation: Representation,
+}
+
+/// Value range of one brick.
+fn range_of(v: &[f32]) -> [f32; 2] {
+    let (lo, hi) = v
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| {
+            (if x < lo { x } else { lo }, if x > hi { x } else { hi })
+        });
+    [lo, hi]
+}
+
+/// Encodes `bricks` (indices into the pool) in one format; returns bytes per brick, in order.
+fn encode_batch(
+    format: PayloadFormat,
+    pool: &[f32],
+    idx: &[usize],
+    quant: &[[f32; 2]],
+    q: Bc7Quality,
+) -> Vec<u8> {
+    let brick = |b: usize| &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
+    match format {
+        PayloadFormat::F32 | PayloadFormat::F16 => {
+            let mut out = Vec::with_capacity(idx.len() * format.bytes_per_brick());
+            for &b in idx {
+                payload::encode_float(format, brick(b), &mut out);
+            }
+            out
+        }
+        PayloadFormat::Unorm8 => {
+            let mut out = Vec::with_capacity(idx.len() * BRICK_VOXELS);
+            for &b in idx {
+                out.extend_from_slice(&payload::encode_unorm8(brick(b), quant[b][0], quant[b][1]));
+            }
+            out
+        }
+        PayloadFormat::Bc4 => {
+            // One R8 surface, 8 texels wide: brick i slice z row y at row 64i + 8z + y.
+            let mut tex = vec![0u8; idx.len() * BRICK_VOXELS];
+            tex.par_chunks_mut(BRICK_VOXELS)
+                .zip(idx.par_iter())
+                .for_each(|(t, &b)| {
+                    let [lo, hi] = quant[b];
+                    let v = brick(b);
+                    for z in 0..8 {
+                        for y in 0..8 {
+                            for x in 0..8 {
+                                t[64 * z + 8 * y + x] =
+                                    payload::quantize(v[vox_index(x, y, z)], lo, hi);
+                            }
+                        }
+                    }
+                });
+            encode_bc4(8, (idx.len() * 64) as u32, &tex)
+        }
+        PayloadFormat::Bc7 => {
+            // One RGBA8 surface, 8 texels wide: brick i slice s row y at row 16i + 8s + y; texel
+            // (x, y) of slice s holds z = 4s..4s+3 in R, G, B, A.
+            let mut tex = vec![0u8; idx.len() * BRICK_VOXELS];
+            tex.par_chunks_mut(BRICK_VOXELS)
+                .zip(idx.par_iter())
+                .for_each(|(t, &b)| {
+                    let [lo, hi] = quant[b];
+                    let v = brick(b);
+                    for s in 0..2 {
+                        for y in 0..8 {
+                            for x in 0..8 {
+                                for c in 0..4 {
+                                    t[4 * (8 * (8 * s + y) + x) + c] =
+                                        payload::quantize(v[vox_index(x, y, 4 * s + c)], lo, hi);
+                                }
+                            }
+                        }
+                    }
+                });
+            encode_bc7(8, (idx.len() * 16) as u32, &tex, q)
+        }
+    }
+}
+
+pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
+    let n = pool.len() / BRICK_VOXELS;
+    let ranges: Vec<[f32; 2]> = pool.par_chunks(BRICK_VOXELS).map(range_of).collect();
+    let quant: Vec<[f32; 2]> = match opts.range {
+        RangeMode::Brick => ranges.clone(),
+        RangeMode::Global => {
+            let g = ranges
+                .iter()
+                .fold([f32::INFINITY, f32::NEG_INFINITY], |a, r| {
+                    [a[0].min(r[0]), a[1].max(r[1])]
+                });
+            vec![g; n]
+        }
+    };
+    // Candidates, cheapest first.
+    let formats: Vec<PayloadFormat> = match opts.max_error {
+        None => vec![opts.format],
+        Some(_) => {
+            let from = if opts.format_given {
+                opts.format.rank()
+            } else {
+                0
+            };
+            PayloadFormat::ORDER[from..].to_vec()
+        }
+    };
+    let mut assigned: Vec<Option<(PayloadFormat, Vec<u8>)>> = vec![None; n];
+    let mut decoded = vec![0f32; pool.len()];
+    let mut tile_of: Vec<Option<f32>> = vec![None; n];
+    let mut pending: Vec<usize> = (0..n).collect();
+    if let Some(e) = opts.max_error {
+        // A brick whose values all lie within E of their midpoint becomes a tile.
+        pending.retain(|&b| {
+            let [lo, hi] = ranges[b];
+            let mid = lo + (hi - lo) * 0.5;
+            let ok = pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]
+                .iter()
+                .all(|&v| (v - mid).abs() <= e);
+            if ok {
+                tile_of[b] = Some(mid);
+                decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].fill(mid);
+            }
+            !ok
+        });
+    }
+    for (fi, &f) in formats.iter().enumerate() {
+        if pending.is_empty() {
+            break;
+        }
+        let last = fi + 1 == formats.len();
+        if f == PayloadFormat::F16 {
+            if let Some(v) = pending.iter().find_map(|&b| {
+                payload::check_representable(f, &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS])
+            }) {
+                if last || opts.max_error.is_none() {
+                    return Err(format!(
+                        "value {v} is beyond the range of f16 (±{}); cook with --format f32",
+                        payload::F16_MAX
+                    ));
+                }
+            }
+        }
+        let bytes = encode_batch(f, pool, &pending, &quant, opts.bc7_quality);
+        let per = f.bytes_per_brick();
+        // Decode and check every brick of the batch (in parallel).
+        let checks: Vec<(Vec<f32>, f64)> = pending
+            .par_iter()
+            .enumerate()
+            .map(|(k, &b)| {
+                let mut out = [0f32; BRICK_VOXELS];
+                let q = if f.is_quantized() {
+                    quant[b]
+                } else {
+                    [0.0, 0.0]
+                };
+                payload::decode_brick(f, &bytes[k * per..(k + 1) * per], q, &mut out);
+                let src = &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
+                let err = out
+                    .iter()
+                    .zip(src)
+                    .map(|(a, s)| (*a as f64 - *s as f64).abs())
+                    .fold(
+                        0.0f64,
+                        |m, e| if e.is_nan() { f64::INFINITY } else { m.max(e) },
+                    );
+                (out.to_vec(), err)
+            })
+            .collect();
+        let mut still = Vec::new();
+        for (k, (&b, (out, err))) in pending.iter().zip(checks).enumerate() {
+            let fits = match opts.max_error {
+                None => true,
+                Some(e) => last || err <= e as f64,
+            };
+            if fits && err.is_finite() {
+                decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].copy_from_slice(&out);
+                assigned[b] = Some((f, bytes[k * per..(k + 1) * per].to_vec()));
+            } else if fits {
+                return Err(format!(
+                    "brick {b} does not decode to finite values in {}",
+                    f.name()
+                ));
+            } else {
+                still.push(b);
+            }
+        }
+        pending = still;
+    }
+    debug_assert!(pending.is_empty());
+    // Group by format (cheapest first), keeping pool order inside a group.
+    let mut remap = vec![0u32; n];
+    let mut payloads: [Vec<u8>; 5] = Default::default();
+    let mut brick_counts = [0u64; 5];
+    let mut brick_quant = Vec::new();
+    let mut final_decoded = Vec::new();
+    let mut new_tiles = Vec::new();
+    let mut rep = Representation::default();
+    let mut next = 0u32;
+    for f in PayloadFormat::ORDER {
+        for b in 0..n {
+            if let Some((bf, bytes)) = &assigned[b] {
+                if *bf == f {
+                    remap[b] = next;
+                    next += 1;
+                    payloads[f.rank()].extend_from_slice(bytes);
+                    brick_counts[f.rank()] += 1;
+                    brick_quant.push(if f.is_quantized() {
+                        quant[b]
+                    } else {
+                        [0.0, 0.0]
+                    });
+                    final_decoded
+                        .extend_from_slice(&decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+                }
+            }
+        }
+        rep.per_format[f.rank()] = brick_counts[f.rank()];
+    }
+    for b in 0..n {
+        if let Some(v) = tile_of[b] {
+            remap[b] = TILE_BIT | new_tiles.len() as u32; // offset by the pool's tiles later
+            new_tiles.push(v);
+            rep.tile += 1;
+        }
+    }
+    Ok(Encoded {
+        remap,
+        payloads,
+        brick_counts,
+        brick_quant,
+        decoded,
+        final_decoded,
+        new_tiles,
+        representation: rep,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    //! Where each payload method fails, and the guard: on generated bricks, each failure shows
+    //! without the guard and is gone with it. Truth is the source values themselves.
+
+    use super::*;
+    use crate::build::{build_frame, NonFinite};
+    use crate::pool::Pool;
+
+    fn opts(format: PayloadFormat, max_error: Option<f32>, range: RangeMode) -> EncodeOptions {
+        EncodeOptions {
+            format,
+            format_given: true,
+            max_error,
+            range,
+            bc7_quality: Bc7Quality::Fast,
+        }
+    }
+
+    /// Max |decoded − source| per pool brick.
+    fn errors(pool: &[f32], enc: &Encoded) -> Vec<f32> {
+        pool.chunks(BRICK_VOXELS)
+            .zip(enc.decoded.chunks(BRICK_VOXELS))
+            .map(|(s, d)| {
+                s.iter()
+                    .zip(d)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f32::max)
+            })
+            .collect()
+    }
+
+    fn brick(f: impl Fn(usize, usize, usize) -> f32) -> Vec<f32> {
+        let mut v = vec![0f32; BRICK_VOXELS];
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    v[vox_index(x, y, z)] = f(x, y, z);
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn faint_gradient_fails_under_global_unorm8_and_per_brick_range_fixes_it() {
+        // A dense brick near 1 beside a faint one (1e-3 .. 1e-2), like the top of a fire.
+        let dense = brick(|x, y, z| 0.9 + 0.1 * ((x + y + z) as f32 / 21.0));
+        let faint = brick(|x, y, z| 1e-3 + 9e-3 * ((x * 64 + y * 8 + z) as f32 / 511.0));
+        let pool: Vec<f32> = dense.iter().chain(&faint).copied().collect();
+        let rel = |enc: &Encoded| {
+            faint
+                .iter()
+                .zip(&enc.decoded[BRICK_VOXELS..])
+                .map(|(s, d)| (d - s).abs() / s)
+                .fold(0.0, f32::max)
+        };
+        let global = encode(&pool, &opts(PayloadFormat::Unorm8, None, RangeMode::Global)).unwrap();
+        assert!(
+            rel(&global) > 0.2,
+            "global-range unorm8 should lose the faint brick (relative error {})",
+            rel(&global)
+        );
+        let per_brick =
+            encode(&pool, &opts(PayloadFormat::Unorm8, None, RangeMode::Brick)).unwrap();
+        assert!(
+            rel(&per_brick) < 0.02,
+            "per-brick range keeps it (relative error {})",
+            rel(&per_brick)
+        );
+        // The error bound is the guard even with a global range: the faint brick falls back.
+        let guarded = encode(
+            &pool,
+            &opts(PayloadFormat::Unorm8, Some(1e-5), RangeMode::Global),
+        )
+        .unwrap();
+        assert!(errors(&pool, &guarded).iter().all(|&e| e <= 1e-5));
+    }
+
+    #[test]
+    fn spikes_break_bc7_and_max_error_falls_back_for_exactly_those_bricks() {
+        let smooth = |k: usize| brick(move |x, y, z| 0.3 + 0.02 * (x + y + z + k) as f32);
+        let spiky = |k: usize| {
+            brick(move |x, y, z| {
+                if (x * 7 + y * 3 + z + k).is_multiple_of(37) {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
+        };
+        let kinds = [false, true, false, true, false, false, true, false];
+        let pool: Vec<f32> = kinds
+            .iter()
+            .enumerate()
+            .flat_map(|(k, &s)| if s { spiky(k) } else { smooth(k) })
+            .collect();
+        let e = 0.02f32;
+        let bc7 = encode(&pool, &opts(PayloadFormat::Bc7, None, RangeMode::Brick)).unwrap();
+        let errs = errors(&pool, &bc7);
+        let worst_spiky = kinds
+            .iter()
+            .zip(&errs)
+            .filter(|(s, _)| **s)
+            .map(|(_, e)| *e)
+            .fold(0.0, f32::max);
+        assert!(
+            worst_spiky > 10.0 * e,
+            "isolated spikes should break BC7 (error {worst_spiky})"
+        );
+        let guarded = encode(&pool, &opts(PayloadFormat::Bc7, Some(e), RangeMode::Brick)).unwrap();
+        let errs = errors(&pool, &guarded);
+        assert!(
+            errs.iter().all(|&x| x <= e),
+            "every voxel within E: {errs:?}"
+        );
+        // Exactly the bricks BC7 cannot hold within E fall back; every smooth brick stays BC7.
+        let unguarded = errors(&pool, &bc7);
+        let n_bc7 = guarded.brick_counts[PayloadFormat::Bc7.rank()] as u32;
+        let mut fell_back = 0;
+        for (b, &s) in kinds.iter().enumerate() {
+            let in_bc7 = guarded.remap[b] & TILE_BIT == 0 && guarded.remap[b] < n_bc7;
+            assert_eq!(
+                in_bc7,
+                unguarded[b] <= e,
+                "brick {b} (spiky: {s}, BC7 error {})",
+                unguarded[b]
+            );
+            assert!(s || in_bc7, "smooth brick {b} left BC7");
+            fell_back += !in_bc7 as usize;
+        }
+        assert!(fell_back > 0);
+    }
+
+    #[test]
+    fn values_outside_0_1_decode_in_source_units() {
+        let v = brick(|x, y, z| -5.0 + 39.0 * ((x + 2 * y + 3 * z) as f32 / 42.0));
+        let (lo, hi) = (-5.0f32, 34.0f32);
+        for (f, tol) in [
+            (PayloadFormat::F32, 0.0),
+            (PayloadFormat::F16, 0.02),
+            (PayloadFormat::Unorm8, (hi - lo) / 510.0 + 1e-4),
+            (PayloadFormat::Bc4, (hi - lo) * 4.5 / 255.0),
+            (PayloadFormat::Bc7, (hi - lo) * 6.0 / 255.0),
+        ] {
+            let enc = encode(&v, &opts(f, None, RangeMode::Brick)).unwrap();
+            let err = errors(&v, &enc)[0];
+            assert!(err <= tol, "{}: error {err} > {tol}", f.name());
+            let mean = |s: &[f32]| s.iter().map(|&x| x as f64).sum::<f64>() / s.len() as f64;
+            assert!(
+                (mean(&enc.decoded) - mean(&v)).abs() < tol as f64 + 1e-6,
+                "{}: mean shifted",
+                f.name()
+            );
+            let (dlo, dhi) = enc
+                .decoded
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+            assert!(
+                dlo < -4.0 && dhi > 33.0,
+                "{}: decoded range {dlo}..{dhi}",
+                f.name()
+            );
+        }
+    }
+
+    #[test]
+    fn constant_bricks_cost_no_atlas_space_in_any_format() {
+        use vdbcook_vdb::{FloatGrid, Leaf, MapKind, Tile, TileLevel, Transform};
+        let grid = || FloatGrid {
+            background: 0.0,
+            leaves: vec![
+                Leaf {
+                    origin: [0, 0, 0],
+                    mask: [u64::MAX; 8],
+                },
+                Leaf {
+                    origin: [8, 0, 0],
+                    mask: [u64::MAX; 8],
+                },
+            ],
+            values: [
+                vec![0.25f32; 512],
+                (0..512).map(|i| i as f32 / 512.0).collect(),
+            ]
+            .concat(),
+            tiles: vec![Tile {
+                origin: [16, 0, 0],
+                level: TileLevel::L8,
+                value: 0.5,
+                active: true,
+            }],
+            transform: Transform {
+                kind: MapKind::UniformScale,
+                index_to_world: [
+                    [1.0, 0.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0, 0.0],
+                    [0.0, 0.0, 1.0, 0.0],
+                    [0.0, 0.0, 0.0, 1.0],
+                ],
+                frustum: None,
+            },
+            converted_from_double: false,
+        };
+        for f in PayloadFormat::ORDER {
+            let mut pool = Pool::new(true);
+            pool.add_frame(build_frame(grid(), NonFinite { replace_with: None }).unwrap());
+            // One real brick (the ramp); the constant leaf and the tile are tile values.
+            assert_eq!(pool.brick_count(), 1, "{}", f.name());
+            assert_eq!(pool.tiles.len(), 2);
+            let enc = encode(&pool.bricks, &opts(f, None, RangeMode::Brick)).unwrap();
+            let bytes: usize = enc.payloads.iter().map(|p| p.len()).sum();
+            assert_eq!(
+                bytes,
+                f.bytes_per_brick(),
+                "{}: only the ramp brick takes atlas space",
+                f.name()
+            );
+        }
+    }
+}
