@@ -93,7 +93,7 @@ fn encode_batch(
                     }
                 }
             });
-            encode_tiled(&tiles, idx.len(), 64, 1, 8, |w, h, px| encode_bc4(w, h, px))
+            encode_tiled(&tiles, idx.len(), 64, 1, 8, encode_bc4)
         }
         PayloadFormat::Bc7 => {
             // Brick i as 2 slices of 8×8 RGBA texels (an 8×16 tile); texel (x, y) of slice s
