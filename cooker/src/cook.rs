@@ -119,6 +119,13 @@ fn prepare(f: &Frame, grid: Option<&str>, nf: NonFinite) -> Prepared {
     }
 }
 
+/// Error sums of one frame.
+#[derive(Default, Clone, Copy)]
+struct FrameErr {
+    sum_sq: f64,
+    max_abs: f64,
+}
+
 /// Wall-clock seconds per stage.
 #[derive(Default)]
 struct Stages {
@@ -368,20 +375,37 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         l3_refs.extend_from_slice(refs);
     }
-    // Error over active voxels (every active use of a brick); tiles are stored exactly.
-    let mut sum_sq = 0.0f64;
-    let mut max_abs = 0.0f64;
-    if pool.track_uses {
-        for ((o, d), &uses) in pool.bricks.iter().zip(decoded).zip(&pool.active_uses) {
-            let e = (*d as f64 - *o as f64).abs();
-            max_abs = max_abs.max(e);
-            sum_sq += e * e * uses as f64;
-        }
-    }
+    // Error over active voxels, per frame (every active use of a brick); tiles from the source
+    // are stored exactly, lossy tiles made by --max-error are in `decoded`.
+    let per_frame: Vec<FrameErr> = if pool.track_uses {
+        let bricks = &pool.bricks;
+        pool.uses
+            .par_iter()
+            .map(|uses| {
+                let mut fe = FrameErr::default();
+                for (b, mask) in uses {
+                    let o = &bricks[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
+                    let d = &decoded[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
+                    for (n, (s, v)) in o.iter().zip(d).enumerate() {
+                        let e = (*v as f64 - *s as f64).abs();
+                        if mask[n >> 6] >> (n & 63) & 1 == 1 {
+                            fe.sum_sq += e * e;
+                        }
+                        fe.max_abs = fe.max_abs.max(e);
+                    }
+                }
+                fe
+            })
+            .collect()
+    } else {
+        vec![FrameErr::default(); frames.len()]
+    };
+    let sum_sq: f64 = per_frame.iter().map(|f| f.sum_sq).sum();
+    let max_abs = per_frame.iter().fold(0.0f64, |m, f| m.max(f.max_abs));
     // The f32 pool is no longer needed: free it before serializing.
     let unique_bricks = pool.brick_count();
     pool.bricks = Vec::new();
-    pool.active_uses = Vec::new();
+    pool.uses = Vec::new();
     let mut m = transform.index_to_world;
     for (r, row) in m.iter_mut().enumerate().take(3) {
         row[3] = transform.index_to_world[r][3]
@@ -469,6 +493,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "bits_per_active_voxel_gpu": bpv(topology + atlas),
         "topology_bits_per_active_voxel": bpv(topology),
         "error": {"rmse": rmse, "psnr_db": psnr, "max_abs": max_abs, "exact": max_abs == 0.0},
+        "frame_errors": per_frame.iter().zip(&asset.header.frames).enumerate().map(|(i, (e, f))| {
+            let rmse = if f.active_voxels > 0 { (e.sum_sq / f.active_voxels as f64).sqrt() } else { 0.0 };
+            json!({"frame": i, "number": f.number, "rmse": rmse, "psnr_db": (rmse > 0.0 && peak > 0.0).then(|| 20.0 * (peak / rmse).log10()), "max_abs": e.max_abs})
+        }).collect::<Vec<_>>(),
         "representations": {
             "tile": enc.representation.tile,
             "bc7": enc.representation.per_format[0], "bc4": enc.representation.per_format[1],

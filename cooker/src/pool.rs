@@ -38,12 +38,12 @@ impl std::hash::BuildHasher for KeyIsHash {
 
 #[derive(Default)]
 pub struct Pool {
-    /// Track `active_uses` (needed only when the payload is lossy).
+    /// Record `uses` (needed only when the payload is lossy, for error statistics).
     pub track_uses: bool,
     /// Unique bricks, 512 f32 each, in first-seen order.
     pub bricks: Vec<f32>,
-    /// Per unique brick and voxel: how many leaf uses have that voxel active (for error stats).
-    pub active_uses: Vec<u32>,
+    /// Per frame, every brick use: (pool brick, active mask) — for per-frame error statistics.
+    pub uses: Vec<Vec<(u32, [u64; 8])>>,
     brick_index: HashMap<u64, Vec<u32>, KeyIsHash>,
     pub tiles: Vec<f32>,
     tile_index: HashMap<u32, u32>,
@@ -92,19 +92,13 @@ impl Pool {
             None => {
                 let b = self.brick_count() as u32;
                 self.bricks.extend_from_slice(values);
-                self.active_uses
-                    .extend(std::iter::repeat_n(0, BRICK_VOXELS));
                 self.brick_index.entry(hash).or_default().push(b);
                 b
             }
         };
-        let uses =
-            &mut self.active_uses[b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS];
-        for (w, &word) in active.iter().enumerate() {
-            let mut m = word;
-            while m != 0 {
-                uses[w * 64 + m.trailing_zeros() as usize] += 1;
-                m &= m - 1;
+        if self.track_uses {
+            if let Some(f) = self.uses.last_mut() {
+                f.push((b, *active));
             }
         }
         b
@@ -133,6 +127,9 @@ impl Pool {
 
     /// Adds the next frame (frames must come in sequence order).
     pub fn add_frame(&mut self, mut f: BuiltFrame) {
+        if self.track_uses {
+            self.uses.push(Vec::new());
+        }
         let mut entries = Vec::with_capacity(f.regions.len());
         let regions = std::mem::take(&mut f.regions);
         for (origin, region) in regions {
