@@ -485,5 +485,22 @@ fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
             ev["rmse"].as_f64().unwrap(),
         );
         assert!(rb >= ra * 0.999, "{fmt}: cook rmse {ra}, eval rmse {rb}");
+        // Per frame too: the cook's figures (from its pool) and eval's (from the file) agree.
+        let (cf, ef) = (
+            c["frame_errors"].as_array().unwrap(),
+            ev["frames"].as_array().unwrap(),
+        );
+        assert_eq!(cf.len(), 5);
+        for (a, b) in cf.iter().zip(ef) {
+            let (am, bm) = (
+                a["max_abs"].as_f64().unwrap(),
+                b["max_abs"].as_f64().unwrap(),
+            );
+            let (ar, br) = (a["rmse"].as_f64().unwrap(), b["rmse"].as_f64().unwrap());
+            assert!(
+                bm >= am * 0.999 && br >= ar * 0.999 && ar > 0.0,
+                "{fmt}: cook {am} {ar}, eval {bm} {br}"
+            );
+        }
     }
 }
