@@ -10,6 +10,7 @@ mod eval;
 mod info;
 mod inspect;
 mod pool;
+mod render;
 mod report;
 
 use clap::{Parser, Subcommand};
@@ -52,6 +53,14 @@ pattern (smoke.####.vdb, smoke.%04d.vdb) or a glob ('smoke.*.vdb').\n\nExamples:
         after_help = "Examples:\n  vdbcook eval smoke.vdbc 'cache/smoke.####.vdb'\n  vdbcook eval smoke.vdbc cache/ --json"
     )]
     Eval(eval::Args),
+    /// Render one frame of an asset to a PNG (CPU reference tracer; GPU backend to come).
+    #[command(
+        after_help = "MODE: density, depth, first-hit, brick-hue, steps, scatter (vdb_render's \
+single scattering), delta (delta tracking).\n\nExamples:\n  vdbcook render smoke.vdbc -o smoke.png\n  \
+vdbcook render smoke.vdbc -o f10.png --frame 10 --mode scatter --width 1280 --height 720\n  \
+vdbcook render smoke.vdbc -o d.png --mode delta --spp 64 --camera 20,15,30,0,5,0,40 --json"
+    )]
+    Render(render::Args),
 }
 
 fn main() {
@@ -75,6 +84,7 @@ fn main() {
         Command::Cook(a) => (a.json, cook::run(a)),
         Command::Info(a) => (a.json, info::run(a)),
         Command::Eval(a) => (a.json, eval::run(a)),
+        Command::Render(a) => (a.json, render::run(a)),
     };
     if let Err(e) = result {
         report::fail(json, &e);

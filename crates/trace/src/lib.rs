@@ -1,1 +1,89 @@
-//! Placeholder: filled by a later issue.
+//! `vdbcook-trace`: the CPU reference tracer of the flip-book asset. `vdbcook render --backend
+//! cpu` draws with it on any machine, and the GPU runtime's images are tested against it, so
+//! every definition below is a contract the WGSL must follow.
+//!
+//! # Spaces
+//! - **World → index**: the asset's `index_to_world` (row-major, column vectors) must be affine;
+//!   rays are carried into asset index space by its inverse. A ray is `p(t) = o + t·d` with `d`
+//!   the index-space image of a *unit world* direction, so `t` is world distance from the eye.
+//! - **Voxels**: the value of voxel `i` (asset index) is constant over the half-open cell
+//!   `[i, i+1)³` (nearest, no interpolation). The root extent is `[0, 128·root_dims)`; outside it
+//!   the density is 0, inside it unstored space holds `header.background`.
+//! - **Length unit** (`RenderSettings::unit`): `Voxel` (default, as `vdb_render`): a length `Δt`
+//!   counts `Δt·|d|` (index-space length); `World`: `Δt`. `absorb`, `scatter`, `step`,
+//!   `shadow_step` and `gain` are per that unit.
+//! - **Camera**: pinhole, `fov_y_deg` vertical; pixel `(i, j)` (row 0 at the top) looks along
+//!   `normalize(f + (2(i+½)/W − 1)·tan(fov/2)·(W/H)·r + (1 − 2(j+½)/H)·tan(fov/2)·u)`, with `f`
+//!   toward the look-at point, `r = normalize(f × up)`, `u = r × f`.
+//!
+//! # Traversal
+//! Clip to the root extent (from `t = 0`: the eye may be inside), then a DDA over 128³ regions;
+//! `EMPTY` regions are background spans, tiled regions constant spans; an L2 node is passed
+//! over when its `l2_ranges` max says so, else a DDA over its 16³ leaf slots (empty slot =
+//! background, tile = constant, brick passed over by its `brick_ranges` max), and inside a brick
+//! either a voxel DDA or the whole brick span (modes that sample it themselves). Tie-breaking and
+//! bounds: `dda`'s module docs. A mode passes over a node, leaf or voxel of max `m` when:
+//! density/steps/delta `m ≤ 0`; first-hit modes `m ≤ cutoff`; single scatter `m < cutoff` or
+//! `m ≤ 0`. Steps: one per region, leaf slot and voxel visited.
+//!
+//! # Modes (`Sample::rgba` display colour, `Sample::value` raw quantity)
+//! - **Density**: `τ = Σ max(v, 0)·ℓ` over the voxels crossed (`ℓ` = segment length in the
+//!   unit) — exact, no step error — stopping once `absorb·τ ≥ 20`; `T = exp(−absorb·τ)`;
+//!   rgba = `(1−T, 1−T, 1−T, 1)`, value = `T`.
+//! - **Depth**: the first voxel (or constant span) with value `> cutoff`, entered at world
+//!   distance `t`: value = `t`, rgb = `1 − clamp((t − near)/(far − near), 0, 1)`, alpha 1, where
+//!   near/far are the nearest/farthest world corner distances of the frame's stored box from the
+//!   eye (near = 0 with the eye inside it). Miss: rgba 0, value −1.
+//! - **FirstHitDensity**: the same hit; value = its value `v`, rgb = `clamp(v / frame max)`.
+//! - **BrickHue**: the same hit; in a brick `b`: rgb = `hsv(fract(0.618034·b), 0.75, 1)`,
+//!   value = `b`; a tile or background hit: rgb 0.5, value −2.
+//! - **Steps**: the density walk's step count `n`: value = `n`, rgb = heat map of `n / 256`
+//!   (black, blue, green, yellow, red at 0, ¼, ½, ¾, 1), alpha 1.
+//! - **SingleScatter** (`vdb_render`'s `VolumeRender`, gray coefficients, nearest sampling):
+//!   samples at `s = k·step` (integer `k`, length from the eye) inside spans not passed over;
+//!   `σ` = the voxel value; a sample with `σ < cutoff` or `σ ≤ 0` is ignored; else
+//!   `ΔT = exp(−(absorb+scatter)·σ·step)`, `L += albedo·T_s·T·(1−ΔT)`, `T *= ΔT`, stop once
+//!   `3T² < cutoff`; `albedo = scatter/(absorb+scatter)`. `T_s`: from the sample point toward
+//!   `light_dir`, samples at `s' = k·shadow_step` (`k ≥ 1`), `T_s *= exp(−(absorb+scatter)·σ'·
+//!   shadow_step/(1 + gain·s'))` for `σ' ≥ cutoff`, stop once `3T_s² < cutoff`. rgb =
+//!   `light_color·L`, alpha = `1 − T`, value = `T`. Each march takes at most 2²⁰ samples.
+//! - **DeltaTracking**: per sample `k ∈ [first_sample, first_sample + spp)` a path with the
+//!   random stream `Rng::new(seed, y·W + x, k)`: free flights against the span majorant
+//!   `(absorb+scatter)·m` (`m` = tile value or brick max), a tentative collision is real with
+//!   probability `σ/m`; at the first real one the path ends, scoring (with probability albedo)
+//!   a ratio-tracking shadow weight `Π (1 − μ/μ̄)` with `μ = (absorb+scatter)·σ/(1 + gain·s')`.
+//!   rgb = `light_color · mean score`, alpha = `1 − escaped fraction`, value = escaped fraction
+//!   (its mean is Density's `T` with `absorb+scatter` as the absorption). Unbiased except: at
+//!   most 2¹⁶ events per path (then absorbed) and shadow weights below 1e-6 end as 0.
+//!
+//! `step`, `shadow_step`, `cutoff` and `gain` follow `vdb_render`'s `-step`, `-shadowstep`,
+//! `-cutoff` and `-gain` (defaults 1, 3, 0.005, 0.2; `absorb` 0.1, `scatter` 1.5, light
+//! direction (0.3, 0.3, 0) toward the light, colour 0.7), but `vdb_render` samples trilinearly;
+//! here voxels are nearest, so images agree to within that filtering.
+
+// `!(a > b)` is how this crate refuses NaN along with the ordered case; keep that form.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod camera;
+mod color;
+mod dda;
+mod delta;
+mod exact;
+mod image;
+mod render;
+mod rng;
+mod scatter;
+mod settings;
+mod space;
+mod walk;
+
+pub use camera::{stored_bbox, Camera};
+pub use color::{brick_color, heat, STEPS_FULL_SCALE};
+pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
+pub use exact::OPAQUE_DEPTH;
+pub use image::Image;
+pub use render::{render, Sample, Scratch, Tracer};
+pub use rng::{pcg_hash, Rng};
+pub use scatter::MAX_MARCH_SAMPLES;
+pub use settings::{LengthUnit, Mode, RenderSettings, TraceError, MAX_SIDE, MAX_SPP, MIN_STEP};
+pub use walk::Holder;

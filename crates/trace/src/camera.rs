@@ -1,0 +1,221 @@
+//! The pinhole camera (eye, look-at, up, vertical field of view), its primary rays, and the
+//! default view that frames a frame's stored bounding box from a three-quarter direction.
+
+use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, L2_SPAN, TILE_BIT};
+
+use crate::space::{length, normalize, Affine};
+use crate::TraceError;
+
+/// A pinhole camera in world space. Image row 0 is the top; `up` need not be orthogonal to the
+/// view direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub eye: [f64; 3],
+    pub look_at: [f64; 3],
+    pub up: [f64; 3],
+    pub fov_y_deg: f64,
+}
+
+/// The camera's orthonormal basis, scaled by the half-extents of the image plane at distance 1.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Basis {
+    pub forward: [f64; 3],
+    pub right: [f64; 3],
+    pub up: [f64; 3],
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+impl Camera {
+    /// The basis for an image of `width × height`: pixel `(i, j)` looks along
+    /// `forward + (2(i+½)/W − 1)·right + (1 − 2(j+½)/H)·up`, normalized, where `|up| = tan(fov/2)`
+    /// and `|right| = |up| · W/H`. An `up` parallel to the view uses world +Z instead (+X if that
+    /// is parallel too).
+    pub(crate) fn basis(&self, width: u32, height: u32) -> Result<Basis, TraceError> {
+        let all = self.eye.iter().chain(&self.look_at).chain(&self.up);
+        if all.clone().any(|v| !v.is_finite()) || !self.fov_y_deg.is_finite() {
+            return Err(TraceError::Camera(format!("non-finite value in {self:?}")));
+        }
+        if !(self.fov_y_deg > 0.0 && self.fov_y_deg < 179.0) {
+            return Err(TraceError::Camera(format!(
+                "fov {} (must be in (0, 179) degrees)",
+                self.fov_y_deg
+            )));
+        }
+        let f = [0, 1, 2].map(|i| self.look_at[i] - self.eye[i]);
+        if !(length(f) > 0.0) {
+            return Err(TraceError::Camera("eye and look-at coincide".into()));
+        }
+        let forward = normalize(f);
+        let mut right = [0.0; 3];
+        for up in [self.up, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]] {
+            let r = cross(forward, up);
+            if length(r) > 1e-9 * length(up).max(1e-300) {
+                right = normalize(r);
+                break;
+            }
+        }
+        let up = cross(right, forward);
+        let h = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let w = h * width as f64 / height as f64;
+        Ok(Basis {
+            forward,
+            right: right.map(|c| c * w),
+            up: up.map(|c| c * h),
+        })
+    }
+
+    /// Unit world direction of the ray through the centre of pixel `(i, j)`.
+    pub fn ray_dir(&self, i: u32, j: u32, width: u32, height: u32) -> Result<[f64; 3], TraceError> {
+        Ok(self.basis(width, height)?.dir(i, j, width, height))
+    }
+
+    /// The default view of `frame`: the world bounding box of its stored content (of all frames
+    /// when it stores none, of the root extent when no frame does), seen from the direction
+    /// (1, 0.6, 1.4) off its centre (Y up) with a 40° vertical field of view, just far enough
+    /// that every corner of the box projects within 80% of the image's half-width and
+    /// half-height.
+    pub fn framing(asset: &Asset, frame: usize, aspect: f64) -> Result<Camera, TraceError> {
+        if frame >= asset.frame_count() {
+            return Err(TraceError::Frame {
+                frame,
+                frames: asset.frame_count(),
+            });
+        }
+        let xf = Affine::from_matrix(&asset.header.index_to_world)?;
+        let bbox = stored_bbox(asset, frame)
+            .or_else(|| {
+                (0..asset.frame_count())
+                    .filter_map(|f| stored_bbox(asset, f))
+                    .reduce(|a, b| (min3(a.0, b.0), max3(a.1, b.1)))
+            })
+            .unwrap_or(([0.0; 3], asset.header.root_dims.map(|d| d as f64 * 128.0)));
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for c in 0..8 {
+            let p = [0, 1, 2].map(|a| {
+                if c >> a & 1 == 0 {
+                    bbox.0[a]
+                } else {
+                    bbox.1[a]
+                }
+            });
+            let w = xf.world_of(p);
+            lo = min3(lo, w);
+            hi = max3(hi, w);
+        }
+        let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+        let fov_y_deg: f64 = 40.0;
+        let aspect = if aspect.is_finite() && aspect > 0.0 {
+            aspect
+        } else {
+            1.0
+        };
+        let half_y = (fov_y_deg.to_radians() * 0.5).tan();
+        let half = [half_y * aspect, half_y].map(|h| FILL * h);
+        // The eye looks at the centre from `dir`; put it just far enough that each corner of
+        // the world box projects within FILL of the image half-extents: for a corner at
+        // (x, y) across and z along the view (from the centre), |x| ≤ half·(dist + z).
+        let dir = normalize([1.0, 0.6, 1.4]);
+        let probe = Camera {
+            eye: [0, 1, 2].map(|a| centre[a] + dir[a]),
+            look_at: centre,
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg,
+        };
+        let b = probe.basis(1, 1)?;
+        let (r, u) = (normalize(b.right), normalize(b.up));
+        let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+        let mut dist = 1e-9f64;
+        for c in 0..8 {
+            let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] } - centre[a]);
+            let z = dot(p, b.forward);
+            dist = dist
+                .max(dot(p, r).abs() / half[0] - z)
+                .max(dot(p, u).abs() / half[1] - z)
+                // Keep the eye outside the box.
+                .max(-z * 1.01);
+        }
+        Ok(Camera {
+            eye: [0, 1, 2].map(|a| centre[a] + dist * dir[a]),
+            look_at: centre,
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg,
+        })
+    }
+}
+
+impl Basis {
+    #[inline]
+    pub(crate) fn dir(&self, i: u32, j: u32, width: u32, height: u32) -> [f64; 3] {
+        let x = 2.0 * (i as f64 + 0.5) / width as f64 - 1.0;
+        let y = 1.0 - 2.0 * (j as f64 + 0.5) / height as f64;
+        normalize([0, 1, 2].map(|a| self.forward[a] + x * self.right[a] + y * self.up[a]))
+    }
+}
+
+/// Fraction of the image half-extents the default view's box may reach.
+const FILL: f64 = 0.8;
+
+fn min3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| a[i].min(b[i]))
+}
+fn max3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| a[i].max(b[i]))
+}
+
+/// Index-space box `[lo, hi)` of what `frame` stores: tiled regions, tile leaves and the brick
+/// voxels that differ from the background, found through `root_entry` / `leaf_at` (16³ probes
+/// per L2 node) and `decode_brick`; `None` for an empty frame.
+pub fn stored_bbox(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> {
+    let d = asset.header.root_dims.map(|x| x as i64);
+    let span = L2_SPAN as i64;
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    let mut values = [0.0f32; BRICK_VOXELS];
+    let mut add = |o: [i64; 3], size: i64| {
+        lo = min3(lo, o.map(|c| c as f64));
+        hi = max3(hi, o.map(|c| (c + size) as f64));
+    };
+    for z in 0..d[2] {
+        for y in 0..d[1] {
+            for x in 0..d[0] {
+                let o = [x * span, y * span, z * span];
+                let e = asset.root_entry(frame, o);
+                if e == EMPTY {
+                    continue;
+                }
+                if e & TILE_BIT != 0 {
+                    add(o, span);
+                    continue;
+                }
+                for s in 0..16 * 16 * 16i64 {
+                    let l = [
+                        o[0] + 8 * (s % 16),
+                        o[1] + 8 * (s / 16 % 16),
+                        o[2] + 8 * (s / 256),
+                    ];
+                    match asset.leaf_at(frame, l) {
+                        LeafRef::Empty => {}
+                        LeafRef::Tile(_) => add(l, 8),
+                        LeafRef::Brick(b) => {
+                            // Voxels holding something other than the background.
+                            asset.decode_brick(b, &mut values);
+                            for (i, v) in values.iter().enumerate() {
+                                if *v != asset.header.background {
+                                    let x = [i as i64 / 64, i as i64 / 8 % 8, i as i64 % 8];
+                                    add([0, 1, 2].map(|a| l[a] + x[a]), 1);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (lo[0] <= hi[0]).then_some((lo, hi))
+}

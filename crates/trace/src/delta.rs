@@ -1,0 +1,193 @@
+//! Delta (Woodcock) tracking of the single-scattering medium: free-flight distances sampled
+//! against piecewise-constant majorants from the walk (the value of a tile or empty span, the
+//! `brick_ranges` max of a brick), null collisions rejected by the real density; at a real
+//! collision the path scatters with probability `scatter / (absorb + scatter)` and scores the
+//! light times a ratio-tracking estimate of the shadow transmittance. Unbiased: its mean is the
+//! continuous limit of `SingleScatter` (step → 0, no cutoffs).
+
+use crate::dda::Flow;
+use crate::rng::Rng;
+use crate::space::IndexRay;
+use crate::walk::{brick_value, walk, BrickCache, Holder, Visitor};
+use crate::Tracer;
+use vdbcook_asset::BRICK_VOXELS;
+
+/// Most tentative collisions one path (or one shadow ray) samples before it stops; a primary
+/// path that runs out counts as absorbed, a shadow ray keeps its estimate so far.
+pub const MAX_EVENTS: u32 = 1 << 16;
+/// Shadow weight below which ratio tracking stops (bias below 1e-6).
+pub const MIN_SHADOW_WEIGHT: f64 = 1e-6;
+
+/// Free flight over `[ta, tb]` against majorant `mu_bar` (per length unit): calls `at(s, p, rng)`
+/// at each tentative collision (`s` in length units from the ray origin) until it says stop, the
+/// span ends (`Go`) or the event budget runs out (`Stop`).
+fn track(
+    ray: &IndexRay,
+    mu_bar: f64,
+    ta: f64,
+    tb: f64,
+    rng: &mut Rng,
+    events: &mut u32,
+    mut at: impl FnMut(f64, [f64; 3], &mut Rng) -> Flow,
+) -> Flow {
+    if !(mu_bar > 0.0) {
+        return Flow::Go;
+    }
+    let (mut s, sb) = (ta * ray.per_t, tb * ray.per_t);
+    loop {
+        if *events == 0 {
+            return Flow::Stop;
+        }
+        *events -= 1;
+        s -= (1.0 - rng.uniform()).ln() / mu_bar;
+        if !(s < sb) {
+            return Flow::Go;
+        }
+        if at(s, ray.at(s / ray.per_t), rng) == Flow::Stop {
+            return Flow::Stop;
+        }
+    }
+}
+
+/// One primary path.
+pub(crate) struct Path<'a, 't> {
+    pub tracer: &'t Tracer<'a>,
+    pub ray: IndexRay,
+    pub rng: Rng,
+    pub shadow_cache: &'t mut BrickCache,
+    /// Set when the path left the volume.
+    pub escaped: bool,
+    /// Light scored (before the light colour).
+    pub lum: f64,
+    pub events: u32,
+}
+
+impl Path<'_, '_> {
+    fn flight(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
+        let ext = self.tracer.extinction;
+        let mu_bar = ext * max as f64;
+        let ray = self.ray;
+        let mut rng = self.rng;
+        let mut events = self.events;
+        let tracer = self.tracer;
+        let mut lum = 0.0;
+        let cache = &mut *self.shadow_cache;
+        let flow = track(&ray, mu_bar, ta, tb, &mut rng, &mut events, |_, p, rng| {
+            let sigma = (value(p) as f64).max(0.0);
+            if rng.uniform() * max as f64 >= sigma {
+                return Flow::Go; // null collision
+            }
+            if rng.uniform() < tracer.albedo {
+                lum = tracer.ratio_shadow(p, rng, cache);
+            }
+            Flow::Stop
+        });
+        self.rng = rng;
+        self.events = events;
+        self.lum += lum;
+        if flow == Flow::Stop {
+            // A real collision, or the event budget ran out (counted as absorbed).
+            self.escaped = false;
+        }
+        flow
+    }
+}
+
+impl Visitor for Path<'_, '_> {
+    fn skip(&self, max: f32) -> bool {
+        !(max > 0.0) || self.tracer.extinction == 0.0
+    }
+    fn voxels(&self) -> bool {
+        false
+    }
+    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
+        self.flight(ta, tb, v, |_| v)
+    }
+    fn brick(
+        &mut self,
+        ta: f64,
+        tb: f64,
+        max: f32,
+        origin: [i64; 3],
+        values: &[f32; BRICK_VOXELS],
+    ) -> Flow {
+        self.flight(ta, tb, max, |p| brick_value(values, origin, p))
+    }
+}
+
+/// Ratio tracking toward the light.
+struct Ratio<'a, 't> {
+    tracer: &'t Tracer<'a>,
+    ray: IndexRay,
+    rng: Rng,
+    weight: f64,
+    events: u32,
+}
+
+impl Ratio<'_, '_> {
+    fn flight(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
+        let ext = self.tracer.extinction;
+        let gain = self.tracer.settings.gain as f64;
+        let mu_bar = ext * max as f64;
+        let ray = self.ray;
+        let mut rng = self.rng;
+        let mut events = self.events;
+        let mut weight = self.weight;
+        let flow = track(&ray, mu_bar, ta, tb, &mut rng, &mut events, |s, p, _| {
+            let mu = ext * (value(p) as f64).max(0.0) / (1.0 + gain * s);
+            weight *= 1.0 - mu / mu_bar;
+            if weight < MIN_SHADOW_WEIGHT {
+                weight = 0.0;
+                Flow::Stop
+            } else {
+                Flow::Go
+            }
+        });
+        self.rng = rng;
+        self.events = events;
+        self.weight = weight;
+        flow
+    }
+}
+
+impl Visitor for Ratio<'_, '_> {
+    fn skip(&self, max: f32) -> bool {
+        !(max > 0.0) || self.tracer.extinction == 0.0
+    }
+    fn voxels(&self) -> bool {
+        false
+    }
+    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
+        self.flight(ta, tb, v, |_| v)
+    }
+    fn brick(
+        &mut self,
+        ta: f64,
+        tb: f64,
+        max: f32,
+        origin: [i64; 3],
+        values: &[f32; BRICK_VOXELS],
+    ) -> Flow {
+        self.flight(ta, tb, max, |p| brick_value(values, origin, p))
+    }
+}
+
+impl Tracer<'_> {
+    /// Ratio-tracking estimate of the transmittance from index point `p` toward the light.
+    fn ratio_shadow(&self, p: [f64; 3], rng: &mut Rng, cache: &mut BrickCache) -> f64 {
+        let ray = IndexRay::new(p, self.light_index, self.voxel_units());
+        let Some((t0, t1)) = ray.clip(self.extent) else {
+            return 1.0;
+        };
+        let mut v = Ratio {
+            tracer: self,
+            ray,
+            rng: *rng,
+            weight: 1.0,
+            events: MAX_EVENTS,
+        };
+        walk(self.asset, self.settings.frame, &ray, t0, t1, cache, &mut v);
+        *rng = v.rng;
+        v.weight
+    }
+}

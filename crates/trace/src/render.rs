@@ -1,0 +1,299 @@
+//! Per-render state (`Tracer`: the inverse transform, the light in index space, the depth range)
+//! and the per-ray dispatch to the modes; `render` runs it over the image rows with rayon.
+
+use rayon::prelude::*;
+use vdbcook_asset::Asset;
+
+use crate::camera::{stored_bbox, Camera};
+use crate::color::{brick_color, heat, STEPS_FULL_SCALE};
+use crate::delta::{Path, MAX_EVENTS};
+use crate::exact::{Density, FirstHit};
+use crate::rng::Rng;
+use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
+use crate::space::{length, normalize, Affine, IndexRay};
+use crate::walk::{extent, walk, BrickCache, Holder};
+use crate::{Image, LengthUnit, Mode, RenderSettings, TraceError};
+
+/// What one primary ray produced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Display colour (see the crate docs per mode).
+    pub rgba: [f32; 4],
+    /// The mode's raw quantity.
+    pub value: f32,
+    /// Traversal steps of the walk (density walk in `Density` and `Steps`; 0 elsewhere).
+    pub steps: u32,
+}
+
+/// Per-thread scratch: decoded-brick caches for primary and shadow rays.
+#[derive(Default)]
+pub struct Scratch {
+    primary: BrickCache,
+    shadow: BrickCache,
+}
+
+/// Everything fixed for one render of one asset frame from one camera.
+pub struct Tracer<'a> {
+    pub(crate) asset: &'a Asset,
+    pub(crate) settings: RenderSettings,
+    pub(crate) xf: Affine,
+    pub(crate) extent: [f64; 3],
+    /// Index-space image of the unit world direction toward the light.
+    pub(crate) light_index: [f64; 3],
+    /// `absorb + scatter` and `scatter / (absorb + scatter)` (0 when both are 0).
+    pub(crate) extinction: f64,
+    pub(crate) albedo: f64,
+    /// World distances mapped to white and black in `Depth` mode.
+    pub depth_range: [f64; 2],
+    /// The frame's max value (`FirstHitDensity` maps it to white).
+    pub value_max: f32,
+}
+
+impl<'a> Tracer<'a> {
+    /// Validates the settings and the transform and precomputes per-render constants.
+    pub fn new(
+        asset: &'a Asset,
+        camera: &Camera,
+        settings: &RenderSettings,
+    ) -> Result<Tracer<'a>, TraceError> {
+        settings.validate(asset.frame_count())?;
+        camera.basis(settings.width, settings.height)?;
+        let xf = Affine::from_matrix(&asset.header.index_to_world)?;
+        let l = settings.light_dir.map(|c| c as f64);
+        let light_index = xf.dir_to_index(normalize(l));
+        let extinction = settings.absorb as f64 + settings.scatter as f64;
+        let albedo = if extinction > 0.0 {
+            settings.scatter as f64 / extinction
+        } else {
+            0.0
+        };
+        // Depth range: nearest and farthest corner of the frame's stored box (0 if the eye is
+        // inside it).
+        let ext = extent(asset);
+        let (lo, hi) = stored_bbox(asset, settings.frame).unwrap_or(([0.0; 3], ext));
+        let (mut near, mut far) = (f64::INFINITY, 0.0f64);
+        for c in 0..8 {
+            let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] });
+            let w = xf.world_of(p);
+            let d = length([0, 1, 2].map(|a| w[a] - camera.eye[a]));
+            near = near.min(d);
+            far = far.max(d);
+        }
+        let e = xf.index_of(camera.eye);
+        if (0..3).all(|a| e[a] >= lo[a] && e[a] < hi[a]) {
+            near = 0.0;
+        }
+        if !(far > near) {
+            far = near + 1.0;
+        }
+        let value_max = asset.frame_ranges[settings.frame][1];
+        Ok(Tracer {
+            asset,
+            settings: settings.clone(),
+            xf,
+            extent: ext,
+            light_index,
+            extinction,
+            albedo,
+            depth_range: [near, far],
+            value_max: if value_max > 0.0 { value_max } else { 1.0 },
+        })
+    }
+
+    pub(crate) fn voxel_units(&self) -> bool {
+        self.settings.unit == LengthUnit::Voxel
+    }
+
+    /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
+    /// here). `pixel` seeds delta tracking (`y·width + x` in `render`).
+    pub fn trace(&self, eye: [f64; 3], dir: [f64; 3], pixel: u32, scratch: &mut Scratch) -> Sample {
+        let s = &self.settings;
+        let ray = IndexRay::new(
+            self.xf.index_of(eye),
+            self.xf.dir_to_index(normalize(dir)),
+            self.voxel_units(),
+        );
+        let clip = ray.clip(self.extent);
+        let frame = s.frame;
+        let miss = |value: f32, alpha: f32| Sample {
+            rgba: [0.0, 0.0, 0.0, alpha],
+            value,
+            steps: 0,
+        };
+        match s.mode {
+            Mode::Density | Mode::Steps => {
+                let mut v = Density {
+                    per_t: ray.per_t,
+                    absorb: s.absorb as f64,
+                    tau: 0.0,
+                    steps: 0,
+                };
+                if let Some((t0, t1)) = clip {
+                    walk(
+                        self.asset,
+                        frame,
+                        &ray,
+                        t0,
+                        t1,
+                        &mut scratch.primary,
+                        &mut v,
+                    );
+                }
+                let t = (-(s.absorb as f64) * v.tau).exp() as f32;
+                if s.mode == Mode::Density {
+                    let g = 1.0 - t;
+                    Sample {
+                        rgba: [g, g, g, 1.0],
+                        value: t,
+                        steps: v.steps,
+                    }
+                } else {
+                    let c = heat(v.steps as f64 / STEPS_FULL_SCALE);
+                    Sample {
+                        rgba: [c[0], c[1], c[2], 1.0],
+                        value: v.steps as f32,
+                        steps: v.steps,
+                    }
+                }
+            }
+            Mode::Depth | Mode::FirstHitDensity | Mode::BrickHue => {
+                let mut v = FirstHit {
+                    cutoff: s.cutoff,
+                    hit: None,
+                };
+                if let Some((t0, t1)) = clip {
+                    walk(
+                        self.asset,
+                        frame,
+                        &ray,
+                        t0,
+                        t1,
+                        &mut scratch.primary,
+                        &mut v,
+                    );
+                }
+                let Some((t, value, holder)) = v.hit else {
+                    return miss(-1.0, 0.0);
+                };
+                let (rgb, value) = match s.mode {
+                    Mode::Depth => {
+                        let [n, f] = self.depth_range;
+                        let g = (1.0 - ((t - n) / (f - n)).clamp(0.0, 1.0)) as f32;
+                        ([g; 3], t as f32)
+                    }
+                    Mode::FirstHitDensity => {
+                        let g = (value / self.value_max).clamp(0.0, 1.0);
+                        ([g; 3], value)
+                    }
+                    _ => match holder {
+                        Holder::Brick(b) => (brick_color(b), b as f32),
+                        _ => ([0.5; 3], -2.0),
+                    },
+                };
+                Sample {
+                    rgba: [rgb[0], rgb[1], rgb[2], 1.0],
+                    value,
+                    steps: 0,
+                }
+            }
+            Mode::SingleScatter => {
+                let Some((t0, t1)) = clip else {
+                    return miss(1.0, 0.0);
+                };
+                let mut v = Primary {
+                    tracer: self,
+                    ray,
+                    shadow_cache: &mut scratch.shadow,
+                    trans: 1.0,
+                    lum: 0.0,
+                    budget: MAX_MARCH_SAMPLES,
+                };
+                walk(
+                    self.asset,
+                    frame,
+                    &ray,
+                    t0,
+                    t1,
+                    &mut scratch.primary,
+                    &mut v,
+                );
+                let (lum, trans) = (v.lum, v.trans);
+                let c = s.light_color.map(|c| (c as f64 * lum) as f32);
+                Sample {
+                    rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
+                    value: trans as f32,
+                    steps: 0,
+                }
+            }
+            Mode::DeltaTracking => {
+                let Some((t0, t1)) = clip else {
+                    return miss(1.0, 0.0);
+                };
+                let (mut lum, mut escaped) = (0.0f64, 0u32);
+                for k in 0..s.spp {
+                    let sample = s.first_sample.wrapping_add(k);
+                    let mut v = Path {
+                        tracer: self,
+                        ray,
+                        rng: Rng::new(s.seed, pixel, sample),
+                        shadow_cache: &mut scratch.shadow,
+                        escaped: true,
+                        lum: 0.0,
+                        events: MAX_EVENTS,
+                    };
+                    walk(
+                        self.asset,
+                        frame,
+                        &ray,
+                        t0,
+                        t1,
+                        &mut scratch.primary,
+                        &mut v,
+                    );
+                    lum += v.lum;
+                    escaped += v.escaped as u32;
+                }
+                let n = s.spp as f64;
+                let trans = escaped as f64 / n;
+                let c = s.light_color.map(|c| (c as f64 * lum / n) as f32);
+                Sample {
+                    rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
+                    value: trans as f32,
+                    steps: 0,
+                }
+            }
+        }
+    }
+}
+
+/// Renders `settings.frame` of `asset` from `camera`. Refuses a frame index out of range,
+/// settings out of range, a degenerate camera and a non-affine or singular transform.
+pub fn render(
+    asset: &Asset,
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> Result<Image, TraceError> {
+    let tracer = Tracer::new(asset, camera, settings)?;
+    let (w, h) = (settings.width, settings.height);
+    let basis = camera.basis(w, h)?;
+    let mut rgba = vec![0.0f32; w as usize * h as usize * 4];
+    let mut value = vec![0.0f32; w as usize * h as usize];
+    rgba.par_chunks_mut(w as usize * 4)
+        .zip(value.par_chunks_mut(w as usize))
+        .enumerate()
+        .for_each_init(Scratch::default, |scratch, (j, (row, vrow))| {
+            let j = j as u32;
+            for i in 0..w {
+                let dir = basis.dir(i, j, w, h);
+                let px = tracer.trace(camera.eye, dir, j * w + i, scratch);
+                row[4 * i as usize..4 * i as usize + 4].copy_from_slice(&px.rgba);
+                vrow[i as usize] = px.value;
+            }
+        });
+    Ok(Image {
+        width: w,
+        height: h,
+        rgba,
+        value,
+    })
+}

@@ -1,0 +1,207 @@
+//! What a render is asked to do: the mode, the image size, the medium and light parameters (named
+//! after OpenVDB's `vdb_render` so images can be compared), and the checks that refuse settings
+//! which would make a loop unbounded or a pixel NaN.
+
+use std::fmt;
+
+/// What a pixel shows. Exact definitions: the crate docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// `1 - T` with `T = exp(-absorb · ∫σ ds)`, integrated exactly voxel by voxel.
+    Density,
+    /// Distance to the first voxel whose value exceeds `cutoff`.
+    Depth,
+    /// Value of the first voxel whose value exceeds `cutoff`.
+    FirstHitDensity,
+    /// Hue from the index of the brick holding the first hit.
+    BrickHue,
+    /// Traversal steps of the density walk, as a heat map.
+    Steps,
+    /// `vdb_render`'s single scattering: fixed steps, shadow rays toward one directional light.
+    SingleScatter,
+    /// The same single-scattering medium estimated without bias by delta tracking (seeded).
+    DeltaTracking,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 7] = [
+        Mode::Density,
+        Mode::Depth,
+        Mode::FirstHitDensity,
+        Mode::BrickHue,
+        Mode::Steps,
+        Mode::SingleScatter,
+        Mode::DeltaTracking,
+    ];
+    /// The name the CLI uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Density => "density",
+            Mode::Depth => "depth",
+            Mode::FirstHitDensity => "first-hit",
+            Mode::BrickHue => "brick-hue",
+            Mode::Steps => "steps",
+            Mode::SingleScatter => "scatter",
+            Mode::DeltaTracking => "delta",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Mode> {
+        Mode::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
+/// The length that `absorb`, `scatter`, `step`, `shadow_step` and `gain` are measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LengthUnit {
+    /// Index-space length (one voxel edge = 1), as `vdb_render` measures: a volume looks the same
+    /// whatever its voxel size.
+    Voxel,
+    /// World-space length (the asset's `index_to_world`).
+    World,
+}
+
+/// Everything but the camera.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub mode: Mode,
+    /// Frame index (0-based, into `asset.header.frames`).
+    pub frame: usize,
+    /// Absorption coefficient per unit density per unit length.
+    pub absorb: f32,
+    /// Scattering coefficient per unit density per unit length.
+    pub scatter: f32,
+    /// Direction *toward* the light (world space; normalized when used).
+    pub light_dir: [f32; 3],
+    pub light_color: [f32; 3],
+    /// Primary-ray step of `SingleScatter`, in `unit`.
+    pub step: f32,
+    /// Shadow-ray step of `SingleScatter`, in `unit`.
+    pub shadow_step: f32,
+    /// Density below which `SingleScatter` ignores a sample, and transmittance (squared, times
+    /// three) below which it stops a ray; the first-hit threshold of the hit modes.
+    pub cutoff: f32,
+    /// Shadow attenuation falloff: shadow extinction at distance `s` is divided by `1 + gain·s`.
+    pub gain: f32,
+    /// Samples per pixel of `DeltaTracking`.
+    pub spp: u32,
+    /// Index of the first sample (progressive rendering: batches `[k, k + spp)` average to the
+    /// image with `first_sample = 0` and the summed spp).
+    pub first_sample: u32,
+    pub seed: u32,
+    pub unit: LengthUnit,
+}
+
+impl Default for RenderSettings {
+    /// 640×360 density, with `vdb_render`'s defaults for the medium and the light.
+    fn default() -> Self {
+        RenderSettings {
+            width: 640,
+            height: 360,
+            mode: Mode::Density,
+            frame: 0,
+            absorb: 0.1,
+            scatter: 1.5,
+            light_dir: [0.3, 0.3, 0.0],
+            light_color: [0.7, 0.7, 0.7],
+            step: 1.0,
+            shadow_step: 3.0,
+            cutoff: 0.005,
+            gain: 0.2,
+            spp: 16,
+            first_sample: 0,
+            seed: 1,
+            unit: LengthUnit::Voxel,
+        }
+    }
+}
+
+/// Largest image side accepted.
+pub const MAX_SIDE: u32 = 16384;
+/// Smallest march step accepted, in `unit` (keeps fixed-step marches bounded).
+pub const MIN_STEP: f32 = 1e-3;
+/// Most samples per pixel accepted in one call.
+pub const MAX_SPP: u32 = 1 << 16;
+
+/// Why a render was refused.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TraceError {
+    /// The frame index is not in the asset.
+    Frame { frame: usize, frames: usize },
+    /// A setting out of its range (named).
+    Setting(String),
+    /// The asset's `index_to_world` cannot be inverted or is not affine.
+    Transform(String),
+    /// The camera is degenerate (non-finite, eye at the look-at point, fov out of (0, 180)).
+    Camera(String),
+}
+
+impl fmt::Display for TraceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TraceError::Frame { frame, frames } => {
+                write!(
+                    f,
+                    "frame {frame} is not in the asset ({frames} frames: 0..{frames})"
+                )
+            }
+            TraceError::Setting(m) => write!(f, "bad render setting: {m}"),
+            TraceError::Transform(m) => write!(f, "unusable index_to_world: {m}"),
+            TraceError::Camera(m) => write!(f, "bad camera: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for TraceError {}
+
+impl RenderSettings {
+    /// Refuses settings that would leave a loop unbounded or put NaN into a pixel.
+    pub fn validate(&self, frames: usize) -> Result<(), TraceError> {
+        let bad = |m: String| Err(TraceError::Setting(m));
+        if self.frame >= frames {
+            return Err(TraceError::Frame {
+                frame: self.frame,
+                frames,
+            });
+        }
+        if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
+            return bad(format!(
+                "image {}x{} (each side 1..={MAX_SIDE})",
+                self.width, self.height
+            ));
+        }
+        let nonneg = [
+            ("absorb", self.absorb),
+            ("scatter", self.scatter),
+            ("cutoff", self.cutoff),
+            ("gain", self.gain),
+        ];
+        for (name, v) in nonneg {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} = {v} (must be finite and ≥ 0)"));
+            }
+        }
+        for (name, v) in [("step", self.step), ("shadow-step", self.shadow_step)] {
+            if !(v.is_finite() && v >= MIN_STEP) {
+                return bad(format!("{name} = {v} (must be ≥ {MIN_STEP})"));
+            }
+        }
+        if self
+            .light_color
+            .iter()
+            .any(|c| !(c.is_finite() && *c >= 0.0))
+        {
+            return bad(format!("light colour {:?}", self.light_color));
+        }
+        let l = self.light_dir;
+        let n = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+        if !(n.is_finite() && n > 1e-6) {
+            return bad(format!("light direction {l:?} has no direction"));
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return bad(format!("spp = {} (1..={MAX_SPP})", self.spp));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,115 @@
+//! From world space to the asset's index space: the inverse of `index_to_world`, rays carried
+//! into index space (keeping the world-distance parameter), and the clip to the root extent.
+
+use crate::TraceError;
+
+/// An affine map `x ↦ A·x + b` and its inverse.
+#[derive(Debug, Clone, Copy)]
+pub struct Affine {
+    pub a: [[f64; 3]; 3],
+    pub b: [f64; 3],
+    pub inv_a: [[f64; 3]; 3],
+}
+
+pub(crate) fn mul3(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
+}
+
+pub(crate) fn length(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+pub(crate) fn normalize(v: [f64; 3]) -> [f64; 3] {
+    let n = length(v);
+    v.map(|c| c / n)
+}
+
+impl Affine {
+    /// From a row-major, column-vector 4×4 (`world = M · [i j k 1]ᵀ`). Refuses a projective last
+    /// row, non-finite entries and a (nearly) singular linear part.
+    pub fn from_matrix(m: &[[f64; 4]; 4]) -> Result<Affine, TraceError> {
+        if m.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(TraceError::Transform("non-finite entry".into()));
+        }
+        if m[3] != [0.0, 0.0, 0.0, 1.0] {
+            return Err(TraceError::Transform(format!(
+                "last row {:?} is not [0 0 0 1] (frustum maps are not supported)",
+                m[3]
+            )));
+        }
+        let a = [0, 1, 2].map(|r| [m[r][0], m[r][1], m[r][2]]);
+        let b = [m[0][3], m[1][3], m[2][3]];
+        // Inverse by the adjugate: inv = adj(A) / det(A).
+        let c = |r: usize, k: usize| {
+            let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+            let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+            a[r1][k1] * a[r2][k2] - a[r1][k2] * a[r2][k1]
+        };
+        let det = a[0][0] * c(0, 0) + a[0][1] * c(0, 1) + a[0][2] * c(0, 2);
+        let scale = a.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
+        if !(det.abs() > 1e-12 * scale * scale * scale) || scale == 0.0 {
+            return Err(TraceError::Transform(format!("singular (det {det:e})")));
+        }
+        // adj(A)[r][k] = cofactor(k, r).
+        let inv_a = [0, 1, 2].map(|r| [0, 1, 2].map(|k| c(k, r) / det));
+        Ok(Affine { a, b, inv_a })
+    }
+
+    pub fn world_of(&self, p: [f64; 3]) -> [f64; 3] {
+        let v = mul3(&self.a, p);
+        [0, 1, 2].map(|i| v[i] + self.b[i])
+    }
+
+    pub fn index_of(&self, w: [f64; 3]) -> [f64; 3] {
+        mul3(&self.inv_a, [0, 1, 2].map(|i| w[i] - self.b[i]))
+    }
+
+    pub fn dir_to_index(&self, d: [f64; 3]) -> [f64; 3] {
+        mul3(&self.inv_a, d)
+    }
+}
+
+/// A ray in index space, `p(t) = o + t·d`, where `t` is the distance travelled in *world* units
+/// (the world direction was unit length); `per_t` converts `t` to the chosen length unit.
+#[derive(Debug, Clone, Copy)]
+pub struct IndexRay {
+    pub o: [f64; 3],
+    pub d: [f64; 3],
+    /// `1 / d` per axis (±∞ where `d` is 0; unused there).
+    pub inv: [f64; 3],
+    /// Length units per unit of `t` (voxels per world unit along this ray, or 1).
+    pub per_t: f64,
+}
+
+impl IndexRay {
+    /// `o` in index space, `d` the index-space image of a unit world direction.
+    pub fn new(o: [f64; 3], d: [f64; 3], voxel_units: bool) -> IndexRay {
+        let inv = d.map(|c| if c == 0.0 { f64::INFINITY } else { 1.0 / c });
+        let per_t = if voxel_units { length(d) } else { 1.0 };
+        IndexRay { o, d, inv, per_t }
+    }
+
+    #[inline]
+    pub fn at(&self, t: f64) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.o[i] + t * self.d[i])
+    }
+
+    /// The `t` interval (from `t ≥ 0`) inside the half-open box `[0, ext)`; `None` if empty. An
+    /// axis the ray does not move along must hold the origin inside `[0, ext)`.
+    pub fn clip(&self, ext: [f64; 3]) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for (i, &e) in ext.iter().enumerate() {
+            if self.d[i] == 0.0 {
+                if !(self.o[i] >= 0.0 && self.o[i] < e) {
+                    return None;
+                }
+            } else {
+                let a = (0.0 - self.o[i]) * self.inv[i];
+                let b = (e - self.o[i]) * self.inv[i];
+                t0 = t0.max(a.min(b));
+                t1 = t1.min(a.max(b));
+            }
+        }
+        (t1 > t0 && t1.is_finite()).then_some((t0, t1))
+    }
+}
