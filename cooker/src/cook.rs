@@ -15,6 +15,7 @@ use vdbcook_vdb::{ErrorKind, Transform, VdbError};
 
 use crate::bcenc::Bc7Quality;
 use crate::build::{build_frame, BuiltFrame, NonFinite};
+use crate::cluster;
 use crate::encode;
 use crate::pool::{ranges, Pool};
 use crate::report::CliError;
@@ -51,6 +52,15 @@ pub struct Args {
     /// Accept gaps in the frame numbering.
     #[arg(long)]
     allow_gaps: bool,
+    /// Cluster the low-variance bricks into K centroid bricks (k-means, L1 distance); lossy.
+    #[arg(long, value_name = "K")]
+    clusters: Option<usize>,
+    /// k-means iterations (with --clusters).
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    iterations: usize,
+    /// Bricks whose normalized variance (variance / |mean|) exceeds T keep their own data.
+    #[arg(long, default_value_t = 0.1, value_name = "T")]
+    variance_threshold: f32,
     /// Replace NaN and ±Inf active values with VALUE (by default they are an error).
     #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
     replace_non_finite: Option<f32>,
@@ -132,6 +142,7 @@ struct Stages {
     read: f64,
     build: f64,
     dedup: f64,
+    cluster: f64,
     encode: f64,
     write: f64,
 }
@@ -224,7 +235,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     let mut st = Stages::default();
     // Lossless payloads need no per-voxel use counts: their error is checked to be zero below.
-    let mut pool = Pool::new(format != PayloadFormat::F32 || a.max_error.is_some());
+    let mut pool =
+        Pool::new(format != PayloadFormat::F32 || a.max_error.is_some() || a.clusters.is_some());
     let mut first: Option<(Frame, Transform, f32, String)> = None;
     let mut infos = Vec::with_capacity(frames.len());
     let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
@@ -319,17 +331,107 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .extent()
         .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
 
+    // Cluster (optional): members of a cluster are re-pointed to its centroid brick.
+    let tc = Instant::now();
+    let n_pool = pool.brick_count();
+    let mut input_of: Vec<u32> = (0..n_pool as u32).collect();
+    let mut enc_input: Option<Vec<f32>> = None;
+    let mut cstats: Option<Value> = None;
+    if let Some(k) = a.clusters {
+        let copts = cluster::ClusterOptions {
+            clusters: k,
+            iterations: a.iterations,
+            variance_threshold: a.variance_threshold,
+            seed: 1,
+        };
+        let r = cluster::cluster(&pool.bricks, &copts);
+        let n_centroids = r.centroids.len() / BRICK_VOXELS;
+        // The guard: with --max-error, a brick joins its cluster only if the *decoded* centroid
+        // is within E of each of its voxels.
+        let mut rejected_by_error = 0usize;
+        let mut member_of = r.member_of.clone();
+        if let Some(e) = a.max_error {
+            let ce = encode::encode(&r.centroids, &eopts)
+                .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
+            for (b, m) in member_of.iter_mut().enumerate() {
+                if let Some(c) = *m {
+                    let dec =
+                        &ce.decoded[c as usize * BRICK_VOXELS..(c as usize + 1) * BRICK_VOXELS];
+                    let src = &pool.bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
+                    if dec
+                        .iter()
+                        .zip(src)
+                        .any(|(d, s)| ((*d as f64) - (*s as f64)).abs() > e as f64)
+                    {
+                        *m = None;
+                        rejected_by_error += 1;
+                    }
+                }
+            }
+        }
+        // Encode input: bricks that keep their own data, then the centroids that have members.
+        let mut used = vec![u32::MAX; n_centroids];
+        let mut input = Vec::new();
+        let mut next = 0u32;
+        for (b, m) in member_of.iter().enumerate() {
+            if m.is_none() {
+                input.extend_from_slice(&pool.bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+                input_of[b] = next;
+                next += 1;
+            }
+        }
+        for (b, m) in member_of.iter().enumerate() {
+            if let Some(c) = *m {
+                if used[c as usize] == u32::MAX {
+                    used[c as usize] = next;
+                    next += 1;
+                    input.extend_from_slice(
+                        &r.centroids[c as usize * BRICK_VOXELS..(c as usize + 1) * BRICK_VOXELS],
+                    );
+                }
+                input_of[b] = used[c as usize];
+            }
+        }
+        cstats = Some(json!({
+            "candidates": r.candidates,
+            "clusters": used.iter().filter(|&&u| u != u32::MAX).count(),
+            "iterations": r.iterations_run,
+            "rejected_by_variance": r.rejected_by_variance,
+            "rejected_by_error": rejected_by_error,
+            "variance_threshold": a.variance_threshold,
+            "seconds": tc.elapsed().as_secs_f64(),
+        }));
+        enc_input = Some(input);
+    }
+    st.cluster = tc.elapsed().as_secs_f64();
+    let after_clustering = enc_input
+        .as_ref()
+        .map(|v| v.len() / BRICK_VOXELS)
+        .unwrap_or(n_pool);
     // Encode.
     let t = Instant::now();
-    let enc = encode::encode(&pool.bricks, &eopts)
+    let enc = encode::encode(enc_input.as_deref().unwrap_or(&pool.bricks), &eopts)
         .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
+    // Decoded values of what each pool brick now points at (for the error figures).
+    let decoded_pool: Vec<f32> = if enc_input.is_some() {
+        let mut d = vec![0f32; pool.bricks.len()];
+        for (b, &i) in input_of.iter().enumerate() {
+            d[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].copy_from_slice(
+                &enc.decoded[i as usize * BRICK_VOXELS..(i as usize + 1) * BRICK_VOXELS],
+            );
+        }
+        d
+    } else {
+        Vec::new()
+    };
+    drop(enc_input);
     // Bricks that became tiles append their values to the pool's tiles.
     let first_new_tile = pool.tiles.len() as u32;
     pool.tiles.extend_from_slice(&enc.new_tiles);
-    let remap: Vec<u32> = enc
-        .remap
+    let remap: Vec<u32> = input_of
         .iter()
-        .map(|&r| {
+        .map(|&i| enc.remap[i as usize])
+        .map(|r| {
             if r & TILE_BIT != 0 {
                 TILE_BIT | (first_new_tile + (r & !TILE_BIT))
             } else {
@@ -344,7 +446,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             }
         }
     }
-    let decoded: &[f32] = &enc.decoded;
+    let decoded: &[f32] = if decoded_pool.is_empty() {
+        &enc.decoded
+    } else {
+        &decoded_pool
+    };
     let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
     let mut roots = vec![EMPTY; frames.len() * root_len];
     for (fi, entries) in pool.frames.iter().enumerate() {
@@ -486,7 +592,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "grid": asset.header.grid_name,
         "frames": asset.frame_count(),
         "active_voxels": active,
-        "bricks": {"source": pool.source_bricks, "unique": unique_bricks, "after_clustering": unique_bricks, "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
+        "bricks": {"source": pool.source_bricks, "unique": unique_bricks, "after_clustering": after_clustering, "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
         "nodes": {"l2": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "root_dims": root_dims},
         "bytes": {"topology": topology, "atlas": atlas, "file": bytes.len()},
         "bits_per_active_voxel": bpv(bytes.len() as u64),
@@ -497,6 +603,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             let rmse = if f.active_voxels > 0 { (e.sum_sq / f.active_voxels as f64).sqrt() } else { 0.0 };
             json!({"frame": i, "number": f.number, "rmse": rmse, "psnr_db": (rmse > 0.0 && peak > 0.0).then(|| 20.0 * (peak / rmse).log10()), "max_abs": e.max_abs})
         }).collect::<Vec<_>>(),
+        "clustering": cstats,
         "representations": {
             "tile": enc.representation.tile,
             "bc7": enc.representation.per_format[0], "bc4": enc.representation.per_format[1],
@@ -506,7 +613,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "bc7_quality": eopts.bc7_quality.name(),
         "range": match eopts.range { RangeMode::Brick => "brick", RangeMode::Global => "global" },
         "peak_memory_bytes": peak_memory_bytes(),
-        "seconds": {"total": t0.elapsed().as_secs_f64(), "read": st.read, "build": st.build, "dedup": st.dedup, "cluster": 0.0, "encode": st.encode, "write": st.write},
+        "seconds": {"total": t0.elapsed().as_secs_f64(), "read": st.read, "build": st.build, "dedup": st.dedup, "cluster": st.cluster, "encode": st.encode, "write": st.write},
     });
     if a.json {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));

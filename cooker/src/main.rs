@@ -4,6 +4,7 @@
 
 mod bcenc;
 mod build;
+mod cluster;
 mod cook;
 mod encode;
 mod eval;

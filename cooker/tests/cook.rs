@@ -504,3 +504,93 @@ fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
         }
     }
 }
+
+#[test]
+fn clustering_reports_its_stats_and_the_guard_holds() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("c.vdbc");
+    let o = out.to_str().unwrap();
+    // Unguarded, a high threshold and few clusters: lossy, and the cook says how lossy.
+    let c = json(&[
+        "cook",
+        "--json",
+        "fixtures/seq/smoke5",
+        "-o",
+        o,
+        "--clusters",
+        "4",
+        "--variance-threshold",
+        "0.99",
+    ]);
+    let cl = &c["clustering"];
+    for k in [
+        "candidates",
+        "clusters",
+        "iterations",
+        "rejected_by_variance",
+        "rejected_by_error",
+        "seconds",
+    ] {
+        assert!(!cl[k].is_null(), "clustering.{k} missing: {cl}");
+    }
+    assert!(
+        c["bricks"]["after_clustering"].as_u64().unwrap() < c["bricks"]["unique"].as_u64().unwrap()
+    );
+    let unguarded = json(&["eval", "--json", o, "fixtures/seq/smoke5"])["max_abs"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        unguarded > 0.05,
+        "clustering 59 bricks into 4 must be lossy (max error {unguarded})"
+    );
+    assert!(
+        (c["error"]["max_abs"].as_f64().unwrap() - unguarded).abs() < 1e-6,
+        "cook reports the error clustering added"
+    );
+    // Guarded: every voxel within E, and some members were refused by the guard.
+    let e = 0.02;
+    let g = json(&[
+        "cook",
+        "--json",
+        "fixtures/seq/smoke5",
+        "-o",
+        o,
+        "--clusters",
+        "4",
+        "--variance-threshold",
+        "0.99",
+        "--max-error",
+        "0.02",
+        "--format",
+        "f32",
+    ]);
+    assert!(g["clustering"]["rejected_by_error"].as_u64().unwrap() > 0);
+    let ev = json(&["eval", "--json", o, "fixtures/seq/smoke5"]);
+    assert!(
+        ev["max_abs"].as_f64().unwrap() <= e,
+        "guarded clustering exceeded E: {}",
+        ev["max_abs"]
+    );
+    // Same clusters, same bytes, at any thread count.
+    let a = d.path().join("a.vdbc");
+    let b = d.path().join("b.vdbc");
+    for (t, p) in [("1", &a), ("2", &b)] {
+        assert_eq!(
+            run(&[
+                "--threads",
+                t,
+                "cook",
+                "fixtures/seq/smoke5",
+                "-o",
+                p.to_str().unwrap(),
+                "--clusters",
+                "8",
+                "--variance-threshold",
+                "0.5"
+            ])
+            .0,
+            0
+        );
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+}
