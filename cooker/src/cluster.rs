@@ -57,59 +57,75 @@ pub fn normalized_variance(v: &[f32]) -> f32 {
     }
 }
 
-/// Index of the nearest centroid (lowest index on ties). A centroid is abandoned as soon as its
-/// partial distance reaches the best so far (terms are non-negative, so the result is exactly
-/// that of the full computation). Uses AVX-512 or AVX2 when the CPU has them; the lane
-/// structure is the same in every version, so the sums — and the clusters — are bit-identical.
-fn nearest(b: &[f32], centroids: &[f32]) -> u32 {
+/// Index of the nearest centroid (lowest index on ties), starting from `hint` (the previous
+/// assignment): with a tight best distance from the start, most other centroids are abandoned
+/// after a few partial sums (terms are non-negative and the partial sums are computed in the
+/// same order as the full one, so they never decrease: the result is exactly the full argmin).
+/// Uses AVX-512 or AVX2 when the CPU has them; the lane structure is the same in every version,
+/// so the sums — and the clusters — are bit-identical.
+fn nearest(b: &[f32], centroids: &[f32], hint: u32) -> u32 {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { nearest_avx512(b, centroids) };
+            return unsafe { nearest_avx512(b, centroids, hint) };
         }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { nearest_avx2(b, centroids) };
+            return unsafe { nearest_avx2(b, centroids, hint) };
         }
     }
-    nearest_portable(b, centroids)
+    nearest_portable(b, centroids, hint)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn nearest_avx512(b: &[f32], centroids: &[f32]) -> u32 {
-    nearest_portable(b, centroids)
+unsafe fn nearest_avx512(b: &[f32], centroids: &[f32], hint: u32) -> u32 {
+    nearest_portable(b, centroids, hint)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn nearest_avx2(b: &[f32], centroids: &[f32]) -> u32 {
-    nearest_portable(b, centroids)
+unsafe fn nearest_avx2(b: &[f32], centroids: &[f32], hint: u32) -> u32 {
+    nearest_portable(b, centroids, hint)
+}
+
+/// L1 distance to one centroid, abandoned (returning a value ≥ `bound`) once it cannot win.
+#[inline(always)]
+fn partial_l1(b: &[f32], cv: &[f32], bound: f32, strict: bool) -> f32 {
+    let mut acc = [0f32; 16];
+    let mut done = 0f32;
+    for (part_a, part_c) in b.chunks_exact(128).zip(cv.chunks_exact(128)) {
+        for (ca, cb) in part_a.chunks_exact(16).zip(part_c.chunks_exact(16)) {
+            for i in 0..16 {
+                acc[i] += (ca[i] - cb[i]).abs();
+            }
+        }
+        done = acc.iter().sum();
+        if done > bound || (strict && done == bound) {
+            return done;
+        }
+    }
+    done
 }
 
 #[inline(always)]
-fn nearest_portable(b: &[f32], centroids: &[f32]) -> u32 {
-    let mut best = (f32::INFINITY, 0u32);
-    for (c, cv) in centroids.chunks_exact(BRICK_VOXELS).enumerate() {
-        let mut acc = [0f32; 16];
-        let mut done = 0f32;
-        for (part_a, part_c) in b.chunks_exact(128).zip(cv.chunks_exact(128)) {
-            for (ca, cb) in part_a.chunks_exact(16).zip(part_c.chunks_exact(16)) {
-                for i in 0..16 {
-                    acc[i] += (ca[i] - cb[i]).abs();
-                }
-            }
-            done = acc.iter().sum();
-            if done >= best.0 {
-                break;
-            }
+fn nearest_portable(b: &[f32], centroids: &[f32], hint: u32) -> u32 {
+    let k = centroids.len() / BRICK_VOXELS;
+    let hint = (hint as usize).min(k - 1);
+    let cent = |c: usize| &centroids[c * BRICK_VOXELS..(c + 1) * BRICK_VOXELS];
+    let mut best = (partial_l1(b, cent(hint), f32::INFINITY, false), hint);
+    for c in 0..k {
+        if c == hint {
+            continue;
         }
-        if done < best.0 {
-            best = (done, c as u32);
+        // A centroid after the best one must beat it strictly; one before it may tie.
+        let d = partial_l1(b, cent(c), best.0, c > best.1);
+        if d < best.0 || (d == best.0 && c < best.1) {
+            best = (d, c);
         }
     }
-    best.1
+    best.1 as u32
 }
 
 /// A seeded xorshift64* generator (no dependency, reproducible everywhere).
@@ -160,7 +176,8 @@ pub fn cluster(pool: &[f32], o: &ClusterOptions) -> ClusterResult {
         iterations_run += 1;
         let next: Vec<u32> = cand
             .par_iter()
-            .map(|&b| nearest(brick(b), &centroids))
+            .zip(assign.par_iter())
+            .map(|(&b, &h)| nearest(brick(b), &centroids, h))
             .collect();
         let changed = next != assign || iterations_run == 1;
         assign = next;
@@ -210,7 +227,8 @@ pub fn cluster(pool: &[f32], o: &ClusterOptions) -> ClusterResult {
     // Final assignment to the final centroids.
     let fin: Vec<u32> = cand
         .par_iter()
-        .map(|&b| nearest(brick(b), &centroids))
+        .zip(assign.par_iter())
+        .map(|(&b, &h)| nearest(brick(b), &centroids, h))
         .collect();
     for (&b, &c) in cand.iter().zip(&fin) {
         member_of[b] = Some(c);
@@ -321,6 +339,23 @@ mod tests {
             a.centroids.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
             b.centroids.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
         );
+    }
+
+    #[test]
+    fn pruned_search_from_any_hint_is_the_exact_argmin() {
+        // Includes exact ties (duplicate centroids), where the lowest index must win.
+        let cents = bricks(12, |c, v| ((c % 6) * 3 + v % 5) as f32 * 0.25);
+        let data = bricks(60, |b, v| ((b * 13 + v * 3) % 23) as f32 * 0.2);
+        for b in 0..60 {
+            let x = &data[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
+            let full = (0..12)
+                .map(|c| (l1(x, &cents[c * BRICK_VOXELS..(c + 1) * BRICK_VOXELS]), c))
+                .fold((f32::INFINITY, 0), |m, d| if d.0 < m.0 { d } else { m });
+            for h in 0..12 {
+                assert_eq!(nearest(x, &cents, h) as usize, full.1, "brick {b} hint {h}");
+                assert_eq!(nearest_portable(x, &cents, h) as usize, full.1);
+            }
+        }
     }
 
     #[test]
