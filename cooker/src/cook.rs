@@ -417,7 +417,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let mut d = vec![0f32; pool.bricks.len()];
         for (b, &i) in input_of.iter().enumerate() {
             d[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].copy_from_slice(
-                &enc.decoded[i as usize * BRICK_VOXELS..(i as usize + 1) * BRICK_VOXELS],
+                &enc.decoded_or(enc_input.as_deref().unwrap_or(&[]))
+                    [i as usize * BRICK_VOXELS..(i as usize + 1) * BRICK_VOXELS],
             );
         }
         d
@@ -447,7 +448,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
     }
     let decoded: &[f32] = if decoded_pool.is_empty() {
-        &enc.decoded
+        enc.decoded_or(&pool.bricks)
     } else {
         &decoded_pool
     };
@@ -462,7 +463,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
     }
     let rg = ranges(
-        &enc.final_decoded,
+        enc.brick_ranges.clone(),
         &pool.tiles,
         &pool.l2_refs,
         &roots,

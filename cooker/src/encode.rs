@@ -29,20 +29,32 @@ pub struct Representation {
 }
 
 pub struct Encoded {
-    /// For each pool brick: its final ref (brick index in format-grouped order, or
-    /// `TILE_BIT | (first_new_tile + k)` when it became a tile).
+    /// For each input brick: its final ref (brick index in format-grouped order, or
+    /// `TILE_BIT | k` — the k-th of `new_tiles` — when it became a tile).
     pub remap: Vec<u32>,
     pub payloads: [Vec<u8>; 5],
     pub brick_counts: [u64; 5],
     /// Per final brick `[lo, hi]` of its quantization range (`[0, 0]` for float formats).
     pub brick_quant: Vec<[f32; 2]>,
-    /// Decoded values of every *pool* brick (voxel order), whatever it became — for error stats.
+    /// Per final brick `[min, max]` of its decoded values.
+    pub brick_ranges: Vec<[f32; 2]>,
+    /// Decoded values of every *input* brick (voxel order), whatever it became; empty when the
+    /// encoding was lossless (decoded = input, see [`Encoded::decoded_or`]).
     pub decoded: Vec<f32>,
-    /// Decoded values of the final bricks, in final order (for value ranges).
-    pub final_decoded: Vec<f32>,
     /// Tile values created from bricks (to append to the pool's tiles).
     pub new_tiles: Vec<f32>,
     pub representation: Representation,
+}
+
+impl Encoded {
+    /// Decoded values of the input bricks (`input` itself when the encoding was lossless).
+    pub fn decoded_or<'a>(&'a self, input: &'a [f32]) -> &'a [f32] {
+        if self.decoded.is_empty() {
+            input
+        } else {
+            &self.decoded
+        }
+    }
 }
 
 /// Value range of one brick.
@@ -182,6 +194,7 @@ fn encode_tiled(
 
 pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
     let n = pool.len() / BRICK_VOXELS;
+    let brick = |b: usize| &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
     let ranges: Vec<[f32; 2]> = pool.par_chunks(BRICK_VOXELS).map(range_of).collect();
     let quant: Vec<[f32; 2]> = match opts.range {
         RangeMode::Brick => ranges.clone(),
@@ -194,135 +207,190 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
             vec![g; n]
         }
     };
-    // Candidates, cheapest first.
-    let formats: Vec<PayloadFormat> = match opts.max_error {
-        None => vec![opts.format],
-        Some(_) => {
-            let from = if opts.format_given {
-                opts.format.rank()
-            } else {
-                0
-            };
-            PayloadFormat::ORDER[from..].to_vec()
+    let quant_of = |f: PayloadFormat, b: usize| {
+        if f.is_quantized() {
+            quant[b]
+        } else {
+            [0.0, 0.0]
         }
     };
-    let mut assigned: Vec<Option<(PayloadFormat, Vec<u8>)>> = vec![None; n];
-    let mut decoded = vec![0f32; pool.len()];
-    let mut tile_of: Vec<Option<f32>> = vec![None; n];
-    let mut pending: Vec<usize> = (0..n).collect();
-    if let Some(e) = opts.max_error {
-        // A brick whose values all lie within E of their midpoint becomes a tile.
-        pending.retain(|&b| {
-            let [lo, hi] = ranges[b];
-            let mid = lo + (hi - lo) * 0.5;
-            let ok = pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]
-                .iter()
-                .all(|&v| (v - mid).abs() <= e);
-            if ok {
-                tile_of[b] = Some(mid);
-                decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].fill(mid);
+    // One format for every brick: encode in pool order, no checks, no copies.
+    if opts.max_error.is_none() {
+        let f = opts.format;
+        let all: Vec<usize> = (0..n).collect();
+        if f == PayloadFormat::F16 {
+            if let Some(v) = payload::check_representable(f, pool) {
+                return Err(format!(
+                    "value {v} is beyond the range of f16 (±{}); cook with --format f32",
+                    payload::F16_MAX
+                ));
             }
-            !ok
+        }
+        let bytes = encode_batch(f, pool, &all, &quant, opts.bc7_quality);
+        let mut payloads: [Vec<u8>; 5] = Default::default();
+        let mut brick_counts = [0u64; 5];
+        brick_counts[f.rank()] = n as u64;
+        let (decoded, brick_ranges) = if f == PayloadFormat::F32 {
+            (Vec::new(), ranges)
+        } else {
+            let per = f.bytes_per_brick();
+            let mut d = vec![0f32; pool.len()];
+            d.par_chunks_mut(BRICK_VOXELS)
+                .enumerate()
+                .for_each(|(b, out)| {
+                    payload::decode_brick(
+                        f,
+                        &bytes[b * per..(b + 1) * per],
+                        quant_of(f, b),
+                        out.try_into().expect("512"),
+                    );
+                });
+            let r = d.par_chunks(BRICK_VOXELS).map(range_of).collect();
+            (d, r)
+        };
+        if decoded.iter().any(|v| !v.is_finite()) {
+            return Err(format!(
+                "some bricks do not decode to finite values in {}",
+                f.name()
+            ));
+        }
+        payloads[f.rank()] = bytes;
+        let mut representation = Representation::default();
+        representation.per_format[f.rank()] = n as u64;
+        return Ok(Encoded {
+            remap: (0..n as u32).collect(),
+            payloads,
+            brick_counts,
+            brick_quant: (0..n).map(|b| quant_of(f, b)).collect(),
+            brick_ranges,
+            decoded,
+            new_tiles: Vec::new(),
+            representation,
         });
     }
+    let e = opts.max_error.expect("checked") as f64;
+    // Candidates, cheapest first.
+    let from = if opts.format_given {
+        opts.format.rank()
+    } else {
+        0
+    };
+    let formats = &PayloadFormat::ORDER[from..];
+    let mut decoded = vec![0f32; pool.len()];
+    // Per brick: None (pending), a tile, or (format, batch, index in batch).
+    #[derive(Clone, Copy)]
+    enum Choice {
+        Pending,
+        Tile(f32),
+        Stored(PayloadFormat, usize, usize),
+    }
+    let mut choice = vec![Choice::Pending; n];
+    // A brick whose values all lie within E of their midpoint becomes a tile.
+    for b in 0..n {
+        let [lo, hi] = ranges[b];
+        let mid = lo + (hi - lo) * 0.5;
+        if brick(b).iter().all(|&v| ((v - mid) as f64).abs() <= e) {
+            choice[b] = Choice::Tile(mid);
+            decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].fill(mid);
+        }
+    }
+    let mut pending: Vec<usize> = (0..n)
+        .filter(|&b| matches!(choice[b], Choice::Pending))
+        .collect();
+    let mut batches: Vec<Vec<u8>> = Vec::new();
     for (fi, &f) in formats.iter().enumerate() {
         if pending.is_empty() {
             break;
         }
         let last = fi + 1 == formats.len();
-        if f == PayloadFormat::F16 {
-            if let Some(v) = pending.iter().find_map(|&b| {
-                payload::check_representable(f, &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS])
-            }) {
-                if last || opts.max_error.is_none() {
-                    return Err(format!(
-                        "value {v} is beyond the range of f16 (±{}); cook with --format f32",
-                        payload::F16_MAX
-                    ));
-                }
+        if f == PayloadFormat::F16 && !last {
+            // Bricks beyond f16's range skip it (they end in f32).
+            let (fit, skip): (Vec<usize>, Vec<usize>) = pending
+                .iter()
+                .partition(|&&b| payload::check_representable(f, brick(b)).is_none());
+            if !skip.is_empty() {
+                let mut rest = fit;
+                rest.extend(skip.iter().copied());
+                pending = rest;
             }
         }
         let bytes = encode_batch(f, pool, &pending, &quant, opts.bc7_quality);
         let per = f.bytes_per_brick();
-        // Decode and check every brick of the batch (in parallel).
-        let checks: Vec<(Vec<f32>, f64)> = pending
-            .par_iter()
+        let mut dec = vec![0f32; pending.len() * BRICK_VOXELS];
+        let errs: Vec<f64> = dec
+            .par_chunks_mut(BRICK_VOXELS)
+            .zip(pending.par_iter())
             .enumerate()
-            .map(|(k, &b)| {
-                let mut out = [0f32; BRICK_VOXELS];
-                let q = if f.is_quantized() {
-                    quant[b]
-                } else {
-                    [0.0, 0.0]
-                };
-                payload::decode_brick(f, &bytes[k * per..(k + 1) * per], q, &mut out);
-                let src = &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
-                let err = out
-                    .iter()
-                    .zip(src)
+            .map(|(k, (out, &b))| {
+                let representable =
+                    f != PayloadFormat::F16 || payload::check_representable(f, brick(b)).is_none();
+                if !representable {
+                    return f64::INFINITY;
+                }
+                payload::decode_brick(
+                    f,
+                    &bytes[k * per..(k + 1) * per],
+                    quant_of(f, b),
+                    out.try_into().expect("512"),
+                );
+                out.iter()
+                    .zip(brick(b))
                     .map(|(a, s)| (*a as f64 - *s as f64).abs())
                     .fold(
                         0.0f64,
-                        |m, e| if e.is_nan() { f64::INFINITY } else { m.max(e) },
-                    );
-                (out.to_vec(), err)
+                        |m, x| if x.is_nan() { f64::INFINITY } else { m.max(x) },
+                    )
             })
             .collect();
+        let batch = batches.len();
         let mut still = Vec::new();
-        for (k, (&b, (out, err))) in pending.iter().zip(checks).enumerate() {
-            let fits = match opts.max_error {
-                None => true,
-                Some(e) => last || err <= e as f64,
-            };
-            if fits && err.is_finite() {
-                decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].copy_from_slice(&out);
-                assigned[b] = Some((f, bytes[k * per..(k + 1) * per].to_vec()));
-            } else if fits {
+        for (k, (&b, &err)) in pending.iter().zip(&errs).enumerate() {
+            if err <= e || (last && err.is_finite()) {
+                decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]
+                    .copy_from_slice(&dec[k * BRICK_VOXELS..(k + 1) * BRICK_VOXELS]);
+                choice[b] = Choice::Stored(f, batch, k);
+            } else if last {
                 return Err(format!(
-                    "brick {b} does not decode to finite values in {}",
+                    "brick {b} cannot be stored within {e} even in {}",
                     f.name()
                 ));
             } else {
                 still.push(b);
             }
         }
+        batches.push(bytes);
         pending = still;
     }
-    debug_assert!(pending.is_empty());
-    // Group by format (cheapest first), keeping pool order inside a group.
+    // Group by format (cheapest first), keeping input order inside a group.
     let mut remap = vec![0u32; n];
     let mut payloads: [Vec<u8>; 5] = Default::default();
     let mut brick_counts = [0u64; 5];
     let mut brick_quant = Vec::new();
-    let mut final_decoded = Vec::new();
+    let mut brick_ranges = Vec::new();
     let mut new_tiles = Vec::new();
-    let mut rep = Representation::default();
+    let mut representation = Representation::default();
     let mut next = 0u32;
     for f in PayloadFormat::ORDER {
         for b in 0..n {
-            if let Some((bf, bytes)) = &assigned[b] {
-                if *bf == f {
+            if let Choice::Stored(bf, batch, k) = choice[b] {
+                if bf == f {
+                    let per = f.bytes_per_brick();
                     remap[b] = next;
                     next += 1;
-                    payloads[f.rank()].extend_from_slice(bytes);
+                    payloads[f.rank()].extend_from_slice(&batches[batch][k * per..(k + 1) * per]);
                     brick_counts[f.rank()] += 1;
-                    brick_quant.push(if f.is_quantized() {
-                        quant[b]
-                    } else {
-                        [0.0, 0.0]
-                    });
-                    final_decoded
-                        .extend_from_slice(&decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+                    brick_quant.push(quant_of(f, b));
+                    brick_ranges.push(range_of(&decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]));
                 }
             }
         }
-        rep.per_format[f.rank()] = brick_counts[f.rank()];
+        representation.per_format[f.rank()] = brick_counts[f.rank()];
     }
     for b in 0..n {
-        if let Some(v) = tile_of[b] {
-            remap[b] = TILE_BIT | new_tiles.len() as u32; // offset by the pool's tiles later
+        if let Choice::Tile(v) = choice[b] {
+            remap[b] = TILE_BIT | new_tiles.len() as u32;
             new_tiles.push(v);
-            rep.tile += 1;
+            representation.tile += 1;
         }
     }
     Ok(Encoded {
@@ -330,10 +398,10 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
         payloads,
         brick_counts,
         brick_quant,
+        brick_ranges,
         decoded,
-        final_decoded,
         new_tiles,
-        representation: rep,
+        representation,
     })
 }
 
@@ -359,7 +427,7 @@ mod tests {
     /// Max |decoded − source| per pool brick.
     fn errors(pool: &[f32], enc: &Encoded) -> Vec<f32> {
         pool.chunks(BRICK_VOXELS)
-            .zip(enc.decoded.chunks(BRICK_VOXELS))
+            .zip(enc.decoded_or(pool).chunks(BRICK_VOXELS))
             .map(|(s, d)| {
                 s.iter()
                     .zip(d)
@@ -487,12 +555,12 @@ mod tests {
             assert!(err <= tol, "{}: error {err} > {tol}", f.name());
             let mean = |s: &[f32]| s.iter().map(|&x| x as f64).sum::<f64>() / s.len() as f64;
             assert!(
-                (mean(&enc.decoded) - mean(&v)).abs() < tol as f64 + 1e-6,
+                (mean(enc.decoded_or(&v)) - mean(&v)).abs() < tol as f64 + 1e-6,
                 "{}: mean shifted",
                 f.name()
             );
             let (dlo, dhi) = enc
-                .decoded
+                .decoded_or(&v)
                 .iter()
                 .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
             assert!(

@@ -203,24 +203,15 @@ fn widen(r: &mut [f32; 2], lo: f32, hi: f32) {
     r[1] = r[1].max(hi);
 }
 
+/// Ranges of L2 nodes and frames from the final bricks' ranges (`bricks`) and tile values.
 pub fn ranges(
-    decoded: &[f32],
+    bricks: Vec<[f32; 2]>,
     tiles: &[f32],
     l2_refs: &[Vec<u32>],
     roots: &[u32],
     root_len: usize,
     bg: f32,
 ) -> Ranges {
-    // Stored values are finite: plain comparisons (vectorisable).
-    let range_of = |s: &[f32]| {
-        let (lo, hi) = s
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-                (if v < lo { v } else { lo }, if v > hi { v } else { hi })
-            });
-        [lo, hi]
-    };
-    let bricks: Vec<[f32; 2]> = decoded.chunks_exact(BRICK_VOXELS).map(range_of).collect();
     let ref_range = |r: u32| {
         if r & TILE_BIT != 0 {
             let v = tiles[(r & !TILE_BIT) as usize];

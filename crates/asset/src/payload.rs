@@ -26,9 +26,13 @@ pub fn tex_index(x: usize, y: usize, z: usize) -> usize {
 pub fn encode_float(format: PayloadFormat, values: &[f32], out: &mut Vec<u8>) {
     match format {
         PayloadFormat::F32 => {
-            out.reserve(values.len() * 4);
-            for v in values {
-                out.extend_from_slice(&v.to_le_bytes());
+            if cfg!(target_endian = "little") {
+                out.extend_from_slice(bytemuck::cast_slice(values));
+            } else {
+                out.reserve(values.len() * 4);
+                for v in values {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
             }
         }
         PayloadFormat::F16 => {
