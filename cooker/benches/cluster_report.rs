@@ -11,7 +11,12 @@ use serde_json::Value;
 
 fn cook(input: &str, extra: &[&str]) -> Value {
     let out = std::env::temp_dir().join(format!("vdbcook-cluster-{}.vdbc", std::process::id()));
-    let o = Command::new(env!("CARGO_BIN_EXE_vdbcook")).args(["cook", "--json", input, "-o"]).arg(&out).args(extra).output().expect("vdbcook");
+    let o = Command::new(env!("CARGO_BIN_EXE_vdbcook"))
+        .args(["cook", "--json", input, "-o"])
+        .arg(&out)
+        .args(extra)
+        .output()
+        .expect("vdbcook");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let _ = std::fs::remove_file(out);
     serde_json::from_slice(&o.stdout).expect("json")
@@ -19,9 +24,19 @@ fn cook(input: &str, extra: &[&str]) -> Value {
 
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
     let inputs: Vec<String> = if args.is_empty() {
-        [root.join("../shared/samples/stormscape-cloud-seq"), root.join("bench-data/cloud100")].iter().filter(|p| p.exists()).map(|p| p.display().to_string()).collect()
+        [
+            root.join("../shared/samples/stormscape-cloud-seq"),
+            root.join("bench-data/cloud100"),
+        ]
+        .iter()
+        .filter(|p| p.exists())
+        .map(|p| p.display().to_string())
+        .collect()
     } else {
         args
     };
@@ -34,7 +49,17 @@ fn main() {
         for k in ["100", "1000"] {
             for it in ["5", "10"] {
                 for t in ["0.01", "0.1", "0.99"] {
-                    let c = cook(input, &["--clusters", k, "--iterations", it, "--variance-threshold", t]);
+                    let c = cook(
+                        input,
+                        &[
+                            "--clusters",
+                            k,
+                            "--iterations",
+                            it,
+                            "--variance-threshold",
+                            t,
+                        ],
+                    );
                     let before = c["bricks"]["unique"].as_f64().unwrap();
                     let after = c["bricks"]["after_clustering"].as_f64().unwrap();
                     println!(

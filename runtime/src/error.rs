@@ -1,0 +1,44 @@
+//! Why the runtime refused something: a frame out of range, settings or a camera that would make
+//! a loop unbounded or a pixel NaN, a transform it cannot invert, an asset beyond the adapter's
+//! limits, a target it cannot draw into, or a mode not implemented on the GPU yet.
+
+use std::fmt;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum RuntimeError {
+    /// The frame index is not in the asset.
+    Frame { frame: usize, frames: usize },
+    /// A setting out of its range (named).
+    Setting(String),
+    /// The camera is degenerate.
+    Camera(String),
+    /// `index_to_world` is not affine or cannot be inverted.
+    Transform(String),
+    /// The asset does not fit the device's limits.
+    Limits(String),
+    /// The target does not suit this renderer.
+    Target(String),
+    /// The mode is not implemented on the GPU yet.
+    Unsupported(String),
+}
+
+impl fmt::Display for RuntimeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RuntimeError::Frame { frame, frames } => {
+                write!(
+                    f,
+                    "frame {frame} is not in the asset ({frames} frames: 0..{frames})"
+                )
+            }
+            RuntimeError::Setting(m) => write!(f, "bad render setting: {m}"),
+            RuntimeError::Camera(m) => write!(f, "bad camera: {m}"),
+            RuntimeError::Transform(m) => write!(f, "unusable index_to_world: {m}"),
+            RuntimeError::Limits(m) => write!(f, "asset exceeds the device limits: {m}"),
+            RuntimeError::Target(m) => write!(f, "bad render target: {m}"),
+            RuntimeError::Unsupported(m) => write!(f, "not supported by the GPU runtime: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for RuntimeError {}

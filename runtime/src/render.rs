@@ -1,0 +1,504 @@
+//! The renderer: created once per volume and target format (shader module, pipeline, bind
+//! groups, the parameter uniform); each render validates `(frame, camera, settings)` on the CPU,
+//! writes the one uniform, and records one compute dispatch into the caller's encoder. Targets
+//! (a storage-capable texture, or a buffer of RGBA + raw values for tests and tools) are bound
+//! once when they are created, so rendering creates nothing.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::camera::{length, Affine};
+use crate::upload::GpuVolume;
+use crate::{Camera, LengthUnit, Result, RuntimeError, Settings, TRACE_WGSL, VOLUME_WGSL};
+
+/// The `Params` uniform of `trace.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Params {
+    eye_index: [f32; 4],
+    forward: [f32; 4],
+    right: [f32; 4],
+    up: [f32; 4],
+    inv_a0: [f32; 4],
+    inv_a1: [f32; 4],
+    inv_a2: [f32; 4],
+    extent: [f32; 4],
+    width: u32,
+    height: u32,
+    mode: u32,
+    frame_root: u32,
+    absorb: f32,
+    cutoff: f32,
+    near: f32,
+    far: f32,
+    value_max: f32,
+    voxel_units: u32,
+    out_flags: u32,
+    _pad: u32,
+}
+
+const WORKGROUP: u32 = 8;
+const OUT_TEXTURE: u32 = 1;
+const OUT_BUFFER: u32 = 2;
+
+/// A texture the renderer writes (format as the renderer's, `STORAGE_BINDING` usage).
+pub struct TextureTarget {
+    bind_group: wgpu::BindGroup,
+    width: u32,
+    height: u32,
+}
+
+/// A storage buffer target: `width·height` RGBA (f32 × 4) followed by `width·height` raw values
+/// (the mode's quantity, as `vdbcook_trace::Image::value`).
+pub struct BufferTarget {
+    bind_group: wgpu::BindGroup,
+    buffer: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    width: u32,
+    height: u32,
+}
+
+/// A target's image read back: RGBA (`width·height·4`) and raw values (`width·height`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Readback {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<f32>,
+    pub value: Vec<f32>,
+}
+
+impl BufferTarget {
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// Copies the image back (its own submission; waits for the GPU).
+    pub fn read(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Readback {
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("vdbcook readback"),
+        });
+        enc.copy_buffer_to_buffer(&self.buffer, 0, &self.readback, 0, self.buffer.size());
+        queue.submit([enc.finish()]);
+        let slice = self.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map readback buffer"));
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("device poll");
+        let floats: Vec<f32> = {
+            let data = slice.get_mapped_range().expect("mapped range");
+            bytemuck::cast_slice(&data).to_vec()
+        };
+        self.readback.unmap();
+        let n = self.width as usize * self.height as usize;
+        Readback {
+            width: self.width,
+            height: self.height,
+            rgba: floats[..4 * n].to_vec(),
+            value: floats[4 * n..5 * n].to_vec(),
+        }
+    }
+}
+
+/// The tracer for one uploaded volume and one target format.
+pub struct Renderer {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    params_group: wgpu::BindGroup,
+    volume_group: wgpu::BindGroup,
+    target_layout: wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+    dummy_texture_view: wgpu::TextureView,
+    dummy_buffer: wgpu::Buffer,
+    xf: Affine,
+    frames: usize,
+    root_len: usize,
+    extent: [f64; 3],
+    bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
+    frame_max: Vec<f32>,
+}
+
+/// The WGSL name of a storage-texture format the renderer can write.
+fn wgsl_format(f: wgpu::TextureFormat) -> Option<&'static str> {
+    match f {
+        wgpu::TextureFormat::Rgba8Unorm => Some("rgba8unorm"),
+        wgpu::TextureFormat::Rgba16Float => Some("rgba16float"),
+        wgpu::TextureFormat::Rgba32Float => Some("rgba32float"),
+        _ => None,
+    }
+}
+
+impl Renderer {
+    /// Builds the pipeline for `volume` writing textures of `format` (`Rgba8Unorm`,
+    /// `Rgba16Float` or `Rgba32Float`; buffer targets work with any of them).
+    pub fn new(
+        device: &wgpu::Device,
+        volume: &GpuVolume,
+        format: wgpu::TextureFormat,
+    ) -> Result<Renderer> {
+        let Some(fmt) = wgsl_format(format) else {
+            return Err(RuntimeError::Target(format!(
+                "format {format:?} (storage formats: Rgba8Unorm, Rgba16Float, Rgba32Float)"
+            )));
+        };
+        let xf = Affine::from_matrix(volume.index_to_world())?;
+        let source = format!(
+            "{VOLUME_WGSL}\n{}",
+            TRACE_WGSL.replace("{{TARGET_FORMAT}}", fmt)
+        );
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("vdbcook trace"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let params_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook params"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let target_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook target"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let (volume_layout, volume_group) = volume.bind_group();
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("vdbcook trace"),
+            bind_group_layouts: &[
+                Some(volume_layout),
+                Some(&params_layout),
+                Some(&target_layout),
+            ],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("vdbcook trace"),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some("trace_main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vdbcook params"),
+            size: std::mem::size_of::<Params>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let params_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook params"),
+            layout: &params_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params.as_entire_binding(),
+            }],
+        });
+        let dummy_texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("vdbcook dummy target"),
+            size: wgpu::Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::STORAGE_BINDING,
+            view_formats: &[],
+        });
+        let dummy_texture_view = dummy_texture.create_view(&Default::default());
+        let dummy_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vdbcook dummy target"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        Ok(Renderer {
+            pipeline,
+            params,
+            params_group,
+            volume_group: volume_group.clone(),
+            target_layout,
+            format,
+            dummy_texture_view,
+            dummy_buffer,
+            xf,
+            frames: volume.frame_count(),
+            root_len: volume.root_len(),
+            extent: volume.root_extent(),
+            bboxes: (0..volume.frame_count())
+                .map(|f| volume.frame_bbox(f))
+                .collect(),
+            frame_max: (0..volume.frame_count())
+                .map(|f| volume.frame_max(f))
+                .collect(),
+        })
+    }
+
+    /// The texture format this renderer writes.
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.format
+    }
+
+    fn check_size(width: u32, height: u32) -> Result<()> {
+        if width == 0
+            || height == 0
+            || width > crate::camera::MAX_SIDE
+            || height > crate::camera::MAX_SIDE
+        {
+            return Err(RuntimeError::Target(format!(
+                "size {width}x{height} (each side 1..={})",
+                crate::camera::MAX_SIDE
+            )));
+        }
+        Ok(())
+    }
+
+    /// Binds the caller's texture (2D, the renderer's format, `STORAGE_BINDING` usage) once.
+    pub fn texture_target(
+        &self,
+        device: &wgpu::Device,
+        texture: &wgpu::Texture,
+        view: &wgpu::TextureView,
+    ) -> Result<TextureTarget> {
+        if texture.format() != self.format {
+            return Err(RuntimeError::Target(format!(
+                "texture format {:?}, renderer writes {:?}",
+                texture.format(),
+                self.format
+            )));
+        }
+        if !texture
+            .usage()
+            .contains(wgpu::TextureUsages::STORAGE_BINDING)
+            || texture.dimension() != wgpu::TextureDimension::D2
+        {
+            return Err(RuntimeError::Target(
+                "needs a 2D texture with STORAGE_BINDING usage".into(),
+            ));
+        }
+        let (width, height) = (texture.width(), texture.height());
+        Self::check_size(width, height)?;
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook texture target"),
+            layout: &self.target_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.dummy_buffer.as_entire_binding(),
+                },
+            ],
+        });
+        Ok(TextureTarget {
+            bind_group,
+            width,
+            height,
+        })
+    }
+
+    /// A buffer target of `width × height` (RGBA then raw values, f32), with its read-back.
+    pub fn buffer_target(
+        &self,
+        device: &wgpu::Device,
+        width: u32,
+        height: u32,
+    ) -> Result<BufferTarget> {
+        Self::check_size(width, height)?;
+        let size = width as u64 * height as u64 * 5 * 4;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vdbcook buffer target"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vdbcook readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook buffer target"),
+            layout: &self.target_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&self.dummy_texture_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: buffer.as_entire_binding(),
+                },
+            ],
+        });
+        Ok(BufferTarget {
+            bind_group,
+            buffer,
+            readback,
+            width,
+            height,
+        })
+    }
+
+    /// Renders `frame` into a texture target.
+    pub fn render(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &TextureTarget,
+        frame: usize,
+        camera: &Camera,
+        settings: &Settings,
+    ) -> Result<()> {
+        let (w, h) = (target.width, target.height);
+        self.record(
+            queue,
+            encoder,
+            &target.bind_group,
+            (w, h, OUT_TEXTURE),
+            frame,
+            camera,
+            settings,
+        )
+    }
+
+    /// Renders `frame` into a buffer target.
+    pub fn render_to_buffer(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &BufferTarget,
+        frame: usize,
+        camera: &Camera,
+        settings: &Settings,
+    ) -> Result<()> {
+        let (w, h) = (target.width, target.height);
+        self.record(
+            queue,
+            encoder,
+            &target.bind_group,
+            (w, h, OUT_BUFFER),
+            frame,
+            camera,
+            settings,
+        )
+    }
+
+    /// Validates, writes the parameter uniform, records the dispatch.
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::BindGroup,
+        (width, height, out_flags): (u32, u32, u32),
+        frame: usize,
+        camera: &Camera,
+        settings: &Settings,
+    ) -> Result<()> {
+        let params = self.params(width, height, out_flags, frame, camera, settings)?;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("vdbcook trace"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.volume_group, &[]);
+        pass.set_bind_group(1, &self.params_group, &[]);
+        pass.set_bind_group(2, target, &[]);
+        pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
+        Ok(())
+    }
+
+    /// The uniform for one render (the CPU tracer's `Tracer::new` in f64, then f32).
+    fn params(
+        &self,
+        width: u32,
+        height: u32,
+        out_flags: u32,
+        frame: usize,
+        camera: &Camera,
+        settings: &Settings,
+    ) -> Result<Params> {
+        if frame >= self.frames {
+            return Err(RuntimeError::Frame {
+                frame,
+                frames: self.frames,
+            });
+        }
+        settings.validate()?;
+        let mode = settings.mode.code().expect("validated");
+        let basis = camera.basis(width, height)?;
+        let eye = self.xf.index_of(camera.eye);
+        // Depth range: nearest and farthest corner of the frame's stored box (0 inside it).
+        let (lo, hi) = self.bboxes[frame].unwrap_or(([0.0; 3], self.extent));
+        let (mut near, mut far) = (f64::INFINITY, 0.0f64);
+        for c in 0..8 {
+            let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] });
+            let w = self.xf.world_of(p);
+            let d = length([0, 1, 2].map(|a| w[a] - camera.eye[a]));
+            near = near.min(d);
+            far = far.max(d);
+        }
+        if (0..3).all(|a| eye[a] >= lo[a] && eye[a] < hi[a]) {
+            near = 0.0;
+        }
+        if !(far > near) {
+            far = near + 1.0;
+        }
+        let vmax = self.frame_max[frame];
+        let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
+        let inv = self.xf.inv_a;
+        Ok(Params {
+            eye_index: v4(eye),
+            forward: v4(basis.forward),
+            right: v4(basis.right),
+            up: v4(basis.up),
+            inv_a0: v4(inv[0]),
+            inv_a1: v4(inv[1]),
+            inv_a2: v4(inv[2]),
+            extent: v4(self.extent),
+            width,
+            height,
+            mode,
+            frame_root: (frame * self.root_len) as u32,
+            absorb: settings.absorb,
+            cutoff: settings.cutoff,
+            near: near as f32,
+            far: far as f32,
+            value_max: if vmax > 0.0 { vmax } else { 1.0 },
+            voxel_units: (settings.unit == LengthUnit::Voxel) as u32,
+            out_flags,
+            _pad: 0,
+        })
+    }
+}

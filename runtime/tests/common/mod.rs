@@ -1,0 +1,352 @@
+//! Shared by the runtime's GPU tests: a device on whatever adapter exists (a missing adapter
+//! skips with a printed reason, or fails when `VDBCOOK_REQUIRE_GPU=1`, as CI sets), hand-built
+//! assets in every payload format whose voxels are known by construction (no cooker involved),
+//! and the conversions between the CPU reference tracer's camera/settings and the runtime's.
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+
+use vdbcook_asset::*;
+
+/// A device and queue on the first adapter wgpu finds, or `None` (after printing why) when
+/// there is none and `VDBCOOK_REQUIRE_GPU` is not `1`.
+pub fn gpu(test: &str) -> Option<(wgpu::Device, wgpu::Queue)> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let adapter = match pollster::block_on(instance.request_adapter(&Default::default())) {
+        Ok(a) => a,
+        Err(e) => {
+            let msg = format!(
+                "{test}: skipped, no GPU adapter ({e}); install mesa-vulkan-drivers for software Vulkan"
+            );
+            if std::env::var("VDBCOOK_REQUIRE_GPU").as_deref() == Ok("1") {
+                panic!("{msg} (VDBCOOK_REQUIRE_GPU=1 makes this a failure)");
+            }
+            eprintln!("{msg}");
+            return None;
+        }
+    };
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("vdbcook test"),
+        required_features: wgpu::Features::empty(),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))
+    .expect("device on the adapter");
+    Some((device, queue))
+}
+
+/// What one 8³ leaf holds.
+#[derive(Clone)]
+pub enum Leaf {
+    Tile(f32),
+    /// 512 values, voxel (x, y, z) at 64x + 8y + z.
+    Brick(Vec<f32>),
+}
+
+/// One frame: tiled 128³ regions (by region coordinate) and leaves (by leaf origin).
+#[derive(Clone, Default)]
+pub struct FrameSpec {
+    pub regions: BTreeMap<[i64; 3], f32>,
+    pub leaves: BTreeMap<[i64; 3], Leaf>,
+}
+
+/// Rotation by `deg` about Z after the scale `s`, then translation `t`.
+pub fn rotated(deg: f64, s: [f64; 3], t: [f64; 3]) -> [[f64; 4]; 4] {
+    let (sn, c) = deg.to_radians().sin_cos();
+    [
+        [c * s[0], -sn * s[1], 0.0, t[0]],
+        [sn * s[0], c * s[1], 0.0, t[1]],
+        [0.0, 0.0, s[2], t[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+}
+
+/// The bytes of one brick in `format` (values in voxel order) and its quantization range.
+/// unorm8 goes through the asset's encoder; BC4/BC7 bricks are seeded byte noise (any 8/16 bytes
+/// are a valid block; BC7 blocks are forced into mode 6) over the values' range: what they
+/// decode to is the truth both tracers read.
+fn brick_bytes(format: PayloadFormat, vals: &[f32], rng: &mut XorShift) -> (Vec<u8>, [f32; 2]) {
+    let lo = vals.iter().cloned().fold(f32::INFINITY, f32::min);
+    let hi = vals.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+    let mut out = Vec::new();
+    match format {
+        PayloadFormat::F32 | PayloadFormat::F16 => {
+            payload::encode_float(format, vals, &mut out);
+            return (out, [0.0, 0.0]);
+        }
+        PayloadFormat::Unorm8 => out.extend_from_slice(&payload::encode_unorm8(vals, lo, hi)),
+        PayloadFormat::Bc4 => out.extend((0..256).map(|_| rng.next_u64() as u8)),
+        PayloadFormat::Bc7 => {
+            for _ in 0..8 {
+                let mut block: Vec<u8> = (0..16).map(|_| rng.next_u64() as u8).collect();
+                block[0] = (block[0] & 0x80) | 0x40;
+                out.extend(block);
+            }
+        }
+    }
+    (out, [lo, hi])
+}
+
+/// Builds (and validates) an asset from frame specs, all bricks in one `format`.
+pub fn build(
+    root_dims: [u32; 3],
+    index_to_world: [[f64; 4]; 4],
+    background: f32,
+    frames: &[FrameSpec],
+    format: PayloadFormat,
+) -> Asset {
+    let root_len = root_dims.iter().product::<u32>() as usize;
+    let mut a = Asset {
+        header: Header {
+            tool: "runtime-test".into(),
+            options: CookOptions {
+                format,
+                max_error: None,
+                range: RangeMode::Brick,
+                bc7_quality: "fast".into(),
+                grid: None,
+                replace_non_finite: None,
+                allow_gaps: false,
+            },
+            grid_name: "density".into(),
+            frames: (0..frames.len())
+                .map(|i| FrameInfo {
+                    number: Some(i as i64),
+                    source: format!("f{i}.vdb"),
+                    active_voxels: 0,
+                })
+                .collect(),
+            index_offset: [0; 3],
+            root_dims,
+            index_to_world,
+            source_map: "AffineMap".into(),
+            voxel_size: [1.0; 3],
+            background,
+            brick_counts: [0; 5],
+            sections: vec![],
+            content_hash: 0,
+        },
+        roots: vec![],
+        frame_ranges: vec![],
+        l2_masks: vec![],
+        l2_base: vec![],
+        l2_prefix: vec![],
+        l2_ranges: vec![],
+        l3_refs: vec![],
+        tiles: vec![],
+        brick_ranges: vec![],
+        brick_quant: vec![],
+        payloads: Default::default(),
+    };
+    let mut noise = XorShift(0x5eed_0000 + format.rank() as u64);
+    let d = root_dims.map(|x| x as i64);
+    for f in frames {
+        let mut roots = vec![EMPTY; root_len];
+        let idx = |r: [i64; 3]| (r[0] + d[0] * (r[1] + d[1] * r[2])) as usize;
+        let (mut flo, mut fhi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for (&r, &v) in &f.regions {
+            roots[idx(r)] = TILE_BIT | a.tiles.len() as u32;
+            a.tiles.push(v);
+            flo = flo.min(v);
+            fhi = fhi.max(v);
+        }
+        let mut by_region: BTreeMap<[i64; 3], BTreeMap<usize, &Leaf>> = BTreeMap::new();
+        for (o, leaf) in &f.leaves {
+            let r = o.map(|c| c.div_euclid(128));
+            let l = o.map(|c| (c.rem_euclid(128) / 8) as usize);
+            by_region
+                .entry(r)
+                .or_default()
+                .insert(l[0] + 16 * (l[1] + 16 * l[2]), leaf);
+        }
+        for (r, slots) in by_region {
+            let n = a.l2_base.len();
+            roots[idx(r)] = n as u32;
+            let mut mask = vec![0u64; L2_WORDS];
+            a.l2_base.push(a.l3_refs.len() as u32);
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            if slots.len() < L2_SLOTS {
+                lo = background;
+                hi = background;
+            }
+            for (&s, leaf) in &slots {
+                mask[s / 64] |= 1 << (s % 64);
+                match leaf {
+                    Leaf::Tile(v) => {
+                        a.l3_refs.push(TILE_BIT | a.tiles.len() as u32);
+                        a.tiles.push(*v);
+                        lo = lo.min(*v);
+                        hi = hi.max(*v);
+                    }
+                    Leaf::Brick(vals) => {
+                        assert_eq!(vals.len(), BRICK_VOXELS);
+                        a.l3_refs.push(a.brick_ranges.len() as u32);
+                        let (bytes, quant) = brick_bytes(format, vals, &mut noise);
+                        let mut dec = [0.0f32; BRICK_VOXELS];
+                        payload::decode_brick(format, &bytes, quant, &mut dec);
+                        let bl = dec.iter().cloned().fold(f32::INFINITY, f32::min);
+                        let bh = dec.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                        a.brick_ranges.push([bl, bh]);
+                        a.payloads[format.rank()].extend(bytes);
+                        a.brick_quant.push(quant);
+                        a.header.brick_counts[format.rank()] += 1;
+                        lo = lo.min(bl);
+                        hi = hi.max(bh);
+                    }
+                }
+            }
+            let mut count = 0u16;
+            for word in &mask {
+                a.l2_prefix.push(count);
+                count += word.count_ones() as u16;
+            }
+            a.l2_masks.extend(mask);
+            a.l2_ranges.push([lo, hi]);
+            flo = flo.min(lo);
+            fhi = fhi.max(hi);
+        }
+        if roots.contains(&EMPTY) || flo > fhi {
+            flo = flo.min(background);
+            fhi = fhi.max(background);
+        }
+        a.roots.extend(roots);
+        a.frame_ranges.push([flo, fhi]);
+    }
+    a.validate().expect("hand-built asset is valid");
+    a
+}
+
+/// Xorshift64*, seeded.
+pub struct XorShift(pub u64);
+
+impl XorShift {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0, 1).
+    pub fn f(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.f()
+    }
+}
+
+/// A smooth blob (a cloud-like ball of radius `r` around `c`, density up to `peak`, 0 outside)
+/// as bricks, with fully inside leaves of near-constant density turned into tiles, plus one
+/// tiled 128³ region at `tiled_region` (if any) — what a cooked smoke frame looks like.
+pub fn blob_frame(c: [f64; 3], r: f64, peak: f32, tiled_region: Option<[i64; 3]>) -> FrameSpec {
+    let mut f = FrameSpec::default();
+    if let Some(t) = tiled_region {
+        f.regions.insert(t, 0.05);
+    }
+    let lo = c.map(|x| ((x - r).floor() as i64).div_euclid(8));
+    let hi = c.map(|x| ((x + r).ceil() as i64).div_euclid(8));
+    for lz in lo[2]..=hi[2] {
+        for ly in lo[1]..=hi[1] {
+            for lx in lo[0]..=hi[0] {
+                let o = [lx * 8, ly * 8, lz * 8];
+                let vals: Vec<f32> = (0..BRICK_VOXELS)
+                    .map(|i| {
+                        let p = [
+                            (o[0] + (i / 64) as i64) as f64 + 0.5,
+                            (o[1] + (i / 8 % 8) as i64) as f64 + 0.5,
+                            (o[2] + (i % 8) as i64) as f64 + 0.5,
+                        ];
+                        let d2: f64 = (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>() / (r * r);
+                        let ripple = 0.8 + 0.2 * (p[0] * 0.7).sin() * (p[1] * 0.5).cos();
+                        if d2 < 1.0 {
+                            (peak as f64 * (1.0 - d2) * ripple) as f32
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                if vals.iter().all(|&v| v == 0.0) {
+                    continue;
+                }
+                let leaf = if (lx + ly + lz) % 7 == 0 {
+                    Leaf::Tile(vals.iter().sum::<f32>() / BRICK_VOXELS as f32)
+                } else {
+                    Leaf::Brick(vals)
+                };
+                f.leaves.insert(o, leaf);
+            }
+        }
+    }
+    f
+}
+
+/// Random content over a 2×2×1 root: 60 leaves in region (0,0,0), 20 in (1,1,0) — bricks of
+/// random values (a third zero, a few negative) and constant tiles — and region (1,0,0) tiled.
+pub fn random_frame(rng: &mut XorShift) -> FrameSpec {
+    let mut f = FrameSpec::default();
+    f.regions.insert([1, 0, 0], 0.1);
+    for (region, n) in [([0i64, 0, 0], 60), ([1, 1, 0], 20)] {
+        for _ in 0..n {
+            let o = [0, 1, 2].map(|a| region[a] * 128 + 8 * (rng.next_u64() % 16) as i64);
+            let leaf = if rng.f() < 0.75 {
+                Leaf::Brick(
+                    (0..BRICK_VOXELS)
+                        .map(|_| match rng.f() {
+                            x if x < 0.33 => 0.0,
+                            x if x < 0.36 => -0.5,
+                            _ => rng.range(0.05, 2.0) as f32,
+                        })
+                        .collect(),
+                )
+            } else {
+                Leaf::Tile(rng.range(0.0, 1.0) as f32)
+            };
+            f.leaves.insert(o, leaf);
+        }
+    }
+    f
+}
+
+pub fn camera(c: &vdbcook_trace::Camera) -> vdbcook_runtime::Camera {
+    vdbcook_runtime::Camera {
+        eye: c.eye,
+        look_at: c.look_at,
+        up: c.up,
+        fov_y_deg: c.fov_y_deg,
+    }
+}
+
+pub fn mode(m: vdbcook_trace::Mode) -> vdbcook_runtime::Mode {
+    use vdbcook_runtime::Mode as R;
+    use vdbcook_trace::Mode as T;
+    match m {
+        T::Density => R::Density,
+        T::Depth => R::Depth,
+        T::FirstHitDensity => R::FirstHitDensity,
+        T::BrickHue => R::BrickHue,
+        T::Steps => R::Steps,
+        T::SingleScatter => R::SingleScatter,
+        T::DeltaTracking => R::DeltaTracking,
+    }
+}
+
+pub fn settings(s: &vdbcook_trace::RenderSettings) -> vdbcook_runtime::Settings {
+    vdbcook_runtime::Settings {
+        mode: mode(s.mode),
+        absorb: s.absorb,
+        scatter: s.scatter,
+        light_dir: s.light_dir,
+        light_color: s.light_color,
+        step: s.step,
+        shadow_step: s.shadow_step,
+        cutoff: s.cutoff,
+        gain: s.gain,
+        spp: s.spp,
+        first_sample: s.first_sample,
+        seed: s.seed,
+        unit: match s.unit {
+            vdbcook_trace::LengthUnit::Voxel => vdbcook_runtime::LengthUnit::Voxel,
+            vdbcook_trace::LengthUnit::World => vdbcook_runtime::LengthUnit::World,
+        },
+    }
+}

@@ -1,0 +1,276 @@
+// volume.wgsl — the one WGSL source of the flip-book tree access: bindings of an uploaded
+// `GpuVolume` (group 0), the L1 → L2 → L3 → brick lookup with the node masks, the brick payload
+// read, and the bounded 3D DDA that the hierarchical walk nests. It exists on its own so that an
+// engine can include it (`vdbcook_runtime::VOLUME_WGSL`) in its own shaders and sample the
+// volume with `vdb_value`, or walk it with `vdb_dda_init` / `vdb_dda_next`, without the tracer.
+//
+// Everything mirrors `crates/asset` (layout, sampler) and `crates/trace` (DDA rules): the CPU
+// reference is the definition; this file follows it in f32.
+//
+// Group 0 (created by `GpuVolume::upload`):
+//   binding 0: `vdb_info` (uniform): section offsets into `vdb_topo`, root dims, background,
+//              payload layout;
+//   binding 1: `vdb_topo` (storage, u32 words): roots of all frames, L2 masks (each u64 as two
+//              u32, low word first), L2 bases, L2 prefixes (one u32 each), L2 ranges and brick
+//              ranges (f32 bits, [min, max] pairs), L3 refs, tile values (f32 bits);
+//   bindings 2..5: the decoded brick pool, split over four buffers of `bricks_per_binding`
+//              bricks each: f32 bits (layout 0) or two f16 per u32 (layout 1), voxel (x, y, z)
+//              of a brick at 64x + 8y + z. Unused bindings hold a 4-byte dummy.
+
+struct VolumeInfo {
+    root_dims: vec3<u32>,
+    root_len: u32,
+    off_masks: u32,
+    off_base: u32,
+    off_prefix: u32,
+    off_l2_ranges: u32,
+    off_refs: u32,
+    off_tiles: u32,
+    off_brick_ranges: u32,
+    bricks_per_binding: u32,
+    background: f32,
+    // 0: f32 bits, one per word; 1: f16 pairs.
+    payload_layout: u32,
+    frames: u32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> vdb_info: VolumeInfo;
+@group(0) @binding(1) var<storage, read> vdb_topo: array<u32>;
+@group(0) @binding(2) var<storage, read> vdb_payload0: array<u32>;
+@group(0) @binding(3) var<storage, read> vdb_payload1: array<u32>;
+@group(0) @binding(4) var<storage, read> vdb_payload2: array<u32>;
+@group(0) @binding(5) var<storage, read> vdb_payload3: array<u32>;
+
+const VDB_EMPTY: u32 = 0xffffffffu;
+const VDB_TILE_BIT: u32 = 0x80000000u;
+// Stands for +infinity (WGSL implementations need not honour real infinities).
+const VDB_BIG: f32 = 3.0e38;
+
+// The root entry (EMPTY, TILE_BIT | tile, or an L2 node) of region `r` (in the root box) of the
+// frame whose roots start at `frame_root` (= frame · root_len).
+fn vdb_root_entry(frame_root: u32, r: vec3<i32>) -> u32 {
+    let d = vdb_info.root_dims;
+    let i = u32(r.x) + d.x * (u32(r.y) + d.y * u32(r.z));
+    return vdb_topo[frame_root + i];
+}
+
+// The ref in slot `s` (0..4096) of L2 node `n`, or EMPTY when the mask has no such slot.
+fn vdb_slot_ref(n: u32, s: u32) -> u32 {
+    let w = s >> 6u;
+    let b = s & 63u;
+    let lo = vdb_topo[vdb_info.off_masks + n * 128u + 2u * w];
+    let hi = vdb_topo[vdb_info.off_masks + n * 128u + 2u * w + 1u];
+    var below: u32;
+    if (b < 32u) {
+        if (((lo >> b) & 1u) == 0u) {
+            return VDB_EMPTY;
+        }
+        below = countOneBits(lo & ((1u << b) - 1u));
+    } else {
+        if (((hi >> (b - 32u)) & 1u) == 0u) {
+            return VDB_EMPTY;
+        }
+        below = countOneBits(lo) + countOneBits(hi & ((1u << (b - 32u)) - 1u));
+    }
+    let idx = vdb_topo[vdb_info.off_base + n] + vdb_topo[vdb_info.off_prefix + n * 64u + w] + below;
+    return vdb_topo[vdb_info.off_refs + idx];
+}
+
+// The ref of the leaf at leaf coordinate `l` (asset index / 8) inside L2 node `n`.
+fn vdb_leaf_ref(n: u32, l: vec3<i32>) -> u32 {
+    let m = vec3<u32>(l & vec3<i32>(15));
+    return vdb_slot_ref(n, m.x + 16u * (m.y + 16u * m.z));
+}
+
+fn vdb_tile(t: u32) -> f32 {
+    return bitcast<f32>(vdb_topo[vdb_info.off_tiles + t]);
+}
+
+// [min, max] of the stored values of L2 node `n` (over its whole 128³ region).
+fn vdb_l2_range(n: u32) -> vec2<f32> {
+    let i = vdb_info.off_l2_ranges + 2u * n;
+    return vec2<f32>(bitcast<f32>(vdb_topo[i]), bitcast<f32>(vdb_topo[i + 1u]));
+}
+
+// [min, max] of brick `b`.
+fn vdb_brick_range(b: u32) -> vec2<f32> {
+    let i = vdb_info.off_brick_ranges + 2u * b;
+    return vec2<f32>(bitcast<f32>(vdb_topo[i]), bitcast<f32>(vdb_topo[i + 1u]));
+}
+
+fn vdb_payload_word(binding: u32, i: u32) -> u32 {
+    switch binding {
+        case 0u: { return vdb_payload0[i]; }
+        case 1u: { return vdb_payload1[i]; }
+        case 2u: { return vdb_payload2[i]; }
+        default: { return vdb_payload3[i]; }
+    }
+}
+
+// Voxel `v` (0..8 per axis) of brick `b`.
+fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
+    let per = vdb_info.bricks_per_binding;
+    let binding = b / per;
+    let local = b - binding * per;
+    let m = vec3<u32>(v & vec3<i32>(7));
+    let i = local * 512u + 64u * m.x + 8u * m.y + m.z;
+    if (vdb_info.payload_layout == 0u) {
+        return bitcast<f32>(vdb_payload_word(binding, i));
+    }
+    let pair = unpack2x16float(vdb_payload_word(binding, i >> 1u));
+    return select(pair.x, pair.y, (i & 1u) == 1u);
+}
+
+// The value at asset index `a` of the frame whose roots start at `frame_root` (background where
+// nothing is stored, 0 outside the root extent): `Asset::value` on the GPU.
+fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
+    let ext = vec3<i32>(vdb_info.root_dims * 128u);
+    if (any(a < vec3<i32>(0)) || any(a >= ext)) {
+        return vdb_info.background;
+    }
+    let e = vdb_root_entry(frame_root, a >> vec3<u32>(7u));
+    if (e == VDB_EMPTY) {
+        return vdb_info.background;
+    }
+    if ((e & VDB_TILE_BIT) != 0u) {
+        return vdb_tile(e & ~VDB_TILE_BIT);
+    }
+    let r = vdb_leaf_ref(e, a >> vec3<u32>(3u));
+    if (r == VDB_EMPTY) {
+        return vdb_info.background;
+    }
+    if ((r & VDB_TILE_BIT) != 0u) {
+        return vdb_tile(r & ~VDB_TILE_BIT);
+    }
+    return vdb_brick_voxel(r, a);
+}
+
+// A ray in asset index space, p(t) = o + t·d, t in world units (d is the index-space image of a
+// unit world direction); `per_t` converts t to the length unit (|d| for voxels, else 1).
+struct VdbRay {
+    o: vec3<f32>,
+    d: vec3<f32>,
+    per_t: f32,
+}
+
+// The t interval (from t = 0) of the ray inside the half-open box [0, ext); x > y when empty.
+fn vdb_clip(ray: VdbRay, ext: vec3<f32>) -> vec2<f32> {
+    var t0 = 0.0;
+    var t1 = VDB_BIG;
+    for (var i = 0; i < 3; i++) {
+        if (ray.d[i] == 0.0) {
+            if (!(ray.o[i] >= 0.0 && ray.o[i] < ext[i])) {
+                return vec2<f32>(1.0, 0.0);
+            }
+        } else {
+            let a = (0.0 - ray.o[i]) / ray.d[i];
+            let b = (ext[i] - ray.o[i]) / ray.d[i];
+            t0 = max(t0, min(a, b));
+            t1 = min(t1, max(a, b));
+        }
+    }
+    if (t1 > t0 && t1 < VDB_BIG) {
+        return vec2<f32>(t0, t1);
+    }
+    return vec2<f32>(1.0, 0.0);
+}
+
+// One level of the hierarchical DDA: cells of edge `size` in the box [lo, hi) (cell
+// coordinates), for t in [tm, t1]. Rules (`crates/trace/src/dda.rs`): start cell clamped into the
+// box; crossings recomputed from the cell index; ties step x, then y, then z; zero-length
+// segments are not reported; at most (cells across x + y + z + 3) iterations.
+struct VdbDda {
+    cell: vec3<i32>,
+    step: vec3<i32>,
+    next: vec3<f32>,
+    lo: vec3<i32>,
+    hi: vec3<i32>,
+    size: f32,
+    tm: f32,
+    t1: f32,
+    budget: i32,
+}
+
+// A segment [ta, tb] of cell `cell`; `ok` false when the walk is over.
+struct VdbSeg {
+    ok: bool,
+    cell: vec3<i32>,
+    ta: f32,
+    tb: f32,
+}
+
+fn vdb_crossing(ray: VdbRay, size: f32, cell: i32, axis: i32) -> f32 {
+    let d = ray.d[axis];
+    if (d > 0.0) {
+        return (f32(cell + 1) * size - ray.o[axis]) / d;
+    }
+    if (d < 0.0) {
+        return (f32(cell) * size - ray.o[axis]) / d;
+    }
+    return VDB_BIG;
+}
+
+fn vdb_dda_init(ray: VdbRay, size: f32, lo: vec3<i32>, hi: vec3<i32>, t0: f32, t1: f32) -> VdbDda {
+    var s: VdbDda;
+    s.lo = lo;
+    s.hi = hi;
+    s.size = size;
+    s.tm = t0;
+    s.t1 = t1;
+    s.budget = 0;
+    // `!(t1 > t0)` also refuses NaN: an empty walk.
+    if (t1 > t0) {
+        let hs = hi - lo;
+        s.budget = hs.x + hs.y + hs.z + 3;
+    }
+    let p = ray.o + t0 * ray.d;
+    for (var i = 0; i < 3; i++) {
+        let c = clamp(floor(p[i] / size), -1.0e9, 1.0e9);
+        s.cell[i] = clamp(i32(c), lo[i], hi[i] - 1);
+        s.step[i] = select(select(0, -1, ray.d[i] < 0.0), 1, ray.d[i] > 0.0);
+        s.next[i] = vdb_crossing(ray, size, s.cell[i], i);
+    }
+    return s;
+}
+
+// The next segment of a DDA (bounded by its budget).
+fn vdb_dda_next(ray: VdbRay, s: ptr<function, VdbDda>) -> VdbSeg {
+    var out: VdbSeg;
+    out.ok = false;
+    for (var guard = 0; guard < 4096; guard++) {
+        if ((*s).budget <= 0) {
+            return out;
+        }
+        (*s).budget -= 1;
+        let n = (*s).next;
+        var a = 2;
+        if (n.x <= n.y && n.x <= n.z) {
+            a = 0;
+        } else if (n.y <= n.z) {
+            a = 1;
+        }
+        let tn = n[a];
+        let te = max(min(tn, (*s).t1), (*s).tm);
+        let report = te > (*s).tm;
+        out.cell = (*s).cell;
+        out.ta = (*s).tm;
+        out.tb = te;
+        if (!(tn < (*s).t1)) {
+            (*s).budget = 0;
+        } else {
+            (*s).tm = te;
+            (*s).cell[a] += (*s).step[a];
+            if ((*s).cell[a] < (*s).lo[a] || (*s).cell[a] >= (*s).hi[a]) {
+                (*s).budget = 0;
+            } else {
+                (*s).next[a] = vdb_crossing(ray, (*s).size, (*s).cell[a], a);
+            }
+        }
+        if (report) {
+            out.ok = true;
+            return out;
+        }
+    }
+    return out;
+}
