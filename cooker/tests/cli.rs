@@ -1,27 +1,10 @@
 //! The `vdbcook` binary as scripts use it: `inspect --json` keys and values on fixtures and
 //! samples, tables for people, and failures that exit non-zero naming the file.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
+use common::{root, vdbcook};
 use serde_json::Value;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn vdbcook(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_vdbcook"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
-}
 
 #[test]
 fn inspect_json_has_the_contract_keys() {

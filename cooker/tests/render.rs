@@ -2,27 +2,12 @@
 //! mode to PNG (decoded back to check size, format and coverage), the `--json` keys, and the
 //! refusals (GPU backend, VDB input, bad frame, bad camera) exiting non-zero with a reason.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
+use std::path::Path;
+
+use common::vdbcook;
 use serde_json::Value;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn vdbcook(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_vdbcook"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
-}
 
 fn cook_smoke(dir: &Path) -> String {
     let asset = dir.join("smoke5.vdbc").display().to_string();
