@@ -42,3 +42,16 @@ impl fmt::Display for RuntimeError {
 }
 
 impl std::error::Error for RuntimeError {}
+
+/// The CPU tracer's refusals (settings, camera, transform, frame) are the runtime's too.
+impl From<vdbcook_trace::TraceError> for RuntimeError {
+    fn from(e: vdbcook_trace::TraceError) -> Self {
+        use vdbcook_trace::TraceError as T;
+        match e {
+            T::Frame { frame, frames } => RuntimeError::Frame { frame, frames },
+            T::Setting(m) => RuntimeError::Setting(m),
+            T::Transform(m) => RuntimeError::Transform(m),
+            T::Camera(m) => RuntimeError::Camera(m),
+        }
+    }
+}

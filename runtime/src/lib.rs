@@ -11,9 +11,10 @@
 //!
 //! The images are defined by the CPU reference tracer (`crates/trace`, its crate docs): the GPU
 //! follows the same spaces, DDA rules, skip rules and colour maps in f32, and
-//! `tests/gpu_vs_cpu.rs` compares the two. Implemented modes: density, depth, first-hit density,
-//! brick hue, steps ([`Mode`]); single scatter and delta tracking are refused with
-//! [`RuntimeError::Unsupported`] for now.
+//! `tests/gpu_vs_cpu.rs` compares the two. The camera, mode, length unit, settings (with their
+//! validation), transform and framing are the tracer's own types, re-exported here. Implemented
+//! modes: density, depth, first-hit density, brick hue, steps ([`GPU_MODES`]); single scatter
+//! and delta tracking are refused with [`RuntimeError::Unsupported`] for now.
 //!
 //! Brick payload on the GPU (see [`PayloadLayout`]): every brick is decoded on the CPU at upload
 //! (`Asset::decode_brick`, so BC4/BC7/unorm8 bricks arrive exactly as the CPU sampler reads
@@ -31,7 +32,7 @@ mod error;
 mod render;
 mod upload;
 
-pub use camera::{Camera, LengthUnit, Mode, Settings};
+pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
 pub use upload::{GpuVolume, PayloadLayout};

@@ -6,7 +6,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::camera::{length, Affine};
+use vdbcook_trace::{depth_range, Affine, MAX_SIDE};
+
 use crate::upload::GpuVolume;
 use crate::{Camera, LengthUnit, Result, RuntimeError, Settings, TRACE_WGSL, VOLUME_WGSL};
 
@@ -266,14 +267,9 @@ impl Renderer {
     }
 
     fn check_size(width: u32, height: u32) -> Result<()> {
-        if width == 0
-            || height == 0
-            || width > crate::camera::MAX_SIDE
-            || height > crate::camera::MAX_SIDE
-        {
+        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
             return Err(RuntimeError::Target(format!(
-                "size {width}x{height} (each side 1..={})",
-                crate::camera::MAX_SIDE
+                "size {width}x{height} (each side 1..={MAX_SIDE})"
             )));
         }
         Ok(())
@@ -449,32 +445,12 @@ impl Renderer {
         camera: &Camera,
         settings: &Settings,
     ) -> Result<Params> {
-        if frame >= self.frames {
-            return Err(RuntimeError::Frame {
-                frame,
-                frames: self.frames,
-            });
-        }
-        settings.validate()?;
-        let mode = settings.mode.code().expect("validated");
+        let mode = crate::camera::validate(settings, width, height, frame, self.frames)?;
         let basis = camera.basis(width, height)?;
         let eye = self.xf.index_of(camera.eye);
         // Depth range: nearest and farthest corner of the frame's stored box (0 inside it).
-        let (lo, hi) = self.bboxes[frame].unwrap_or(([0.0; 3], self.extent));
-        let (mut near, mut far) = (f64::INFINITY, 0.0f64);
-        for c in 0..8 {
-            let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] });
-            let w = self.xf.world_of(p);
-            let d = length([0, 1, 2].map(|a| w[a] - camera.eye[a]));
-            near = near.min(d);
-            far = far.max(d);
-        }
-        if (0..3).all(|a| eye[a] >= lo[a] && eye[a] < hi[a]) {
-            near = 0.0;
-        }
-        if !(far > near) {
-            far = near + 1.0;
-        }
+        let bbox = self.bboxes[frame].unwrap_or(([0.0; 3], self.extent));
+        let [near, far] = depth_range(&self.xf, bbox, camera.eye);
         let vmax = self.frame_max[frame];
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let inv = self.xf.inv_a;

@@ -16,7 +16,7 @@ mod common;
 
 use common::*;
 use vdbcook_asset::{Asset, PayloadFormat};
-use vdbcook_runtime::{GpuVolume, Readback, Renderer, RuntimeError};
+use vdbcook_runtime::{GpuVolume, Readback, Renderer, RuntimeError, GPU_MODES};
 use vdbcook_trace::{Image, Mode, RenderSettings};
 
 const W: u32 = 160;
@@ -45,14 +45,7 @@ impl Gpu {
         s: &RenderSettings,
     ) -> Result<Readback, RuntimeError> {
         let mut enc = self.device.create_command_encoder(&Default::default());
-        r.render_to_buffer(
-            &self.queue,
-            &mut enc,
-            target,
-            s.frame,
-            &camera(cam),
-            &settings(s),
-        )?;
+        r.render_to_buffer(&self.queue, &mut enc, target, s.frame, cam, s)?;
         self.queue.submit([enc.finish()]);
         Ok(target.read(&self.device, &self.queue))
     }
@@ -67,14 +60,6 @@ fn small(mode: Mode, frame: usize) -> RenderSettings {
         ..Default::default()
     }
 }
-
-const GPU_MODES: [Mode; 5] = [
-    Mode::Density,
-    Mode::Depth,
-    Mode::FirstHitDensity,
-    Mode::BrickHue,
-    Mode::Steps,
-];
 
 /// Counts pixels where the GPU and CPU images differ beyond the mode's tolerance.
 fn mismatches(cpu: &Image, gpu: &Readback, mode: Mode) -> (usize, String) {
@@ -223,7 +208,7 @@ fn written_and_loaded_f16_asset_matches_and_uploads_exactly() {
             1.5,
         )
         .unwrap();
-        assert_eq!(camera(&c), g);
+        assert_eq!(c, g);
     }
 }
 
@@ -401,8 +386,7 @@ fn texture_target_holds_the_same_image() {
         mapped_at_creation: false,
     });
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    r.render(&gpu.queue, &mut enc, &tt, 0, &camera(&cam), &settings(&s))
-        .unwrap();
+    r.render(&gpu.queue, &mut enc, &tt, 0, &cam, &s).unwrap();
     enc.copy_texture_to_buffer(
         tex.as_image_copy(),
         wgpu::TexelCopyBufferInfo {

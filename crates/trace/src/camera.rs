@@ -1,5 +1,6 @@
 //! The pinhole camera (eye, look-at, up, vertical field of view), its primary rays, and the
-//! default view that frames a frame's stored bounding box from a three-quarter direction.
+//! default view that frames a frame's stored bounding box from a three-quarter direction. The GPU
+//! runtime (`vdbcook-runtime`) uses these same definitions for its uniform and its framing.
 
 use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, L2_SPAN, TILE_BIT};
 
@@ -18,7 +19,7 @@ pub struct Camera {
 
 /// The camera's orthonormal basis, scaled by the half-extents of the image plane at distance 1.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Basis {
+pub struct Basis {
     pub forward: [f64; 3],
     pub right: [f64; 3],
     pub up: [f64; 3],
@@ -37,7 +38,7 @@ impl Camera {
     /// `forward + (2(i+½)/W − 1)·right + (1 − 2(j+½)/H)·up`, normalized, where `|up| = tan(fov/2)`
     /// and `|right| = |up| · W/H`. An `up` parallel to the view uses world +Z instead (+X if that
     /// is parallel too).
-    pub(crate) fn basis(&self, width: u32, height: u32) -> Result<Basis, TraceError> {
+    pub fn basis(&self, width: u32, height: u32) -> Result<Basis, TraceError> {
         let all = self.eye.iter().chain(&self.look_at).chain(&self.up);
         if all.clone().any(|v| !v.is_finite()) || !self.fov_y_deg.is_finite() {
             return Err(TraceError::Camera(format!("non-finite value in {self:?}")));
@@ -88,7 +89,6 @@ impl Camera {
                 frames: asset.frame_count(),
             });
         }
-        let xf = Affine::from_matrix(&asset.header.index_to_world)?;
         let bbox = stored_bbox(asset, frame)
             .or_else(|| {
                 (0..asset.frame_count())
@@ -96,6 +96,17 @@ impl Camera {
                     .reduce(|a, b| (min3(a.0, b.0), max3(a.1, b.1)))
             })
             .unwrap_or(([0.0; 3], asset.header.root_dims.map(|d| d as f64 * 128.0)));
+        Camera::framing_box(&asset.header.index_to_world, bbox, aspect)
+    }
+
+    /// The default view of the index-space box `bbox` (`[lo, hi)`) under `index_to_world`, as
+    /// [`Camera::framing`] describes (which applies it to the box it chooses).
+    pub fn framing_box(
+        index_to_world: &[[f64; 4]; 4],
+        bbox: ([f64; 3], [f64; 3]),
+        aspect: f64,
+    ) -> Result<Camera, TraceError> {
+        let xf = Affine::from_matrix(index_to_world)?;
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for c in 0..8 {
             let p = [0, 1, 2].map(|a| {

@@ -1,6 +1,8 @@
 //! `vdbcook-trace`: the CPU reference tracer of the flip-book asset. `vdbcook render --backend
 //! cpu` draws with it on any machine, and the GPU runtime's images are tested against it, so
-//! every definition below is a contract the WGSL must follow.
+//! every definition below is a contract the WGSL must follow. The runtime depends on this crate
+//! for the shared vocabulary and its CPU-side math (camera and framing, settings and their
+//! validation, the affine transform, the depth range): one definition for both.
 //!
 //! # Spaces
 //! - **World → index**: the asset's `index_to_world` (row-major, column vectors) must be affine;
@@ -77,7 +79,7 @@ mod settings;
 mod space;
 mod walk;
 
-pub use camera::{stored_bbox, Camera};
+pub use camera::{stored_bbox, Basis, Camera};
 pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
@@ -86,4 +88,5 @@ pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng};
 pub use scatter::MAX_MARCH_SAMPLES;
 pub use settings::{LengthUnit, Mode, RenderSettings, TraceError, MAX_SIDE, MAX_SPP, MIN_STEP};
+pub use space::{depth_range, Affine};
 pub use walk::Holder;

@@ -10,7 +10,7 @@ use crate::delta::{Path, MAX_EVENTS};
 use crate::exact::{Density, FirstHit};
 use crate::rng::Rng;
 use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
-use crate::space::{length, normalize, Affine, IndexRay};
+use crate::space::{depth_range, normalize, Affine, IndexRay};
 use crate::walk::{extent, walk, BrickCache, Holder};
 use crate::{Image, LengthUnit, Mode, RenderSettings, TraceError};
 
@@ -70,22 +70,8 @@ impl<'a> Tracer<'a> {
         // Depth range: nearest and farthest corner of the frame's stored box (0 if the eye is
         // inside it).
         let ext = extent(asset);
-        let (lo, hi) = stored_bbox(asset, settings.frame).unwrap_or(([0.0; 3], ext));
-        let (mut near, mut far) = (f64::INFINITY, 0.0f64);
-        for c in 0..8 {
-            let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] });
-            let w = xf.world_of(p);
-            let d = length([0, 1, 2].map(|a| w[a] - camera.eye[a]));
-            near = near.min(d);
-            far = far.max(d);
-        }
-        let e = xf.index_of(camera.eye);
-        if (0..3).all(|a| e[a] >= lo[a] && e[a] < hi[a]) {
-            near = 0.0;
-        }
-        if !(far > near) {
-            far = near + 1.0;
-        }
+        let bbox = stored_bbox(asset, settings.frame).unwrap_or(([0.0; 3], ext));
+        let depth_range = depth_range(&xf, bbox, camera.eye);
         let value_max = asset.frame_ranges[settings.frame][1];
         Ok(Tracer {
             asset,
@@ -95,7 +81,7 @@ impl<'a> Tracer<'a> {
             light_index,
             extinction,
             albedo,
-            depth_range: [near, far],
+            depth_range,
             value_max: if value_max > 0.0 { value_max } else { 1.0 },
         })
     }

@@ -69,6 +69,29 @@ impl Affine {
     }
 }
 
+/// World distances mapped to white (`near`) and black (`far`) in `Depth` mode: the nearest and
+/// farthest world corner of the index-space box `bbox` (`[lo, hi)`) from `eye` (world), `near`
+/// = 0 with the eye inside the box, and `far = near + 1` if the two would not differ.
+pub fn depth_range(xf: &Affine, bbox: ([f64; 3], [f64; 3]), eye: [f64; 3]) -> [f64; 2] {
+    let (lo, hi) = bbox;
+    let (mut near, mut far) = (f64::INFINITY, 0.0f64);
+    for c in 0..8 {
+        let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] });
+        let w = xf.world_of(p);
+        let d = length([0, 1, 2].map(|a| w[a] - eye[a]));
+        near = near.min(d);
+        far = far.max(d);
+    }
+    let e = xf.index_of(eye);
+    if (0..3).all(|a| e[a] >= lo[a] && e[a] < hi[a]) {
+        near = 0.0;
+    }
+    if !(far > near) {
+        far = near + 1.0;
+    }
+    [near, far]
+}
+
 /// A ray in index space, `p(t) = o + t·d`, where `t` is the distance travelled in *world* units
 /// (the world direction was unit length); `per_t` converts `t` to the chosen length unit.
 #[derive(Debug, Clone, Copy)]
