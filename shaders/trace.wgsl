@@ -5,6 +5,13 @@
 // compare the two images. Concatenated after `volume.wgsl`; `{{TARGET_FORMAT}}` is replaced by
 // the storage-texture format the renderer was created for.
 //
+// Single scatter and delta tracking walk through an iterator (`wk_next`) instead of the visitor
+// walk, so that the shadow march (WGSL has no recursion) is a second bounded walk and each march
+// is written once. Every loop is bounded (DDA budgets, 2^20 samples per march, 2^16 events per
+// path or shadow ray, spp ≤ 2^16). Note for software Vulkan: llvmpipe/lavapipe stops all loops
+// of an invocation after 65535 iterations in total (LP_MAX_TGSI_LOOP_ITERATIONS), which cuts
+// very heavy pixels (many dense delta paths, tiny steps) short there; hardware has no such cap.
+//
 // Group 1: `params` (uniform, written once per render: camera, settings, frame).
 // Group 2: the target: a storage texture and/or a storage buffer (`out_flags` says which),
 //          buffer layout: width·height RGBA (f32 × 4) then width·height raw values.
@@ -22,6 +29,10 @@ struct Params {
     inv_a2: vec4<f32>,
     // xyz: root extent in voxels.
     extent: vec4<f32>,
+    // xyz: index-space image of the unit world direction toward the light.
+    light_index: vec4<f32>,
+    // xyz: the light colour.
+    light_color: vec4<f32>,
     width: u32,
     height: u32,
     mode: u32,
@@ -33,6 +44,15 @@ struct Params {
     value_max: f32,
     voxel_units: u32,
     out_flags: u32,
+    // absorb + scatter and scatter / (absorb + scatter) (0 when both are 0).
+    extinction: f32,
+    albedo: f32,
+    step: f32,
+    shadow_step: f32,
+    gain: f32,
+    spp: u32,
+    first_sample: u32,
+    seed: u32,
     _pad: u32,
 }
 
@@ -45,6 +65,8 @@ const MODE_DEPTH: u32 = 1u;
 const MODE_FIRST_HIT: u32 = 2u;
 const MODE_BRICK_HUE: u32 = 3u;
 const MODE_STEPS: u32 = 4u;
+const MODE_SCATTER: u32 = 5u;
+const MODE_DELTA: u32 = 6u;
 
 // Optical depth beyond which a density ray stops (`vdbcook_trace::OPAQUE_DEPTH`).
 const OPAQUE_DEPTH: f32 = 20.0;
@@ -157,6 +179,352 @@ fn walk(ray: VdbRay, t0: f32, t1: f32) {
     }
 }
 
+// ---- The media modes (single scatter, delta tracking) ----------------------------------------
+// WGSL has no recursion and inlining a visitor at every call site of the walk would multiply the
+// shader, so these modes walk the tree through an iterator (`wk_next`) that yields the spans a
+// visitor would see (`voxels()` false: constant spans, and bricks handed over whole), with the
+// CPU walk's skip rule `!(m >= lo && m > 0)` (single scatter: lo = cutoff; delta: lo = −BIG).
+// The primary march and its shadow march are two separate bounded loops over two walkers.
+
+// A brick's span has `brick` = its index; a constant span has NO_BRICK and value `v`.
+const NO_BRICK: u32 = 0xffffffffu;
+// Most samples one single-scatter march takes (`vdbcook_trace::MAX_MARCH_SAMPLES`).
+const MAX_MARCH_SAMPLES: u32 = 1048576u;
+// Most tentative collisions per delta path or shadow ray (`vdbcook_trace::MAX_EVENTS`).
+const MAX_EVENTS: u32 = 65536u;
+// Shadow weight below which ratio tracking stops (`vdbcook_trace::MIN_SHADOW_WEIGHT`).
+const MIN_SHADOW_WEIGHT: f32 = 1e-6;
+// Spans one walk can yield: every span takes at least one region or leaf DDA step.
+const WALK_SPANS: i32 = 5148; // REGION_ITERS · (LEAF_ITERS + 1)
+
+struct Walker {
+    rd: VdbDda,
+    ld: VdbDda,
+    node: u32,
+    in_node: bool,
+}
+
+struct WkSpan {
+    ok: bool,
+    ta: f32,
+    tb: f32,
+    // The constant value (constant span) or the brick max.
+    m: f32,
+    brick: u32,
+    origin: vec3<i32>,
+}
+
+fn wk_init(ray: VdbRay, t0: f32, t1: f32) -> Walker {
+    var w: Walker;
+    w.rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), vec3<i32>(vdb_info.root_dims), t0, t1);
+    w.ld = w.rd;
+    w.ld.budget = 0;
+    w.node = 0u;
+    w.in_node = false;
+    return w;
+}
+
+fn wk_skip(m: f32, lo: f32) -> bool {
+    return !(m >= lo && m > 0.0);
+}
+
+fn wk_const(ta: f32, tb: f32, v: f32) -> WkSpan {
+    var o: WkSpan;
+    o.ok = true;
+    o.ta = ta;
+    o.tb = tb;
+    o.m = v;
+    o.brick = NO_BRICK;
+    o.origin = vec3<i32>(0);
+    return o;
+}
+
+// The next span not passed over (`ok` false when the walk is over).
+fn wk_next(ray: VdbRay, w: ptr<function, Walker>, lo: f32) -> WkSpan {
+    var out: WkSpan;
+    out.ok = false;
+    let bg = vdb_info.background;
+    for (var g = 0; g < WALK_SPANS; g++) {
+        if ((*w).in_node) {
+            var ld = (*w).ld;
+            let ls = vdb_dda_next(ray, &ld);
+            (*w).ld = ld;
+            if (!ls.ok) {
+                (*w).in_node = false;
+                continue;
+            }
+            let r = vdb_leaf_ref((*w).node, ls.cell);
+            if (r == VDB_EMPTY) {
+                if (wk_skip(bg, lo)) {
+                    continue;
+                }
+                return wk_const(ls.ta, ls.tb, bg);
+            }
+            if ((r & VDB_TILE_BIT) != 0u) {
+                let v = vdb_tile(r & ~VDB_TILE_BIT);
+                if (wk_skip(v, lo)) {
+                    continue;
+                }
+                return wk_const(ls.ta, ls.tb, v);
+            }
+            let m = vdb_brick_range(r).y;
+            if (wk_skip(m, lo)) {
+                continue;
+            }
+            out = wk_const(ls.ta, ls.tb, m);
+            out.brick = r;
+            out.origin = ls.cell * 8;
+            return out;
+        }
+        var rd = (*w).rd;
+        let rs = vdb_dda_next(ray, &rd);
+        (*w).rd = rd;
+        if (!rs.ok) {
+            return out;
+        }
+        let e = vdb_root_entry(params.frame_root, rs.cell);
+        if (e == VDB_EMPTY) {
+            if (wk_skip(bg, lo)) {
+                continue;
+            }
+            return wk_const(rs.ta, rs.tb, bg);
+        }
+        if ((e & VDB_TILE_BIT) != 0u) {
+            let v = vdb_tile(e & ~VDB_TILE_BIT);
+            if (wk_skip(v, lo)) {
+                continue;
+            }
+            return wk_const(rs.ta, rs.tb, v);
+        }
+        if (wk_skip(vdb_l2_range(e).y, lo)) {
+            continue;
+        }
+        let llo = rs.cell * 16;
+        (*w).ld = vdb_dda_init(ray, 8.0, llo, llo + vec3<i32>(16), rs.ta, rs.tb);
+        (*w).node = e;
+        (*w).in_node = true;
+    }
+    return out;
+}
+
+// The value of a span at index point `p` (`walk::brick_value`: clamped into the brick).
+fn wk_value(sp: WkSpan, p: vec3<f32>) -> f32 {
+    if (sp.brick == NO_BRICK) {
+        return sp.m;
+    }
+    let c = clamp(vec3<i32>(floor(p)) - sp.origin, vec3<i32>(0), vec3<i32>(7));
+    return vdb_brick_voxel(sp.brick, c);
+}
+
+fn light_ray(p: vec3<f32>) -> VdbRay {
+    var r: VdbRay;
+    r.o = p;
+    r.d = params.light_index.xyz;
+    r.per_t = select(1.0, length(r.d), params.voxel_units != 0u);
+    return r;
+}
+
+// `vdb_render`'s shadow march from index point `p` toward the light: transmittance.
+fn shadow_march(p: vec3<f32>) -> f32 {
+    let ray = light_ray(p);
+    let clip = vdb_clip(ray, params.extent.xyz);
+    if (!(clip.y > clip.x)) {
+        return 1.0;
+    }
+    let step = params.shadow_step;
+    let cutoff = params.cutoff;
+    var w = wk_init(ray, clip.x, clip.y);
+    var budget = MAX_MARCH_SAMPLES;
+    var trans = 1.0;
+    for (var g = 0; g < WALK_SPANS; g++) {
+        let sp = wk_next(ray, &w, cutoff);
+        if (!sp.ok) {
+            break;
+        }
+        let sb = sp.tb * ray.per_t;
+        var k = max(ceil(sp.ta * ray.per_t / step), 1.0);
+        var stop = false;
+        for (var n = 0u; n <= MAX_MARCH_SAMPLES; n++) {
+            if (!(k * step < sb)) {
+                break;
+            }
+            if (budget == 0u) {
+                stop = true;
+                break;
+            }
+            budget -= 1u;
+            let s = k * step;
+            k += 1.0;
+            let d = wk_value(sp, ray.o + (s / ray.per_t) * ray.d);
+            if (d < cutoff || d <= 0.0) {
+                continue;
+            }
+            trans *= exp(-params.extinction * d * step / (1.0 + s * params.gain));
+            if (3.0 * trans * trans < cutoff) {
+                stop = true;
+                break;
+            }
+        }
+        if (stop) {
+            break;
+        }
+    }
+    return trans;
+}
+
+// Single scatter along the primary ray for t in [t0, t1]: (luminance, transmittance).
+fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
+    let step = params.step;
+    let cutoff = params.cutoff;
+    var w = wk_init(ray, t0, t1);
+    var budget = MAX_MARCH_SAMPLES;
+    var trans = 1.0;
+    var lum = 0.0;
+    for (var g = 0; g < WALK_SPANS; g++) {
+        let sp = wk_next(ray, &w, cutoff);
+        if (!sp.ok) {
+            break;
+        }
+        let sb = sp.tb * ray.per_t;
+        var k = max(ceil(sp.ta * ray.per_t / step), 0.0);
+        var stop = false;
+        for (var n = 0u; n <= MAX_MARCH_SAMPLES; n++) {
+            if (!(k * step < sb)) {
+                break;
+            }
+            if (budget == 0u) {
+                stop = true;
+                break;
+            }
+            budget -= 1u;
+            let s = k * step;
+            k += 1.0;
+            let p = ray.o + (s / ray.per_t) * ray.d;
+            let sigma = wk_value(sp, p);
+            if (sigma < cutoff || sigma <= 0.0) {
+                continue;
+            }
+            let dt = exp(-params.extinction * sigma * step);
+            let ts = shadow_march(p);
+            lum += params.albedo * ts * trans * (1.0 - dt);
+            trans *= dt;
+            if (3.0 * trans * trans < cutoff) {
+                stop = true;
+                break;
+            }
+        }
+        if (stop) {
+            break;
+        }
+    }
+    return vec2<f32>(lum, trans);
+}
+
+// `vdbcook_trace::pcg_hash`.
+fn pcg_hash(x: u32) -> u32 {
+    let state = x * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// `Rng::uniform`: the next number of the stream in `state`, in [0, 1), 24 bits.
+fn rng_uniform(state: ptr<function, u32>) -> f32 {
+    *state = *state * 747796405u + 2891336453u;
+    let s = *state;
+    let word = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
+    return f32(((word >> 22u) ^ word) >> 8u) * (1.0 / 16777216.0);
+}
+
+// Ratio tracking from index point `p` toward the light: the shadow weight.
+fn ratio_shadow(p: vec3<f32>, rng: ptr<function, u32>) -> f32 {
+    let ray = light_ray(p);
+    let clip = vdb_clip(ray, params.extent.xyz);
+    if (!(clip.y > clip.x)) {
+        return 1.0;
+    }
+    let ext = params.extinction;
+    var w = wk_init(ray, clip.x, clip.y);
+    var events = MAX_EVENTS;
+    var weight = 1.0;
+    for (var g = 0; g < WALK_SPANS; g++) {
+        let sp = wk_next(ray, &w, -VDB_BIG);
+        if (!sp.ok) {
+            break;
+        }
+        let mu_bar = ext * sp.m;
+        if (!(mu_bar > 0.0)) {
+            continue;
+        }
+        var s = sp.ta * ray.per_t;
+        let sb = sp.tb * ray.per_t;
+        var stop = false;
+        for (var n = 0u; n <= MAX_EVENTS; n++) {
+            if (events == 0u) {
+                stop = true;
+                break;
+            }
+            events -= 1u;
+            s -= log(1.0 - rng_uniform(rng)) / mu_bar;
+            if (!(s < sb)) {
+                break;
+            }
+            let v = max(wk_value(sp, ray.o + (s / ray.per_t) * ray.d), 0.0);
+            let mu = ext * v / (1.0 + params.gain * s);
+            weight *= 1.0 - mu / mu_bar;
+            if (weight < MIN_SHADOW_WEIGHT) {
+                weight = 0.0;
+                stop = true;
+                break;
+            }
+        }
+        if (stop) {
+            break;
+        }
+    }
+    return weight;
+}
+
+// One delta-tracking path along the primary ray: (light scored, escaped 0 or 1).
+fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f32> {
+    let ext = params.extinction;
+    var w = wk_init(ray, t0, t1);
+    var events = MAX_EVENTS;
+    var lum = 0.0;
+    for (var g = 0; g < WALK_SPANS; g++) {
+        let sp = wk_next(ray, &w, -VDB_BIG);
+        if (!sp.ok) {
+            break;
+        }
+        let mu_bar = ext * sp.m;
+        if (!(mu_bar > 0.0)) {
+            continue;
+        }
+        var s = sp.ta * ray.per_t;
+        let sb = sp.tb * ray.per_t;
+        for (var n = 0u; n <= MAX_EVENTS; n++) {
+            if (events == 0u) {
+                // Out of events: absorbed.
+                return vec2<f32>(lum, 0.0);
+            }
+            events -= 1u;
+            s -= log(1.0 - rng_uniform(rng)) / mu_bar;
+            if (!(s < sb)) {
+                break;
+            }
+            let p = ray.o + (s / ray.per_t) * ray.d;
+            let sigma = max(wk_value(sp, p), 0.0);
+            if (rng_uniform(rng) * sp.m >= sigma) {
+                continue; // null collision
+            }
+            if (rng_uniform(rng) < params.albedo) {
+                lum = ratio_shadow(p, rng);
+            }
+            return vec2<f32>(lum, 0.0);
+        }
+    }
+    return vec2<f32>(lum, 1.0);
+}
+
 // hsv(h, s, 1), h in turns (`vdbcook_trace::color::hue`).
 fn hue(h: f32, s: f32) -> vec3<f32> {
     let h6 = fract(h) * 6.0;
@@ -232,13 +600,37 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     v_hit = false;
 
     let clip = vdb_clip(ray, params.extent.xyz);
-    if (clip.y > clip.x) {
+    let media = params.mode == MODE_SCATTER || params.mode == MODE_DELTA;
+    if (clip.y > clip.x && !media) {
         walk(ray, clip.x, clip.y);
     }
 
     var rgba = vec4<f32>(0.0);
     var value = 0.0;
-    if (v_density) {
+    if (media) {
+        // (luminance, transmittance); a ray missing the root box: (0, 1).
+        var lt = vec2<f32>(0.0, 1.0);
+        if (clip.y > clip.x) {
+            if (params.mode == MODE_SCATTER) {
+                lt = scatter_primary(ray, clip.x, clip.y);
+            } else {
+                let pixel = gid.y * w + gid.x;
+                var lum = 0.0;
+                var escaped = 0.0;
+                for (var k = 0u; k < params.spp; k++) {
+                    let si = params.first_sample + k;
+                    var rng = pcg_hash(params.seed ^ pcg_hash(pixel ^ pcg_hash(si)));
+                    let r = delta_path(ray, clip.x, clip.y, &rng);
+                    lum += r.x;
+                    escaped += r.y;
+                }
+                let n = f32(params.spp);
+                lt = vec2<f32>(lum / n, escaped / n);
+            }
+        }
+        rgba = vec4<f32>(params.light_color.xyz * lt.x, 1.0 - lt.y);
+        value = lt.y;
+    } else if (v_density) {
         let t = exp(-params.absorb * v_tau);
         if (params.mode == MODE_DENSITY) {
             rgba = vec4<f32>(vec3<f32>(1.0 - t), 1.0);

@@ -13,14 +13,16 @@ use crate::RuntimeError;
 /// `height` and `frame`: the target gives the image size and each render call the frame.
 pub type Settings = vdbcook_trace::RenderSettings;
 
-/// The modes the GPU tracer implements; the others are refused with
-/// [`RuntimeError::Unsupported`].
-pub const GPU_MODES: [Mode; 5] = [
+/// The modes the GPU tracer implements (all of `Mode::ALL`; a mode missing here would be refused
+/// with [`RuntimeError::Unsupported`]), in the order of the shader's mode numbers.
+pub const GPU_MODES: [Mode; 7] = [
     Mode::Density,
     Mode::Depth,
     Mode::FirstHitDensity,
     Mode::BrickHue,
     Mode::Steps,
+    Mode::SingleScatter,
+    Mode::DeltaTracking,
 ];
 
 /// The shader's mode number (`None`: not implemented on the GPU).

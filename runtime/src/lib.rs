@@ -12,9 +12,11 @@
 //! The images are defined by the CPU reference tracer (`crates/trace`, its crate docs): the GPU
 //! follows the same spaces, DDA rules, skip rules and colour maps in f32, and
 //! `tests/gpu_vs_cpu.rs` compares the two. The camera, mode, length unit, settings (with their
-//! validation), transform and framing are the tracer's own types, re-exported here. Implemented
-//! modes: density, depth, first-hit density, brick hue, steps ([`GPU_MODES`]); single scatter
-//! and delta tracking are refused with [`RuntimeError::Unsupported`] for now.
+//! validation), transform and framing are the tracer's own types, re-exported here. Every mode is
+//! implemented ([`GPU_MODES`]): density, depth, first-hit density, brick hue, steps, single
+//! scatter (the shadow march is a second bounded walk: WGSL has no recursion) and delta tracking
+//! (the CPU's PCG stream per (seed, pixel, sample), so the images agree statistically; f32 free
+//! flights make a few paths branch differently from the CPU's f64 ones).
 //!
 //! Brick payload on the GPU (see [`PayloadLayout`]): every brick is decoded on the CPU at upload
 //! (`Asset::decode_brick`, so BC4/BC7/unorm8 bricks arrive exactly as the CPU sampler reads

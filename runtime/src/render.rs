@@ -23,6 +23,10 @@ struct Params {
     inv_a1: [f32; 4],
     inv_a2: [f32; 4],
     extent: [f32; 4],
+    /// xyz: index-space image of the unit world direction toward the light.
+    light_index: [f32; 4],
+    /// xyz: the light colour.
+    light_color: [f32; 4],
     width: u32,
     height: u32,
     mode: u32,
@@ -34,6 +38,15 @@ struct Params {
     value_max: f32,
     voxel_units: u32,
     out_flags: u32,
+    /// `absorb + scatter` and `scatter / (absorb + scatter)` (0 when both are 0), from f64.
+    extinction: f32,
+    albedo: f32,
+    step: f32,
+    shadow_step: f32,
+    gain: f32,
+    spp: u32,
+    first_sample: u32,
+    seed: u32,
     _pad: u32,
 }
 
@@ -454,6 +467,17 @@ impl Renderer {
         let vmax = self.frame_max[frame];
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let inv = self.xf.inv_a;
+        // As `vdbcook_trace::Tracer::new`: the light in index space, extinction and albedo in f64.
+        let l = settings.light_dir.map(|c| c as f64);
+        let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+        let light_index = self.xf.dir_to_index(l.map(|c| c / ln));
+        let extinction = settings.absorb as f64 + settings.scatter as f64;
+        let albedo = if extinction > 0.0 {
+            settings.scatter as f64 / extinction
+        } else {
+            0.0
+        };
+        let c = settings.light_color;
         Ok(Params {
             eye_index: v4(eye),
             forward: v4(basis.forward),
@@ -463,6 +487,8 @@ impl Renderer {
             inv_a1: v4(inv[1]),
             inv_a2: v4(inv[2]),
             extent: v4(self.extent),
+            light_index: v4(light_index),
+            light_color: [c[0], c[1], c[2], 0.0],
             width,
             height,
             mode,
@@ -474,6 +500,14 @@ impl Renderer {
             value_max: if vmax > 0.0 { vmax } else { 1.0 },
             voxel_units: (settings.unit == LengthUnit::Voxel) as u32,
             out_flags,
+            extinction: extinction as f32,
+            albedo: albedo as f32,
+            step: settings.step,
+            shadow_step: settings.shadow_step,
+            gain: settings.gain,
+            spp: settings.spp,
+            first_sample: settings.first_sample,
+            seed: settings.seed,
             _pad: 0,
         })
     }
