@@ -1,0 +1,188 @@
+//! GPU time of one density render from the default view at 640×360 and 1920×1080, measured with
+//! timestamp queries (`wgpu::Features::TIMESTAMP_QUERY`) around the runtime's compute pass:
+//! median of RUNS (after one warm-up), plus the CPU wall time of submit-and-wait. Without the
+//! feature only the wall time is printed. The results: `docs/rendering.md`.
+//!
+//! `cargo bench -p vdbcook-runtime --bench gpu [-- ASSET.vdbc ...]`; by default the f32 assets
+//! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use vdbcook_runtime::{Asset, Camera, GpuVolume, Mode, Renderer, Settings};
+
+const RUNS: usize = 5;
+const SIZES: [(u32, u32); 2] = [(640, 360), (1920, 1080)];
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+fn main() {
+    let args: Vec<PathBuf> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .map(PathBuf::from)
+        .collect();
+    let assets = if args.is_empty() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/vs-vdb-render");
+        let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .map(|d| {
+                d.filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.to_string_lossy().ends_with("_f32.vdbc"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        v.sort();
+        v
+    } else {
+        args
+    };
+    if assets.is_empty() {
+        eprintln!("skipping: no assets (run the vdbcook-trace vs_vdb_render bench, or give paths)");
+        return;
+    }
+
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+        eprintln!("skipping: no GPU adapter");
+        return;
+    };
+    let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("gpu bench"),
+        required_limits: adapter.limits(),
+        required_features: if timestamps {
+            wgpu::Features::TIMESTAMP_QUERY
+        } else {
+            wgpu::Features::empty()
+        },
+        ..Default::default()
+    }))
+    .expect("device");
+    let period = queue.get_timestamp_period() as f64;
+    println!(
+        "adapter: {} ({:?}); timestamp queries: {timestamps}; median of {RUNS}",
+        adapter.get_info().name,
+        adapter.get_info().backend
+    );
+    println!("| asset | size | mode | GPU ms (timestamps) | submit+wait ms |");
+    println!("|---|---|---|---:|---:|");
+
+    let queries = timestamps.then(|| {
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("gpu bench"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("gpu bench resolve"),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("gpu bench read"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        (set, resolve, read)
+    });
+
+    for path in &assets {
+        let asset = Asset::load(path).expect("a valid asset");
+        let volume = GpuVolume::upload(&device, &queue, &asset).expect("upload");
+        let format = wgpu::TextureFormat::Rgba8Unorm;
+        let renderer = Renderer::new(&device, &volume, format).expect("renderer");
+        let name = path.file_stem().unwrap().to_string_lossy().into_owned();
+        for (w, h) in SIZES {
+            let texture = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("gpu bench target"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::STORAGE_BINDING,
+                view_formats: &[],
+            });
+            let view = texture.create_view(&Default::default());
+            let target = renderer
+                .texture_target(&device, &texture, &view)
+                .expect("target");
+            let bbox = volume.frame_bbox(0).expect("frame 0 stores something");
+            let camera = Camera::framing_box(volume.index_to_world(), bbox, w as f64 / h as f64)
+                .expect("camera");
+            let settings = Settings {
+                mode: Mode::Density,
+                ..Default::default()
+            };
+            let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+            for run in 0..=RUNS {
+                let start = Instant::now();
+                let mut encoder = device.create_command_encoder(&Default::default());
+                // Empty passes that only write the timestamps bracket the runtime's pass (it
+                // records its own pass, so it cannot take `timestamp_writes`).
+                let stamp = |encoder: &mut wgpu::CommandEncoder, begin: bool| {
+                    if let Some((set, _, _)) = &queries {
+                        let _ = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("timestamp"),
+                            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                                query_set: set,
+                                beginning_of_pass_write_index: begin.then_some(0),
+                                end_of_pass_write_index: (!begin).then_some(1),
+                            }),
+                        });
+                    }
+                };
+                stamp(&mut encoder, true);
+                renderer
+                    .render(&queue, &mut encoder, &target, 0, &camera, &settings)
+                    .expect("render");
+                stamp(&mut encoder, false);
+                if let Some((set, resolve, read)) = &queries {
+                    encoder.resolve_query_set(set, 0..2, resolve, 0);
+                    encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16);
+                }
+                queue.submit([encoder.finish()]);
+                if let Some((_, _, read)) = &queries {
+                    read.slice(..)
+                        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+                }
+                device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .expect("poll");
+                let elapsed = start.elapsed().as_secs_f64();
+                if let Some((_, _, read)) = &queries {
+                    let ticks: [u64; 2] = {
+                        let data = read.slice(..).get_mapped_range().expect("mapped");
+                        [0, 1]
+                            .map(|i| u64::from_le_bytes(data[8 * i..8 * i + 8].try_into().unwrap()))
+                    };
+                    read.unmap();
+                    if run > 0 {
+                        gpu.push(ticks[1].wrapping_sub(ticks[0]) as f64 * period * 1e-9);
+                    }
+                }
+                if run > 0 {
+                    wall.push(elapsed);
+                }
+            }
+            let g = if gpu.is_empty() {
+                "–".to_string()
+            } else {
+                format!("{:.1}", median(gpu) * 1e3)
+            };
+            println!(
+                "| {name} | {w}×{h} | density | {g} | {:.1} |",
+                median(wall) * 1e3
+            );
+        }
+    }
+}
