@@ -268,43 +268,28 @@ fn failures_leave_no_output_and_name_the_file() {
     // With the explicit option it cooks.
     let (c, _) = cook_exact_replaced(&out);
     assert_eq!(c["frames"], 1);
-    // Frustum maps and oversized extents are refused with clear messages.
-    let (code, _, err) = run(&[
-        "cook",
+    // Frustum maps, oversized extents and mismatched transforms are refused with clear messages.
+    refused(
         "fixtures/vdb/xform_frustum.vdb",
-        "-o",
-        d.path().join("f.vdbc").to_str().unwrap(),
-    ]);
-    assert_eq!(code, 1);
-    assert!(err.contains("NonlinearFrustumMap"), "{err}");
-    let (code, _, err) = run(&[
-        "cook",
+        &d.path().join("f.vdbc"),
+        &["NonlinearFrustumMap"],
+    );
+    refused(
         "fixtures/vdb/tiles_all_levels.vdb",
-        "-o",
-        d.path().join("t.vdbc").to_str().unwrap(),
-    ]);
-    assert_eq!(code, 1);
-    assert!(err.contains("at most 4096"), "{err}");
-    let (code, _, err) = run(&[
-        "cook",
+        &d.path().join("t.vdbc"),
+        &["at most 4096"],
+    );
+    refused(
         "fixtures/seq/xform_mismatch",
-        "-o",
-        d.path().join("m.vdbc").to_str().unwrap(),
-    ]);
-    assert_eq!(code, 1);
-    assert!(
-        err.contains("f.0001.vdb") && err.contains("f.0002.vdb"),
-        "{err}"
+        &d.path().join("m.vdbc"),
+        &["f.0001.vdb", "f.0002.vdb"],
     );
     if root().join("fixtures/seq/bigext").is_dir() {
-        let (code, _, err) = run(&[
-            "cook",
+        refused(
             "fixtures/seq/bigext",
-            "-o",
-            d.path().join("b.vdbc").to_str().unwrap(),
-        ]);
-        assert_eq!(code, 1);
-        assert!(err.contains("at most 4096"), "{err}");
+            &d.path().join("b.vdbc"),
+            &["at most 4096"],
+        );
     }
     assert!(std::fs::read_dir(d.path())
         .unwrap()
@@ -318,6 +303,15 @@ fn failures_leave_no_output_and_name_the_file() {
     ]);
     assert_eq!(code, 1);
     assert!(err.contains("/nonexistent-dir/x.vdbc"), "{err}");
+}
+
+/// `vdbcook cook INPUT -o OUT` must fail (exit 1) with every `needle` in its message.
+fn refused(input: &str, out: &Path, needles: &[&str]) {
+    let (code, _, err) = run(&["cook", input, "-o", out.to_str().unwrap()]);
+    assert_eq!(code, 1, "{input} was cooked");
+    for n in needles {
+        assert!(err.contains(n), "{input}: '{n}' missing from: {err}");
+    }
 }
 
 fn cook_exact_replaced(out: &Path) -> (Value, Value) {

@@ -8,9 +8,8 @@
 use crate::dda::Flow;
 use crate::rng::Rng;
 use crate::space::IndexRay;
-use crate::walk::{brick_value, walk, BrickCache, Holder, Visitor};
+use crate::walk::{walk, BrickCache, SpanSampler};
 use crate::Tracer;
-use vdbcook_asset::BRICK_VOXELS;
 
 /// Most tentative collisions one path (or one shadow ray) samples before it stops; a primary
 /// path that runs out counts as absorbed, a shadow ray keeps its estimate so far.
@@ -93,25 +92,12 @@ impl Path<'_, '_> {
     }
 }
 
-impl Visitor for Path<'_, '_> {
-    fn skip(&self, max: f32) -> bool {
+impl SpanSampler for Path<'_, '_> {
+    fn skip_max(&self, max: f32) -> bool {
         !(max > 0.0) || self.tracer.extinction == 0.0
     }
-    fn voxels(&self) -> bool {
-        false
-    }
-    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
-        self.flight(ta, tb, v, |_| v)
-    }
-    fn brick(
-        &mut self,
-        ta: f64,
-        tb: f64,
-        max: f32,
-        origin: [i64; 3],
-        values: &[f32; BRICK_VOXELS],
-    ) -> Flow {
-        self.flight(ta, tb, max, |p| brick_value(values, origin, p))
+    fn sample_span(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
+        self.flight(ta, tb, max, value)
     }
 }
 
@@ -150,25 +136,12 @@ impl Ratio<'_, '_> {
     }
 }
 
-impl Visitor for Ratio<'_, '_> {
-    fn skip(&self, max: f32) -> bool {
+impl SpanSampler for Ratio<'_, '_> {
+    fn skip_max(&self, max: f32) -> bool {
         !(max > 0.0) || self.tracer.extinction == 0.0
     }
-    fn voxels(&self) -> bool {
-        false
-    }
-    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
-        self.flight(ta, tb, v, |_| v)
-    }
-    fn brick(
-        &mut self,
-        ta: f64,
-        tb: f64,
-        max: f32,
-        origin: [i64; 3],
-        values: &[f32; BRICK_VOXELS],
-    ) -> Flow {
-        self.flight(ta, tb, max, |p| brick_value(values, origin, p))
+    fn sample_span(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
+        self.flight(ta, tb, max, value)
     }
 }
 

@@ -5,9 +5,8 @@
 
 use crate::dda::Flow;
 use crate::space::IndexRay;
-use crate::walk::{brick_value, walk, BrickCache, Holder, Visitor};
+use crate::walk::{walk, BrickCache, SpanSampler};
 use crate::Tracer;
-use vdbcook_asset::BRICK_VOXELS;
 
 /// Most samples one march (primary or shadow) takes before it stops.
 pub const MAX_MARCH_SAMPLES: u64 = 1 << 20;
@@ -82,25 +81,18 @@ fn below_cutoff(max: f32, cutoff: f32) -> bool {
     !(max >= cutoff && max > 0.0)
 }
 
-impl Visitor for Primary<'_, '_> {
-    fn skip(&self, max: f32) -> bool {
+impl SpanSampler for Primary<'_, '_> {
+    fn skip_max(&self, max: f32) -> bool {
         below_cutoff(max, self.tracer.settings.cutoff)
     }
-    fn voxels(&self) -> bool {
-        false
-    }
-    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
-        self.march(ta, tb, |_| v)
-    }
-    fn brick(
+    fn sample_span(
         &mut self,
         ta: f64,
         tb: f64,
         _max: f32,
-        origin: [i64; 3],
-        values: &[f32; BRICK_VOXELS],
+        value: impl Fn([f64; 3]) -> f32,
     ) -> Flow {
-        self.march(ta, tb, |p| brick_value(values, origin, p))
+        self.march(ta, tb, value)
     }
 }
 
@@ -139,25 +131,18 @@ impl Shadow<'_, '_> {
     }
 }
 
-impl Visitor for Shadow<'_, '_> {
-    fn skip(&self, max: f32) -> bool {
+impl SpanSampler for Shadow<'_, '_> {
+    fn skip_max(&self, max: f32) -> bool {
         below_cutoff(max, self.tracer.settings.cutoff)
     }
-    fn voxels(&self) -> bool {
-        false
-    }
-    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
-        self.march(ta, tb, |_| v)
-    }
-    fn brick(
+    fn sample_span(
         &mut self,
         ta: f64,
         tb: f64,
         _max: f32,
-        origin: [i64; 3],
-        values: &[f32; BRICK_VOXELS],
+        value: impl Fn([f64; 3]) -> f32,
     ) -> Flow {
-        self.march(ta, tb, |p| brick_value(values, origin, p))
+        self.march(ta, tb, value)
     }
 }
 

@@ -43,6 +43,38 @@ pub(crate) trait Visitor {
     fn count(&mut self) {}
 }
 
+/// A visitor that samples along the ray by position (scatter, shadow, delta and ratio tracking):
+/// constant spans and whole bricks both reach `sample_span` with a value function and the span's
+/// majorant, so each of them is written once.
+pub(crate) trait SpanSampler {
+    /// Whether a node, leaf or voxel whose values are at most `max` can be passed over.
+    fn skip_max(&self, max: f32) -> bool;
+    /// `[ta, tb]` where the value at index point `p` is `value(p)`, at most `max`.
+    fn sample_span(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow;
+}
+
+impl<T: SpanSampler> Visitor for T {
+    fn skip(&self, max: f32) -> bool {
+        self.skip_max(max)
+    }
+    fn voxels(&self) -> bool {
+        false
+    }
+    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
+        self.sample_span(ta, tb, v, |_| v)
+    }
+    fn brick(
+        &mut self,
+        ta: f64,
+        tb: f64,
+        max: f32,
+        origin: [i64; 3],
+        values: &[f32; BRICK_VOXELS],
+    ) -> Flow {
+        self.sample_span(ta, tb, max, |p| brick_value(values, origin, p))
+    }
+}
+
 /// Decoded bricks, direct-mapped by index: rays of one row (and shadow rays from neighbouring
 /// samples) cross the same bricks.
 pub struct BrickCache {
