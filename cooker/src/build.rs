@@ -16,13 +16,9 @@ pub struct BuiltLeaf {
 pub enum LeafContent {
     /// All 512 voxels have this value (not the background).
     Tile(f32),
-    /// Brick `index` of the frame's `bricks` (values in voxel order `64·x + 8·y + z`),
-    /// its active mask in the same order, and a hash of the value bits.
-    Brick {
-        index: u32,
-        active: [u64; 8],
-        hash: u64,
-    },
+    /// Brick `index` of the frame's `bricks` (values in voxel order `64·x + 8·y + z`, inactive
+    /// voxels set to the background) and a hash of the value bits.
+    Brick { index: u32, hash: u64 },
 }
 
 pub enum Region {
@@ -163,7 +159,6 @@ pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String>
                 *v = fix(*v);
             }
         }
-        let active = leaf.mask;
         let first = values[0].to_bits();
         if values.iter().all(|v| v.to_bits() == first) {
             if values[0] != bg {
@@ -184,11 +179,7 @@ pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String>
             leaf.origin,
             BuiltLeaf {
                 slot: slot_of(leaf.origin),
-                content: LeafContent::Brick {
-                    index,
-                    active,
-                    hash,
-                },
+                content: LeafContent::Brick { index, hash },
             },
             &mut regions,
         );

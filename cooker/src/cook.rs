@@ -18,52 +18,86 @@ use crate::build::{build_frame, BuiltFrame, NonFinite};
 use crate::cluster;
 use crate::encode;
 use crate::pool::{ranges, Pool};
-use crate::report::CliError;
+use crate::errors::CliError;
 
 #[derive(clap::Args)]
 pub struct Args {
     /// VDB files, folders, frame patterns (smoke.####.vdb, smoke.%04d.vdb) or globs.
     #[arg(required = true, value_name = "INPUT")]
-    inputs: Vec<String>,
+    pub inputs: Vec<String>,
     /// Output asset file.
     #[arg(short, long, value_name = "OUT")]
-    output: PathBuf,
+    pub output: PathBuf,
     /// Brick payload: f32 (bit exact), f16, unorm8 (8 bit), bc4 (4 bit) or bc7 (2 bit per voxel).
     /// Default f32; with --max-error and no --format, the smallest that meets the error.
     #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
-    format: Option<String>,
+    pub format: Option<String>,
     /// Every voxel of every frame decodes within E of its source value: each brick takes the
     /// cheapest representation that meets E (tile, bc7, bc4, unorm8, f16, f32), starting at
     /// --format when one is given.
     #[arg(long, value_name = "E")]
-    max_error: Option<f32>,
+    pub max_error: Option<f32>,
     /// Quantization range of unorm8/bc4/bc7 bricks: each brick's own min/max, or one global range.
     #[arg(long, default_value = "brick", value_parser = ["brick", "global"])]
-    range: String,
+    pub range: String,
     /// BC7 encoder quality: ultra-fast, very-fast, fast, basic, slow.
     #[arg(long, default_value = "fast")]
-    bc7_quality: String,
+    pub bc7_quality: String,
     /// Grid to cook: a name, `name[N]` for duplicates, or `#N` (default: `density`, else the only float grid).
     #[arg(long)]
-    grid: Option<String>,
+    pub grid: Option<String>,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
     /// Accept gaps in the frame numbering.
     #[arg(long)]
-    allow_gaps: bool,
+    pub allow_gaps: bool,
     /// Cluster the low-variance bricks into K centroid bricks (k-means, L1 distance); lossy.
     #[arg(long, value_name = "K")]
-    clusters: Option<usize>,
+    pub clusters: Option<usize>,
     /// k-means iterations (with --clusters).
     #[arg(long, default_value_t = 5, value_name = "N")]
-    iterations: usize,
+    pub iterations: usize,
     /// Bricks whose normalized variance (variance / |mean|) exceeds T keep their own data.
     #[arg(long, default_value_t = 0.1, value_name = "T")]
-    variance_threshold: f32,
+    pub variance_threshold: f32,
     /// Replace NaN and ±Inf active values with VALUE (by default they are an error).
     #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
-    replace_non_finite: Option<f32>,
+    pub replace_non_finite: Option<f32>,
+    /// No progress line (set by commands that cook in memory and report progress themselves).
+    #[arg(skip)]
+    pub quiet: bool,
+}
+
+impl Args {
+    /// The options `vdbcook cook INPUTS -o OUTPUT` would have: f32, per-brick range, no
+    /// clustering. Used by commands that cook in memory (`render` of a VDB, `report`).
+    pub fn defaults(inputs: Vec<String>, output: PathBuf) -> Args {
+        Args {
+            inputs,
+            output,
+            format: None,
+            max_error: None,
+            range: "brick".into(),
+            bc7_quality: "fast".into(),
+            grid: None,
+            json: false,
+            allow_gaps: false,
+            clusters: None,
+            iterations: 5,
+            variance_threshold: 0.1,
+            replace_non_finite: None,
+            quiet: true,
+        }
+    }
+}
+
+/// A cook held in memory: the asset, its file bytes and the JSON document `cook --json` prints
+/// (without `seconds.write`, which only `run` knows).
+pub struct Cooked {
+    pub asset: Asset,
+    pub bytes: Vec<u8>,
+    pub doc: Value,
 }
 
 fn err(path: &Path, kind: ErrorKind, m: impl Into<String>) -> CliError {
@@ -182,6 +216,24 @@ impl Progress {
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
+    let Cooked {
+        bytes, mut doc, ..
+    } = cook(a)?;
+    let t = Instant::now();
+    write_atomically(&a.output, &bytes)?;
+    doc["seconds"]["write"] = json!(t.elapsed().as_secs_f64());
+    doc["seconds"]["total"] = json!(t0.elapsed().as_secs_f64());
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+    } else {
+        print_summary(&doc);
+    }
+    Ok(())
+}
+
+/// Cooks `a.inputs` with the options in `a`, in memory (nothing is written).
+pub fn cook(a: &Args) -> Result<Cooked, CliError> {
+    let t0 = Instant::now();
     let format = a
         .format
         .as_deref()
@@ -240,7 +292,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let mut first: Option<(Frame, Transform, f32, String)> = None;
     let mut infos = Vec::with_capacity(frames.len());
     let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
-    let progress = Progress::new(a.json, frames.len());
+    let progress = Progress::new(a.json || a.quiet, frames.len());
     let threads = rayon::current_num_threads().max(1);
     let chunk = (threads * 2).max(2);
     // Pipeline: while the frames of chunk k are read and built in parallel, chunk k-1 is added to
@@ -490,14 +542,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             .par_iter()
             .map(|uses| {
                 let mut fe = FrameErr::default();
-                for (b, mask) in uses {
+                for b in uses {
                     let o = &bricks[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
                     let d = &decoded[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
-                    for (n, (s, v)) in o.iter().zip(d).enumerate() {
+                    // Inactive voxels hold the background in the pool: a lossy payload that
+                    // moves them off it is an error too (a tracer samples them), counted as
+                    // `eval` counts it. The RMSE divides by the active voxel count.
+                    for (s, v) in o.iter().zip(d) {
                         let e = (*v as f64 - *s as f64).abs();
-                        if mask[n >> 6] >> (n & 63) & 1 == 1 {
-                            fe.sum_sq += e * e;
-                        }
+                        fe.sum_sq += e * e;
                         fe.max_abs = fe.max_abs.max(e);
                     }
                 }
@@ -566,9 +619,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .map_err(|e| CliError::Other(e.to_string()))?;
     st.encode += t.elapsed().as_secs_f64();
 
-    let t = Instant::now();
-    write_atomically(&a.output, &bytes)?;
-    st.write += t.elapsed().as_secs_f64();
 
     let active: u64 = asset.header.frames.iter().map(|f| f.active_voxels).sum();
     let sizes = section_sizes(&asset);
@@ -616,12 +666,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "peak_memory_bytes": peak_memory_bytes(),
         "seconds": {"total": t0.elapsed().as_secs_f64(), "read": st.read, "build": st.build, "dedup": st.dedup, "cluster": st.cluster, "encode": st.encode, "write": st.write},
     });
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
-    } else {
-        print_summary(&doc);
-    }
-    Ok(())
+    Ok(Cooked { asset, bytes, doc })
 }
 
 /// Reads and validates an asset, with errors naming the file once.

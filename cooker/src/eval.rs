@@ -11,7 +11,7 @@ use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, TILE_BIT};
 use vdbcook_vdb::sequence;
 use vdbcook_vdb::{ErrorKind, FloatGrid, TileLevel, VdbError};
 
-use crate::report::CliError;
+use crate::errors::CliError;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -85,7 +85,7 @@ impl ErrStats {
             self.max_abs = self.max_abs.max(e);
         }
     }
-    fn merge(&mut self, o: &ErrStats) {
+    pub fn merge(&mut self, o: &ErrStats) {
         self.compared += o.compared;
         self.active += o.active;
         self.sum_sq += o.sum_sq;

@@ -8,7 +8,7 @@ use serde_json::json;
 use vdbcook_asset::{LeafRef, EMPTY, TILE_BIT};
 
 use crate::cook::{section_sizes, topology_and_atlas};
-use crate::report::CliError;
+use crate::errors::CliError;
 
 #[derive(clap::Args)]
 pub struct Args {

@@ -5,7 +5,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 use vdbcook_vdb::{sequence, GridInfo, VdbFile};
 
-use crate::report::CliError;
+use crate::errors::CliError;
 
 #[derive(clap::Args)]
 pub struct Args {

@@ -8,11 +8,13 @@ mod cluster;
 mod cook;
 mod encode;
 mod eval;
+mod gpu;
 mod info;
 mod inspect;
 mod pool;
 mod render;
 mod report;
+mod errors;
 
 use clap::{Parser, Subcommand};
 
@@ -62,6 +64,16 @@ vdbcook render smoke.vdbc -o f10.png --frame 10 --mode scatter --width 1280 --he
 vdbcook render smoke.vdbc -o d.png --mode delta --spp 64 --camera 20,15,30,0,5,0,40 --json"
     )]
     Render(render::Args),
+    /// Cook an input across formats, clustering and error bounds; chart size, cook time and
+    /// trace time against error, with NanoVDB and vdb_render in the same run when installed.
+    #[command(
+        after_help = "Writes DIR/report.md (embedding the charts), report.json, report.csv, \
+size_vs_error.png, cook_time_vs_error.png, trace_time_vs_error.png and renders.png.\n\n\
+Examples:\n  vdbcook report fixtures/seq/smoke5 -o report/ --quick\n  \
+vdbcook report wdas_cloud.vdb -o wdas-report/ --json\n  \
+vdbcook report 'cache/smoke.####.vdb' -o r/ --tolerances 0.001,0.01 --mode density"
+    )]
+    Report(report::Args),
 }
 
 fn main() {
@@ -86,8 +98,9 @@ fn main() {
         Command::Info(a) => (a.json, info::run(a)),
         Command::Eval(a) => (a.json, eval::run(a)),
         Command::Render(a) => (a.json, render::run(a)),
+        Command::Report(a) => (a.json, report::run(a)),
     };
     if let Err(e) = result {
-        report::fail(json, &e);
+        errors::fail(json, &e);
     }
 }

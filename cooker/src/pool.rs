@@ -42,8 +42,8 @@ pub struct Pool {
     pub track_uses: bool,
     /// Unique bricks, 512 f32 each, in first-seen order.
     pub bricks: Vec<f32>,
-    /// Per frame, every brick use: (pool brick, active mask) — for per-frame error statistics.
-    pub uses: Vec<Vec<(u32, [u64; 8])>>,
+    /// Per frame, every brick use (pool brick index) — for per-frame error statistics.
+    pub uses: Vec<Vec<u32>>,
     brick_index: HashMap<u64, Vec<u32>, KeyIsHash>,
     pub tiles: Vec<f32>,
     tile_index: HashMap<u32, u32>,
@@ -78,7 +78,7 @@ impl Pool {
         TILE_BIT | idx
     }
 
-    fn brick(&mut self, values: &[f32; BRICK_VOXELS], active: &[u64; 8], hash: u64) -> u32 {
+    fn brick(&mut self, values: &[f32; BRICK_VOXELS], hash: u64) -> u32 {
         // Bitwise equality (so -0.0 and 0.0 differ, and NaN payloads are kept apart), as memcmp.
         let want: &[u32] = bytemuck::cast_slice(&values[..]);
         let bits = |s: &[f32]| -> bool { bytemuck::cast_slice::<f32, u32>(s) == want };
@@ -98,7 +98,7 @@ impl Pool {
         };
         if self.track_uses {
             if let Some(f) = self.uses.last_mut() {
-                f.push((b, *active));
+                f.push(b);
             }
         }
         b
@@ -145,16 +145,12 @@ impl Pool {
                                 self.source_tiles += 1;
                                 self.tile(v)
                             }
-                            LeafContent::Brick {
-                                index,
-                                active,
-                                hash,
-                            } => {
+                            LeafContent::Brick { index, hash } => {
                                 self.source_bricks += 1;
                                 let i = index as usize * BRICK_VOXELS;
                                 let values: &[f32; BRICK_VOXELS] =
                                     f.bricks[i..i + BRICK_VOXELS].try_into().expect("512");
-                                self.brick(values, &active, hash)
+                                self.brick(values, hash)
                             }
                         });
                     }

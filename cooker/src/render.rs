@@ -1,20 +1,25 @@
-//! `vdbcook render`: draws one frame of a cooked asset to a PNG with the CPU reference tracer
-//! (`vdbcook-trace`), so an asset can be looked at on any machine; the GPU backend joins when
-//! the runtime lands. `--json` reports the settings, camera and timing.
+//! `vdbcook render`: draws one frame of a cooked asset (or of VDB sources, cooked in memory
+//! losslessly first) to a PNG, with the CPU reference tracer (`vdbcook-trace`, any machine) or
+//! the GPU runtime (`vdbcook-runtime`, the code engines link). `--json` reports the settings,
+//! camera, backend and timing.
 
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde_json::json;
-use vdbcook_trace::{render, Camera, LengthUnit, Mode, RenderSettings};
+use vdbcook_asset::Asset;
+use vdbcook_trace::{Camera, LengthUnit, Mode, RenderSettings};
 
-use crate::report::CliError;
+use crate::cook;
+use crate::errors::CliError;
+use crate::gpu::Gpu;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The cooked asset (.vdbc).
-    #[arg(value_name = "ASSET")]
+    /// The cooked asset (.vdbc), or VDB sources (file, folder, frame pattern or glob), which
+    /// are cooked in memory (f32, lossless) first.
+    #[arg(value_name = "ASSET|VDB")]
     input: PathBuf,
     /// Output PNG (8-bit RGBA).
     #[arg(short, long, value_name = "OUT")]
@@ -26,9 +31,16 @@ pub struct Args {
     #[arg(long, default_value = "density",
           value_parser = ["density", "depth", "first-hit", "brick-hue", "steps", "scatter", "delta"])]
     mode: String,
-    /// Renderer: cpu (the reference tracer) or gpu (not built yet).
-    #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
+    /// Renderer: cpu (the reference tracer), gpu (the wgpu runtime on the default adapter), or
+    /// auto: gpu on a hardware adapter, else cpu.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
     backend: String,
+    /// Grid to cook when the input is VDB (default: `density`, else the only float grid).
+    #[arg(long)]
+    grid: Option<String>,
+    /// Accept gaps in the frame numbering (VDB input).
+    #[arg(long)]
+    allow_gaps: bool,
     #[arg(long, default_value_t = 640)]
     width: u32,
     #[arg(long, default_value_t = 360)]
@@ -97,7 +109,7 @@ fn numbers(what: &str, s: &str) -> Result<Vec<f64>, CliError> {
 }
 
 /// Whether `input` names VDB sources rather than an asset.
-fn looks_like_vdb(input: &Path) -> bool {
+pub fn looks_like_vdb(input: &Path) -> bool {
     let s = input.to_string_lossy();
     if input.is_dir() || s.contains('#') || s.contains('%') || s.contains('*') {
         return true;
@@ -112,6 +124,33 @@ fn looks_like_vdb(input: &Path) -> bool {
     std::fs::read(input)
         .map(|b| b.starts_with(&[0x20, 0x42, 0x44, 0x56]))
         .unwrap_or(false)
+}
+
+/// The camera from `--camera`, or the default framing of `frame`.
+pub fn camera(
+    spec: Option<&str>,
+    asset: &Asset,
+    frame: usize,
+    aspect: f64,
+) -> Result<Camera, CliError> {
+    match spec {
+        Some(c) => {
+            let v = numbers("camera", c)?;
+            if v.len() != 7 {
+                return Err(other(format!(
+                    "--camera takes 7 numbers (eye, look-at, fov), got {}",
+                    v.len()
+                )));
+            }
+            Ok(Camera {
+                eye: [v[0], v[1], v[2]],
+                look_at: [v[3], v[4], v[5]],
+                up: [0.0, 1.0, 0.0],
+                fov_y_deg: v[6],
+            })
+        }
+        None => Camera::framing(asset, frame, aspect).map_err(|e| other(e.to_string())),
+    }
 }
 
 fn settings(a: &Args) -> Result<RenderSettings, CliError> {
@@ -148,7 +187,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
     })
 }
 
-fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<(), CliError> {
+pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<(), CliError> {
     let fail =
         |e: &dyn std::fmt::Display| other(format!("{}: cannot write PNG: {e}", path.display()));
     let file = std::fs::File::create(path).map_err(|e| fail(&e))?;
@@ -162,45 +201,47 @@ fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<(), Cl
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
-    if a.backend == "gpu" {
-        return Err(other(
-            "the GPU backend is not built yet; use --backend cpu (the default)",
-        ));
-    }
-    if looks_like_vdb(&a.input) {
-        return Err(other(format!(
-            "{}: render reads cooked assets; cook it first: vdbcook cook {} -o x.vdbc, then \
-             vdbcook render x.vdbc -o {}",
-            a.input.display(),
-            a.input.display(),
-            a.output.display()
-        )));
-    }
     let s = settings(a)?;
-    let asset = crate::cook::load_asset(&a.input)?;
-    let at = |e: vdbcook_trace::TraceError| other(format!("{}: {e}", a.input.display()));
-    let camera = match &a.camera {
-        Some(c) => {
-            let v = numbers("camera", c)?;
-            if v.len() != 7 {
-                return Err(other(format!(
-                    "--camera takes 7 numbers (eye, look-at, fov), got {}",
-                    v.len()
-                )));
-            }
-            Camera {
-                eye: [v[0], v[1], v[2]],
-                look_at: [v[3], v[4], v[5]],
-                up: [0.0, 1.0, 0.0],
-                fov_y_deg: v[6],
-            }
-        }
-        None => {
-            Camera::framing(&asset, a.frame, a.width as f64 / a.height.max(1) as f64).map_err(at)?
-        }
+    // Open the GPU first: a missing adapter is reported before any cooking.
+    let gpu = match a.backend.as_str() {
+        "gpu" => Some(Gpu::open().map_err(other)?),
+        "auto" => Gpu::open().ok().filter(|g| !g.is_software()),
+        _ => None,
     };
+    let (asset, cooked_from) = if looks_like_vdb(&a.input) {
+        let mut c = cook::Args::defaults(
+            vec![a.input.to_string_lossy().into_owned()],
+            a.output.clone(),
+        );
+        c.grid = a.grid.clone();
+        c.allow_gaps = a.allow_gaps;
+        let t = Instant::now();
+        (cook::cook(&c)?.asset, Some(t.elapsed().as_secs_f64()))
+    } else {
+        (cook::load_asset(&a.input)?, None)
+    };
+    let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
+    let camera = camera(
+        a.camera.as_deref(),
+        &asset,
+        a.frame,
+        a.width as f64 / a.height.max(1) as f64,
+    )
+    .map_err(|e| at(&e))?;
     let t_render = Instant::now();
-    let image = render(&asset, &camera, &s).map_err(at)?;
+    let (image, backend, adapter, gpu_ms) = match &gpu {
+        Some(g) => {
+            let up = g.upload(&asset).map_err(|e| at(&e))?;
+            let r = g.render(&up, &camera, &s, 1).map_err(|e| at(&e))?;
+            (r.image, "gpu", Some(g.describe()), r.gpu_ms.first().copied())
+        }
+        None => (
+            vdbcook_trace::render(&asset, &camera, &s).map_err(|e| at(&e))?,
+            "cpu",
+            None,
+            None,
+        ),
+    };
     let render_seconds = t_render.elapsed().as_secs_f64();
     write_png(&a.output, image.width, image.height, &image.to_rgba8())?;
     let seconds = t0.elapsed().as_secs_f64();
@@ -208,13 +249,16 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let doc = json!({
             "output": a.output.display().to_string(),
             "asset": a.input.display().to_string(),
+            "cooked_in_memory_seconds": cooked_from,
             "mode": s.mode.name(),
             "frame": s.frame,
             "width": s.width,
             "height": s.height,
-            "backend": a.backend,
+            "backend": backend,
+            "adapter": adapter,
             "seconds": seconds,
             "render_seconds": render_seconds,
+            "gpu_ms": gpu_ms,
             "threads": rayon::current_num_threads(),
             "camera": {
                 "eye": camera.eye, "look_at": camera.look_at, "up": camera.up,
@@ -230,14 +274,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         });
         println!("{doc}");
     } else {
+        let on = adapter.map(|d| format!(" on {d}")).unwrap_or_default();
         println!(
-            "wrote {} ({}x{}, {}, frame {}, {} backend) in {:.3} s (render {:.3} s)",
+            "wrote {} ({}x{}, {}, frame {}, {backend} backend{on}) in {:.3} s (render {:.3} s)",
             a.output.display(),
             s.width,
             s.height,
             s.mode.name(),
             s.frame,
-            a.backend,
             seconds,
             render_seconds
         );

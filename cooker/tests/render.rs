@@ -1,6 +1,7 @@
 //! `vdbcook render` as a user runs it: cook the smoke fixture with the binary, render every
-//! mode to PNG (decoded back to check size, format and coverage), the `--json` keys, and the
-//! refusals (GPU backend, VDB input, bad frame, bad camera) exiting non-zero with a reason.
+//! mode to PNG (decoded back to check size, format and coverage), the `--json` keys, VDB input
+//! (cooked in memory: the same image as rendering the cooked asset), the GPU backend against the
+//! CPU reference, and the refusals (bad frame, bad camera) exiting non-zero with a reason.
 
 mod common;
 
@@ -146,8 +147,7 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let out = dir.path().join("x.png").display().to_string();
-    let cases: [(&[&str], &str); 5] = [
-        (&["--backend", "gpu"], "GPU backend is not built yet"),
+    let cases: [(&[&str], &str); 4] = [
         (&["--frame", "5"], "frame 5"),
         (&["--camera", "1,2,3"], "--camera takes 7 numbers"),
         (&["--step", "0"], "step"),
@@ -160,17 +160,95 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         assert_eq!(code, 1, "{extra:?}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
-    // VDB input: a clear "cook it first".
-    let (code, _, err) = vdbcook(&["render", "fixtures/seq/smoke5", "-o", &out]);
+    // VDB input that does not read: the reader's error, naming the file.
+    let (code, _, err) = vdbcook(&["render", "fixtures/nope.vdb", "-o", &out]);
     assert_eq!(code, 1);
-    assert!(err.contains("cook it first"), "{err}");
-    let (code, _, err) = vdbcook(&[
-        "render",
-        "fixtures/seq/smoke5/smoke.0001.vdb",
-        "-o",
-        &out,
-        "--json",
-    ]);
-    assert_eq!(code, 1);
-    assert!(err.contains("cook it first"), "{err}");
+    assert!(err.contains("nope.vdb"), "{err}");
+    assert!(!Path::new(&out).exists(), "no PNG after a failure");
+}
+
+#[test]
+fn vdb_input_is_cooked_in_memory_and_renders_as_its_asset_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let a = dir.path().join("a.png");
+    let b = dir.path().join("b.png");
+    for (input, out) in [(asset.as_str(), &a), ("fixtures/seq/smoke5", &b)] {
+        let (code, _, err) = vdbcook(&[
+            "render",
+            input,
+            "-o",
+            out.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--frame",
+            "3",
+            "--mode",
+            "scatter",
+            "--width",
+            "96",
+            "--height",
+            "64",
+        ]);
+        assert_eq!(code, 0, "{input}: {err}");
+    }
+    let (pa, pb) = (read_png(&a), read_png(&b));
+    assert!(pa.2.iter().any(|&v| v > 0 && v < 255), "an image with content");
+    assert_eq!(pa, pb, "VDB input renders exactly as the cooked asset");
+}
+
+/// Whether a GPU test must run (CI sets VDBCOOK_REQUIRE_GPU=1) or may skip when there is none.
+fn gpu_required() -> bool {
+    std::env::var_os("VDBCOOK_REQUIRE_GPU").is_some_and(|v| v != "0")
+}
+
+#[test]
+fn gpu_backend_draws_what_the_cpu_reference_draws() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    for mode in ["density", "first-hit", "scatter"] {
+        let mut pngs = Vec::new();
+        for backend in ["cpu", "gpu"] {
+            let out = dir.path().join(format!("{mode}-{backend}.png"));
+            let (code, stdout, err) = vdbcook(&[
+                "render",
+                &asset,
+                "-o",
+                out.to_str().unwrap(),
+                "--backend",
+                backend,
+                "--mode",
+                mode,
+                "--frame",
+                "2",
+                "--width",
+                "128",
+                "--height",
+                "96",
+                "--json",
+            ]);
+            if backend == "gpu" && code != 0 && !gpu_required() && err.contains("no GPU adapter") {
+                eprintln!("skipping: {err}");
+                return;
+            }
+            assert_eq!(code, 0, "{mode} {backend}: {err}");
+            let doc: Value = serde_json::from_str(&stdout).unwrap();
+            assert_eq!(doc["backend"], backend);
+            if backend == "gpu" {
+                assert!(doc["adapter"].is_string(), "{doc}");
+            }
+            pngs.push(read_png(&out));
+        }
+        let (cpu, gpu) = (&pngs[0].2, &pngs[1].2);
+        assert_eq!(cpu.len(), gpu.len());
+        let lit = cpu.chunks(4).filter(|p| p[3] > 0 && p[0] > 8).count();
+        assert!(lit > cpu.len() / 4 / 20, "{mode}: the volume fills part of the frame ({lit} px)");
+        let max = cpu
+            .iter()
+            .zip(gpu.iter())
+            .map(|(a, b)| (*a as i32 - *b as i32).abs())
+            .max()
+            .unwrap();
+        assert!(max <= 2, "{mode}: GPU and CPU PNGs differ by {max}/255");
+    }
 }

@@ -1,0 +1,260 @@
+//! The GPU side of the CLI (`render --backend gpu`, the GPU trace times of `report`): opens the
+//! default adapter headless, uploads an asset through the runtime crate (`vdbcook-runtime`, the
+//! same calls an engine makes), renders into a buffer target and reads the image back as a
+//! `vdbcook_trace::Image`, so GPU and CPU images compare directly. Times come from timestamp
+//! queries around the runtime's pass when the adapter has them, and from submit-to-idle wall
+//! time always.
+//!
+//! Built with the `gpu` feature (on by default); without it `open` says so.
+
+use vdbcook_asset::Asset;
+use vdbcook_trace::{Camera, Image, RenderSettings};
+
+/// One rendered image and its times (one entry per timed run, after one warm-up).
+pub struct GpuRender {
+    pub image: Image,
+    /// GPU time of the runtime's pass (timestamp queries), ms; empty without the feature.
+    pub gpu_ms: Vec<f64>,
+    /// Submit-and-wait wall time, ms.
+    pub wall_ms: Vec<f64>,
+}
+
+#[cfg(feature = "gpu")]
+mod imp {
+    use std::time::Instant;
+
+    use vdbcook_runtime::{GpuVolume, Renderer};
+
+    use super::*;
+
+    /// An open device and what it is.
+    pub struct Gpu {
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: wgpu::AdapterInfo,
+        timestamps: bool,
+    }
+
+    /// An asset on the device, ready to render.
+    pub struct Uploaded {
+        volume: GpuVolume,
+        renderer: Renderer,
+    }
+
+    impl Uploaded {
+        /// Bytes of the payload and tree on the device.
+        pub fn gpu_bytes(&self) -> u64 {
+            self.volume.gpu_bytes()
+        }
+        /// How the payload was laid out (the runtime's choice for this adapter).
+        pub fn layout(&self) -> String {
+            format!("{:?}", self.volume.layout())
+        }
+    }
+
+    impl Gpu {
+        /// The default adapter (high performance), with timestamp queries and BC textures
+        /// when it has them. An error (not a panic) when there is none.
+        pub fn open() -> Result<Gpu, String> {
+            let instance =
+                wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+            let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                ..Default::default()
+            }))
+            .map_err(|e| {
+                format!(
+                    "no GPU adapter ({e}); on Linux install mesa-vulkan-drivers for a software \
+                     one, or use --backend cpu"
+                )
+            })?;
+            let wanted = wgpu::Features::TIMESTAMP_QUERY
+                | wgpu::Features::TEXTURE_COMPRESSION_BC
+                | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D;
+            let features = adapter.features() & wanted;
+            let (device, queue) =
+                pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                    label: Some("vdbcook"),
+                    required_limits: adapter.limits(),
+                    required_features: features,
+                    ..Default::default()
+                }))
+                .map_err(|e| format!("cannot open the GPU device: {e}"))?;
+            Ok(Gpu {
+                device,
+                queue,
+                info: adapter.get_info(),
+                timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            })
+        }
+
+        /// The adapter's name and backend, marked when it is a software rasterizer.
+        pub fn describe(&self) -> String {
+            let soft = if self.is_software() {
+                ", software"
+            } else {
+                ""
+            };
+            format!("{} ({:?}{soft})", self.info.name, self.info.backend)
+        }
+
+        /// Whether the adapter runs on the CPU (lavapipe, WARP, SwiftShader).
+        pub fn is_software(&self) -> bool {
+            self.info.device_type == wgpu::DeviceType::Cpu
+        }
+
+        pub fn upload(&self, asset: &Asset) -> Result<Uploaded, String> {
+            let volume = GpuVolume::upload(&self.device, &self.queue, asset)
+                .map_err(|e| format!("GPU upload: {e}"))?;
+            let renderer = Renderer::new(&self.device, &volume, wgpu::TextureFormat::Rgba8Unorm)
+                .map_err(|e| format!("GPU renderer: {e}"))?;
+            Ok(Uploaded { volume, renderer })
+        }
+
+        /// Renders `settings.frame` once to warm up, then `runs` timed times; returns the last
+        /// image.
+        pub fn render(
+            &self,
+            up: &Uploaded,
+            camera: &Camera,
+            settings: &RenderSettings,
+            runs: usize,
+        ) -> Result<GpuRender, String> {
+            let (w, h) = (settings.width, settings.height);
+            let target = up
+                .renderer
+                .buffer_target(&self.device, w, h)
+                .map_err(|e| format!("GPU target: {e}"))?;
+            let queries = self.timestamps.then(|| {
+                let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("vdbcook timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2,
+                });
+                let buffer = |usage| {
+                    self.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("vdbcook timestamps"),
+                        size: 16,
+                        usage,
+                        mapped_at_creation: false,
+                    })
+                };
+                let resolve =
+                    buffer(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC);
+                let read = buffer(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+                (set, resolve, read)
+            });
+            let period = self.queue.get_timestamp_period() as f64;
+            let (mut gpu_ms, mut wall_ms) = (Vec::new(), Vec::new());
+            for run in 0..=runs {
+                let start = Instant::now();
+                let mut encoder = self.device.create_command_encoder(&Default::default());
+                // Empty passes that only write a timestamp bracket the runtime's own pass.
+                let stamp = |encoder: &mut wgpu::CommandEncoder, begin: bool| {
+                    if let Some((set, _, _)) = &queries {
+                        let _ = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("timestamp"),
+                            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                                query_set: set,
+                                beginning_of_pass_write_index: begin.then_some(0),
+                                end_of_pass_write_index: (!begin).then_some(1),
+                            }),
+                        });
+                    }
+                };
+                stamp(&mut encoder, true);
+                up.renderer
+                    .render_to_buffer(
+                        &self.queue,
+                        &mut encoder,
+                        &target,
+                        settings.frame,
+                        camera,
+                        settings,
+                    )
+                    .map_err(|e| e.to_string())?;
+                stamp(&mut encoder, false);
+                if let Some((set, resolve, read)) = &queries {
+                    encoder.resolve_query_set(set, 0..2, resolve, 0);
+                    encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16);
+                }
+                self.queue.submit([encoder.finish()]);
+                if let Some((_, _, read)) = &queries {
+                    read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+                }
+                self.device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .map_err(|e| format!("GPU: {e}"))?;
+                let wall = start.elapsed().as_secs_f64() * 1e3;
+                if let Some((_, _, read)) = &queries {
+                    let ticks: Option<[u64; 2]> = read.slice(..).get_mapped_range().ok().map(|d| {
+                        [0, 1].map(|i| {
+                            u64::from_le_bytes(d[8 * i..8 * i + 8].try_into().expect("8 bytes"))
+                        })
+                    });
+                    read.unmap();
+                    if let (Some(t), true) = (ticks, run > 0) {
+                        gpu_ms.push(t[1].wrapping_sub(t[0]) as f64 * period * 1e-6);
+                    }
+                }
+                if run > 0 {
+                    wall_ms.push(wall);
+                }
+            }
+            let r = target.read(&self.device, &self.queue);
+            Ok(GpuRender {
+                image: Image {
+                    width: r.width,
+                    height: r.height,
+                    rgba: r.rgba,
+                    value: r.value,
+                },
+                gpu_ms,
+                wall_ms,
+            })
+        }
+    }
+}
+
+#[cfg(not(feature = "gpu"))]
+mod imp {
+    use super::*;
+
+    pub struct Gpu;
+    pub struct Uploaded;
+
+    impl Uploaded {
+        pub fn gpu_bytes(&self) -> u64 {
+            0
+        }
+        pub fn layout(&self) -> String {
+            String::new()
+        }
+    }
+
+    impl Gpu {
+        pub fn open() -> Result<Gpu, String> {
+            Err("this vdbcook was built without the `gpu` feature; use --backend cpu".into())
+        }
+        pub fn describe(&self) -> String {
+            String::new()
+        }
+        pub fn is_software(&self) -> bool {
+            true
+        }
+        pub fn upload(&self, _: &Asset) -> Result<Uploaded, String> {
+            Err("built without the `gpu` feature".into())
+        }
+        pub fn render(
+            &self,
+            _: &Uploaded,
+            _: &Camera,
+            _: &RenderSettings,
+            _: usize,
+        ) -> Result<GpuRender, String> {
+            Err("built without the `gpu` feature".into())
+        }
+    }
+}
+
+pub use imp::Gpu;

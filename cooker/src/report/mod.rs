@@ -1,0 +1,1034 @@
+//! `vdbcook report`: cooks one input across a matrix of configurations (payload formats,
+//! clustering, `--max-error` tolerances), measures each one's size, voxel error, image error,
+//! cook time and trace time (CPU reference always, GPU when an adapter exists), runs the peers
+//! that are installed (NanoVDB quantization, `vdb_render`) on the same input, and writes charts
+//! of speed against accuracy, a side-by-side figure of renders with error images, and the rows
+//! as JSON, CSV and Markdown. Everything is computed before DIR is touched: a failure leaves
+//! nothing behind.
+
+mod chart;
+mod peers;
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+use serde_json::{json, Value};
+use vdbcook_trace::{Camera, Image, Mode, RenderSettings};
+use vdbcook_vdb::sequence;
+
+use crate::cook;
+use crate::errors::CliError;
+use crate::gpu::Gpu;
+use chart::{Point, Series, Tile, PALETTE};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// VDB files, folders, frame patterns (smoke.####.vdb) or globs: one sequence.
+    #[arg(required = true, value_name = "INPUT")]
+    inputs: Vec<String>,
+    /// Output folder (created; report.md, report.json, report.csv and the PNGs go there).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Grid to cook (default: `density`, else the only float grid).
+    #[arg(long)]
+    grid: Option<String>,
+    /// A small matrix (each format, one clustering, one tolerance), smaller renders, one run.
+    #[arg(long)]
+    quick: bool,
+    /// Print the rows as one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Accept gaps in the frame numbering.
+    #[arg(long)]
+    allow_gaps: bool,
+    /// Frame rendered for image error and trace time (0-based).
+    #[arg(long, default_value_t = 0)]
+    frame: usize,
+    /// Deterministic render mode for image error and trace time (scatter is what vdb_render
+    /// draws, so its time is comparable).
+    #[arg(long, default_value = "scatter", value_parser = ["scatter", "density", "first-hit", "depth"])]
+    mode: String,
+    /// Render width (default 640; 320 with --quick).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Render height (default 360; 180 with --quick).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Timed renders per configuration; the median is reported (default 3; 1 with --quick).
+    #[arg(long)]
+    runs: Option<usize>,
+    /// `--max-error` tolerances as fractions of the value range (default 0.002,0.01,0.05;
+    /// 0.01 with --quick).
+    #[arg(long, value_delimiter = ',', value_name = "F,F,...")]
+    tolerances: Option<Vec<f64>>,
+    /// Skip the GPU trace times.
+    #[arg(long)]
+    no_gpu: bool,
+    /// Skip the peers (nanovdb_convert, vdb_render) even when installed.
+    #[arg(long)]
+    no_peers: bool,
+}
+
+fn other(m: impl Into<String>) -> CliError {
+    CliError::Other(m.into())
+}
+
+/// One cook configuration.
+struct Config {
+    label: String,
+    format: Option<&'static str>,
+    clusters: Option<(usize, f32)>,
+    /// As a fraction of the value range (resolved once the range is known).
+    tolerance: Option<f64>,
+    /// Chart series: 0 formats, 1 clustered, 2 max-error.
+    series: usize,
+}
+
+fn matrix(quick: bool, tolerances: &[f64]) -> Vec<Config> {
+    let mut v: Vec<Config> = ["f32", "f16", "unorm8", "bc4", "bc7"]
+        .iter()
+        .map(|f| Config {
+            label: f.to_string(),
+            format: Some(f),
+            clusters: None,
+            tolerance: None,
+            series: 0,
+        })
+        .collect();
+    let clusterings: &[(usize, f32)] = if quick {
+        &[(64, 0.1)]
+    } else {
+        &[(64, 0.1), (256, 0.5)]
+    };
+    for &(k, t) in clusterings {
+        v.push(Config {
+            label: format!("f16 k={k} T={t}"),
+            format: Some("f16"),
+            clusters: Some((k, t)),
+            tolerance: None,
+            series: 1,
+        });
+    }
+    for &e in tolerances {
+        v.push(Config {
+            label: format!("E={e}r"),
+            format: None,
+            clusters: None,
+            tolerance: Some(e),
+            series: 2,
+        });
+    }
+    if !quick {
+        if let Some(&e) = tolerances.get(tolerances.len() / 2) {
+            v.push(Config {
+                label: format!("E={e}r k=256"),
+                format: None,
+                clusters: Some((256, 0.5)),
+                tolerance: Some(e),
+                series: 2,
+            });
+        }
+    }
+    v
+}
+
+/// One configuration's measurements (the `--json` rows; the first keys are the CLI contract).
+#[derive(Serialize, Clone)]
+pub struct Row {
+    pub format: String,
+    pub clusters: Option<usize>,
+    pub max_error: Option<f64>,
+    pub bytes_gpu: u64,
+    pub bytes_file: u64,
+    pub bits_per_active_voxel: f64,
+    pub rmse: f64,
+    pub psnr_db: Option<f64>,
+    pub max_abs: f64,
+    pub image_rmse: f64,
+    pub cook_seconds: f64,
+    pub trace_ms_cpu: f64,
+    pub trace_ms_gpu: Option<f64>,
+    /// A short name for charts and tables.
+    pub label: String,
+    pub variance_threshold: Option<f32>,
+    pub bits_per_active_voxel_gpu: f64,
+    pub image_max_abs: f64,
+    /// Cook stages in seconds (read, build, dedup, cluster, encode).
+    pub cook_stages: Value,
+    /// Bricks stored per representation (tile, bc7, bc4, unorm8, f16, f32).
+    pub representations: Value,
+    /// What the runtime put on the GPU for this asset (bytes and layout), when measured.
+    pub gpu_upload_bytes: Option<u64>,
+    pub gpu_layout: Option<String>,
+}
+
+/// A peer's measurements, in the rows' units.
+#[derive(Serialize, Clone)]
+pub struct PeerRow {
+    pub tool: String,
+    pub config: String,
+    pub bytes_file: Option<u64>,
+    pub bytes_gpu: Option<u64>,
+    pub bits_per_active_voxel: Option<f64>,
+    pub bits_per_active_voxel_gpu: Option<f64>,
+    pub rmse: Option<f64>,
+    pub psnr_db: Option<f64>,
+    pub max_abs: Option<f64>,
+    pub image_rmse: Option<f64>,
+    pub cook_seconds: Option<f64>,
+    pub trace_ms_cpu: Option<f64>,
+}
+
+/// A progress bar on a terminal, a line per step otherwise (silent under `--json` unless on a
+/// terminal).
+struct Progress {
+    total: usize,
+    done: usize,
+    tty: bool,
+    on: bool,
+    start: Instant,
+}
+
+impl Progress {
+    fn new(total: usize, json: bool) -> Self {
+        let tty = std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
+        Progress {
+            total,
+            done: 0,
+            tty,
+            on: tty || !json,
+            start: Instant::now(),
+        }
+    }
+    fn step(&mut self, what: &str) {
+        if !self.on {
+            return;
+        }
+        let t = self.start.elapsed().as_secs_f64();
+        if self.tty {
+            let n = 24;
+            let f = (self.done * n) / self.total.max(1);
+            eprint!(
+                "\r  [{}{}] {}/{} {:<40.40} {t:6.1} s",
+                "#".repeat(f),
+                "-".repeat(n - f),
+                self.done,
+                self.total,
+                what
+            );
+            let _ = std::io::stderr().flush();
+        } else {
+            eprintln!("  [{}/{}] {what} ({t:.1} s)", self.done + 1, self.total);
+        }
+        self.done += 1;
+    }
+    fn finish(&self) {
+        if self.on && self.tty {
+            eprintln!(
+                "\r  [{}] {}/{} done in {:.1} s{}",
+                "#".repeat(24),
+                self.total,
+                self.total,
+                self.start.elapsed().as_secs_f64(),
+                " ".repeat(30)
+            );
+        }
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// RMSE and max |Δ| over the RGB channels of two RGBA images (linear display values).
+fn image_error(a: &Image, b: &Image) -> (f64, f64) {
+    let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0u64);
+    for (p, q) in a.rgba.chunks_exact(4).zip(b.rgba.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = p[c] as f64 - q[c] as f64;
+            sum += d * d;
+            max = max.max(d.abs());
+            n += 1;
+        }
+    }
+    ((sum / n.max(1) as f64).sqrt(), max)
+}
+
+/// The CPU reference render, `runs` times (after no warm-up: the tracer has no caches that
+/// outlive a call); the median in ms and the image.
+fn cpu_trace(
+    asset: &vdbcook_asset::Asset,
+    camera: &Camera,
+    s: &RenderSettings,
+    runs: usize,
+) -> Result<(f64, Image), CliError> {
+    let mut times = Vec::new();
+    let mut img = None;
+    for _ in 0..runs.max(1) {
+        let t = Instant::now();
+        img = Some(vdbcook_trace::render(asset, camera, s).map_err(|e| other(e.to_string()))?);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok((median(times), img.expect("one run")))
+}
+
+fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    format!(
+        "{cpu}, {cores} cores ({} threads used), {}",
+        rayon::current_num_threads(),
+        std::env::consts::OS
+    )
+}
+
+/// Halves an RGB8 image (2×2 box) until it is at most `max_w` wide.
+fn shrink(mut rgb: Vec<u8>, mut w: u32, mut h: u32, max_w: u32) -> (Vec<u8>, u32, u32) {
+    while w > max_w && w >= 2 && h >= 2 {
+        let (nw, nh) = (w / 2, h / 2);
+        let mut out = vec![0u8; (nw * nh * 3) as usize];
+        for y in 0..nh {
+            for x in 0..nw {
+                for c in 0..3 {
+                    let at = |xx: u32, yy: u32| rgb[((yy * w + xx) * 3 + c) as usize] as u32;
+                    let s = at(2 * x, 2 * y)
+                        + at(2 * x + 1, 2 * y)
+                        + at(2 * x, 2 * y + 1)
+                        + at(2 * x + 1, 2 * y + 1);
+                    out[((y * nw + x) * 3 + c) as usize] = ((s + 2) / 4) as u8;
+                }
+            }
+        }
+        (rgb, w, h) = (out, nw, nh);
+    }
+    (rgb, w, h)
+}
+
+fn fmt_opt(v: Option<f64>, p: usize) -> String {
+    v.filter(|x| x.is_finite())
+        .map(|x| format!("{x:.p$}"))
+        .unwrap_or_else(|| "–".into())
+}
+
+fn sci(v: f64) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else {
+        format!("{v:.2e}")
+    }
+}
+
+fn csv_field(v: &Value) -> String {
+    match v {
+        Value::Null => String::new(),
+        Value::String(s) => {
+            if s.contains([',', '"', '\n']) {
+                format!("\"{}\"", s.replace('"', "\"\""))
+            } else {
+                s.clone()
+            }
+        }
+        other => other.to_string(),
+    }
+}
+
+/// The rows as CSV: the contract keys first, then label, threshold, GPU bits, image max.
+fn to_csv(rows: &[Row]) -> String {
+    let keys = [
+        "label",
+        "format",
+        "clusters",
+        "variance_threshold",
+        "max_error",
+        "bytes_gpu",
+        "bytes_file",
+        "bits_per_active_voxel",
+        "bits_per_active_voxel_gpu",
+        "rmse",
+        "psnr_db",
+        "max_abs",
+        "image_rmse",
+        "image_max_abs",
+        "cook_seconds",
+        "trace_ms_cpu",
+        "trace_ms_gpu",
+        "gpu_upload_bytes",
+    ];
+    let mut s = keys.join(",") + "\n";
+    for r in rows {
+        let v = serde_json::to_value(r).expect("row json");
+        let line: Vec<String> = keys.iter().map(|k| csv_field(&v[*k])).collect();
+        s += &line.join(",");
+        s += "\n";
+    }
+    s
+}
+
+fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), CliError> {
+    let p = dir.join(name);
+    let tmp = dir.join(format!(".{name}.tmp"));
+    std::fs::write(&tmp, bytes)
+        .and_then(|_| std::fs::rename(&tmp, &p))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            other(format!("{}: cannot write: {e}", p.display()))
+        })
+}
+
+pub fn run(a: &Args) -> Result<(), CliError> {
+    let t_all = Instant::now();
+    let quick = a.quick;
+    let (w, h) = (
+        a.width.unwrap_or(if quick { 320 } else { 640 }),
+        a.height.unwrap_or(if quick { 180 } else { 360 }),
+    );
+    let runs = a.runs.unwrap_or(if quick { 1 } else { 3 }).max(1);
+    let tolerances = a.tolerances.clone().unwrap_or_else(|| {
+        if quick {
+            vec![0.01]
+        } else {
+            vec![0.002, 0.01, 0.05]
+        }
+    });
+    if let Some(t) = tolerances.iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+        return Err(other(format!(
+            "--tolerances: {t} is not a positive fraction of the value range"
+        )));
+    }
+    if a.output.exists() && !a.output.is_dir() {
+        return Err(other(format!(
+            "{}: exists and is not a folder",
+            a.output.display()
+        )));
+    }
+    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    if a.frame >= frames.len() {
+        return Err(other(format!(
+            "--frame {} is out of range: the input has {} frame(s)",
+            a.frame,
+            frames.len()
+        )));
+    }
+    let mode = Mode::parse(&a.mode).expect("clap checked");
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        mode,
+        frame: a.frame,
+        ..Default::default()
+    };
+    settings
+        .validate(frames.len())
+        .map_err(|e| other(format!("render settings: {e}")))?;
+    let configs = matrix(quick, &tolerances);
+
+    // Peers and GPU: decided up front so the progress total is right.
+    let mut notes: Vec<String> = Vec::new();
+    let gpu = if a.no_gpu {
+        notes.push("GPU trace times: skipped (--no-gpu).".into());
+        None
+    } else {
+        match Gpu::open() {
+            Ok(g) => Some(g),
+            Err(e) => {
+                notes.push(format!("GPU trace times: skipped ({e})."));
+                None
+            }
+        }
+    };
+    let nano = !a.no_peers && peers::available("nanovdb_convert");
+    let vdbr = !a.no_peers && mode == Mode::SingleScatter && peers::available("vdb_render");
+    if a.no_peers {
+        notes.push("Peers: skipped (--no-peers).".into());
+    } else {
+        if !nano {
+            notes.push("NanoVDB: skipped (nanovdb_convert not found; Debian: libnanovdb-tools).".into());
+        }
+        if mode != Mode::SingleScatter {
+            notes.push("vdb_render: skipped (it draws single scatter; use --mode scatter).".into());
+        } else if !vdbr {
+            notes.push("vdb_render: skipped (not found; Debian: libopenvdb-tools).".into());
+        }
+    }
+    let nano_cfgs: Vec<(String, Vec<String>, Option<f64>)> = if nano {
+        let mut v: Vec<(String, Vec<String>, Option<f64>)> = ["fp4", "fp8", "fp16"]
+            .iter()
+            .map(|f| (f.replace("fp", "Fp"), vec![format!("--{f}")], None))
+            .collect();
+        for &t in &tolerances {
+            v.push((format!("FpN E={t}r"), vec!["--fpN".into()], Some(t)));
+        }
+        v
+    } else {
+        Vec::new()
+    };
+    let mut progress = Progress::new(
+        configs.len() + nano_cfgs.len() + vdbr as usize + 1,
+        a.json,
+    );
+
+    // The f32 cook is the reference: its render is what image errors are measured against.
+    let mut rows: Vec<Row> = Vec::new();
+    let mut images: Vec<Image> = Vec::new();
+    let mut camera: Option<Camera> = None;
+    let mut value_range = 0.0f64;
+    let mut active = 0u64;
+    let mut grid_name = String::new();
+    let mut gpu_layouts = Vec::new();
+    for c in &configs {
+        progress.step(&format!("cook + trace {}", c.label));
+        let mut ca = cook::Args::defaults(a.inputs.clone(), a.output.join("x.vdbc"));
+        ca.grid = a.grid.clone();
+        ca.allow_gaps = a.allow_gaps;
+        ca.format = c.format.map(str::to_string);
+        if let Some((k, t)) = c.clusters {
+            ca.clusters = Some(k);
+            ca.variance_threshold = t;
+        }
+        let max_error = c.tolerance.map(|t| t * value_range);
+        ca.max_error = max_error.map(|e| e as f32);
+        let cooked = cook::cook(&ca)?;
+        let d = &cooked.doc;
+        if camera.is_none() {
+            // The reference (f32) cook.
+            let r = cooked
+                .asset
+                .frame_ranges
+                .iter()
+                .fold([f32::INFINITY, f32::NEG_INFINITY], |m, r| {
+                    [m[0].min(r[0]), m[1].max(r[1])]
+                });
+            value_range = if r[1] > r[0] {
+                (r[1] - r[0]) as f64
+            } else {
+                1.0
+            };
+            active = d["active_voxels"].as_u64().unwrap_or(0);
+            grid_name = cooked.asset.header.grid_name.clone();
+            camera = Some(
+                Camera::framing(&cooked.asset, a.frame, w as f64 / h as f64)
+                    .map_err(|e| other(format!("{}: {e}", a.inputs[0])))?,
+            );
+        }
+        let cam = camera.as_ref().expect("set by the first cook");
+        let (cpu_ms, img) = cpu_trace(&cooked.asset, cam, &settings, runs)?;
+        let (mut gpu_ms, mut up_bytes, mut layout) = (None, None, None);
+        if let Some(g) = &gpu {
+            let up = g
+                .upload(&cooked.asset)
+                .map_err(|e| other(format!("{}: {e}", c.label)))?;
+            let r = g
+                .render(&up, cam, &settings, runs)
+                .map_err(|e| other(format!("{}: {e}", c.label)))?;
+            gpu_ms = Some(if r.gpu_ms.is_empty() {
+                median(r.wall_ms)
+            } else {
+                median(r.gpu_ms)
+            });
+            up_bytes = Some(up.gpu_bytes());
+            layout = Some(up.layout());
+            gpu_layouts.push(format!("{}: {}", c.label, up.layout()));
+        }
+        let (im_rmse, im_max) = match images.first() {
+            Some(reference) => image_error(&img, reference),
+            None => (0.0, 0.0),
+        };
+        let num = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+        let bytes = &d["bytes"];
+        let gpu_b = bytes["topology"].as_u64().unwrap_or(0) + bytes["atlas"].as_u64().unwrap_or(0);
+        let s = &d["seconds"];
+        rows.push(Row {
+            format: c.format.unwrap_or("auto").to_string(),
+            clusters: d["clustering"]["clusters"].as_u64().map(|k| k as usize),
+            max_error,
+            bytes_gpu: gpu_b,
+            bytes_file: bytes["file"].as_u64().unwrap_or(0),
+            bits_per_active_voxel: num(&d["bits_per_active_voxel"]),
+            rmse: num(&d["error"]["rmse"]),
+            psnr_db: d["error"]["psnr_db"].as_f64(),
+            max_abs: num(&d["error"]["max_abs"]),
+            image_rmse: im_rmse,
+            cook_seconds: s["total"].as_f64().unwrap_or(f64::NAN),
+            trace_ms_cpu: cpu_ms,
+            trace_ms_gpu: gpu_ms,
+            label: c.label.clone(),
+            variance_threshold: c.clusters.map(|(_, t)| t),
+            bits_per_active_voxel_gpu: num(&d["bits_per_active_voxel_gpu"]),
+            image_max_abs: im_max,
+            cook_stages: json!({"read": s["read"], "build": s["build"], "dedup": s["dedup"],
+                                "cluster": s["cluster"], "encode": s["encode"]}),
+            representations: d["representations"].clone(),
+            gpu_upload_bytes: up_bytes,
+            gpu_layout: layout,
+        });
+        images.push(img);
+    }
+    let camera = camera.expect("at least one configuration");
+    let reference = &images[0];
+
+    // Peers.
+    let scratch = peers::Scratch::new("report").map_err(|e| other(format!("temp dir: {e}")))?;
+    let mut peer_rows: Vec<PeerRow> = Vec::new();
+    let bpv = |b: u64| {
+        if active > 0 {
+            b as f64 * 8.0 / active as f64
+        } else {
+            f64::NAN
+        }
+    };
+    for (name, opts, tol) in &nano_cfgs {
+        progress.step(&format!("nanovdb_convert {name}"));
+        let mut o = opts.clone();
+        if let Some(t) = tol {
+            o.push("-a".into());
+            o.push(format!("{}", t * value_range));
+        }
+        match peers::nanovdb(
+            &frames,
+            a.grid.as_deref(),
+            &grid_name,
+            name,
+            &o,
+            &scratch.0,
+        ) {
+            Ok(r) => {
+                if r.err.is_none() {
+                    notes.push(format!(
+                        "NanoVDB {name}: the round trip (nvdb → vdb) could not be compared with the source; no error figure."
+                    ));
+                }
+                peer_rows.push(PeerRow {
+                    tool: "nanovdb".into(),
+                    config: r.config,
+                    bytes_file: Some(r.bytes),
+                    bytes_gpu: Some(r.bytes),
+                    bits_per_active_voxel: Some(bpv(r.bytes)),
+                    bits_per_active_voxel_gpu: Some(bpv(r.bytes)),
+                    rmse: r.err.map(|e| e.rmse()),
+                    psnr_db: r.err.and_then(|e| e.psnr_db()),
+                    max_abs: r.err.map(|e| e.max_abs),
+                    image_rmse: None,
+                    cook_seconds: Some(r.seconds),
+                    trace_ms_cpu: None,
+                });
+            }
+            Err(e) => notes.push(format!("NanoVDB {name}: failed ({e}).")),
+        }
+    }
+    let mut vdbr_rgb = None;
+    if vdbr {
+        progress.step("vdb_render");
+        let args = peers::vdb_render_args(&camera, &settings, &grid_name);
+        match peers::vdb_render(&frames[a.frame].path, &args, runs, &scratch.0) {
+            Ok(r) => {
+                // Against our f32 render as 8-bit RGB (vdb_render writes 8-bit PPM).
+                let ours = reference.to_rgba8();
+                let (mut sum, mut n) = (0.0f64, 0u64);
+                for (p, q) in ours.chunks_exact(4).zip(r.rgb.chunks_exact(3)) {
+                    for c in 0..3 {
+                        let d = (p[c] as f64 - q[c] as f64) / 255.0;
+                        sum += d * d;
+                        n += 1;
+                    }
+                }
+                peer_rows.push(PeerRow {
+                    tool: "vdb_render".into(),
+                    config: "source VDB, single scatter".into(),
+                    bytes_file: None,
+                    bytes_gpu: None,
+                    bits_per_active_voxel: None,
+                    bits_per_active_voxel_gpu: None,
+                    rmse: Some(0.0),
+                    psnr_db: None,
+                    max_abs: Some(0.0),
+                    image_rmse: Some((sum / n.max(1) as f64).sqrt()),
+                    cook_seconds: None,
+                    trace_ms_cpu: Some(median(r.ms)),
+                });
+                vdbr_rgb = Some(r.rgb);
+            }
+            Err(e) => notes.push(format!("vdb_render: failed ({e}).")),
+        }
+    }
+    drop(scratch);
+
+    // Pictures.
+    progress.step("charts");
+    let gpu_name = gpu.as_ref().map(|g| g.describe());
+    let cook_series = |peer: bool| {
+        let mut s = vec![
+            Series {
+                name: "vdbcook --format".into(),
+                color: PALETTE[0],
+            },
+            Series {
+                name: "vdbcook --clusters".into(),
+                color: PALETTE[2],
+            },
+            Series {
+                name: "vdbcook --max-error (fraction r of the value range)".into(),
+                color: PALETTE[1],
+            },
+        ];
+        if peer {
+            s.push(Series {
+                name: "NanoVDB (nanovdb_convert)".into(),
+                color: PALETTE[3],
+            });
+        }
+        s
+    };
+    let series_of = |r: &Row| {
+        configs
+            .iter()
+            .find(|c| c.label == r.label)
+            .map(|c| c.series)
+            .unwrap_or(0)
+    };
+    let nano_points = |y: &dyn Fn(&PeerRow) -> Option<f64>| -> Vec<Point> {
+        peer_rows
+            .iter()
+            .filter(|p| p.tool == "nanovdb")
+            .filter_map(|p| {
+                Some(Point {
+                    label: p.config.clone(),
+                    x: p.rmse?,
+                    y: y(p)?,
+                    series: 3,
+                })
+            })
+            .collect()
+    };
+    let mut size_pts: Vec<Point> = rows
+        .iter()
+        .map(|r| Point {
+            label: r.label.clone(),
+            x: r.rmse,
+            y: r.bits_per_active_voxel_gpu,
+            series: series_of(r),
+        })
+        .collect();
+    size_pts.extend(nano_points(&|p| p.bits_per_active_voxel_gpu));
+    let mut cook_pts: Vec<Point> = rows
+        .iter()
+        .map(|r| Point {
+            label: r.label.clone(),
+            x: r.rmse,
+            y: r.cook_seconds,
+            series: series_of(r),
+        })
+        .collect();
+    cook_pts.extend(nano_points(&|p| p.cook_seconds));
+    let src = a.inputs.join(" ");
+    let size_png = chart::scatter_chart(
+        &format!("Size vs voxel error: {src}"),
+        "voxel RMSE (source units, log)",
+        "GPU bits per active voxel (log)",
+        &cook_series(nano),
+        &size_pts,
+    )
+    .map_err(other)?;
+    let cook_png = chart::scatter_chart(
+        &format!("Cook time vs voxel error: {src}"),
+        "voxel RMSE (source units, log)",
+        "seconds (log; NanoVDB: nanovdb_convert time)",
+        &cook_series(nano),
+        &cook_pts,
+    )
+    .map_err(other)?;
+    let mut trace_series = vec![Series {
+        name: format!("CPU reference tracer ({} threads)", rayon::current_num_threads()),
+        color: PALETTE[0],
+    }];
+    let mut trace_pts: Vec<Point> = rows
+        .iter()
+        .map(|r| Point {
+            label: r.label.clone(),
+            x: r.image_rmse,
+            y: r.trace_ms_cpu,
+            series: 0,
+        })
+        .collect();
+    if let Some(g) = &gpu_name {
+        trace_series.push(Series {
+            name: format!("GPU: {g}"),
+            color: PALETTE[1],
+        });
+        trace_pts.extend(rows.iter().filter_map(|r| {
+            Some(Point {
+                label: r.label.clone(),
+                x: r.image_rmse,
+                y: r.trace_ms_gpu?,
+                series: 1,
+            })
+        }));
+    }
+    if let Some(p) = peer_rows.iter().find(|p| p.tool == "vdb_render") {
+        let si = trace_series.len();
+        trace_series.push(Series {
+            name: "vdb_render (source VDB; x: vs our f32 image, 8-bit)".into(),
+            color: PALETTE[3],
+        });
+        trace_pts.push(Point {
+            label: "vdb_render".into(),
+            x: p.image_rmse.unwrap_or(f64::NAN),
+            y: p.trace_ms_cpu.unwrap_or(f64::NAN),
+            series: si,
+        });
+    }
+    let trace_png = chart::scatter_chart(
+        &format!("Trace time vs image error ({}, {w}×{h}, frame {})", mode.name(), a.frame),
+        "image RMSE vs the f32 render (linear RGB, log)",
+        "ms per frame (median, log)",
+        &trace_series,
+        &trace_pts,
+    )
+    .map_err(other)?;
+    // Side by side: each format and the middle tolerance, error ×10 under each.
+    let gain = 10.0;
+    let mut tiles = Vec::new();
+    let mut fig_w = 0;
+    let mut fig_h = 0;
+    let shown: Vec<usize> = configs
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.series == 0 || (c.series == 2 && c.clusters.is_none()))
+        .map(|(i, _)| i)
+        .filter(|&i| {
+            let c = &configs[i];
+            c.series == 0
+                || c.tolerance == tolerances.get(tolerances.len() / 2).copied()
+        })
+        .collect();
+    for &i in &shown {
+        let (r, img) = (&rows[i], &images[i]);
+        let (rgb, tw, th) = shrink(chart::display_rgb(&img.rgba), w, h, 420);
+        let error = (i != 0).then(|| {
+            shrink(chart::error_rgb(&img.rgba, &reference.rgba, gain), w, h, 420).0
+        });
+        (fig_w, fig_h) = (tw, th);
+        tiles.push(Tile {
+            title: r.label.clone(),
+            subtitle: format!(
+                "{:.2} bit/vox GPU · image RMSE {}",
+                r.bits_per_active_voxel_gpu,
+                sci(r.image_rmse)
+            ),
+            render: rgb,
+            error,
+        });
+    }
+    if let Some(rgb) = &vdbr_rgb {
+        let (rgb, _, _) = shrink(rgb.clone(), w, h, 420);
+        tiles.push(Tile {
+            title: "vdb_render (source)".into(),
+            subtitle: "OpenVDB, trilinear, for comparison".into(),
+            render: rgb,
+            error: None,
+        });
+    }
+    let fig_png = chart::side_by_side(
+        &format!(
+            "{} of frame {} ({src}): renders (top), |error| ×{gain} vs f32 (bottom)",
+            mode.name(),
+            a.frame
+        ),
+        &tiles,
+        fig_w,
+        fig_h,
+        "CPU reference tracer, nearest-voxel sampling; error colour ramp black → red → yellow → white.",
+    )
+    .map_err(other)?;
+    progress.finish();
+
+    // Documents.
+    let meta = json!({
+        "inputs": a.inputs,
+        "grid": grid_name,
+        "frames": frames.len(),
+        "active_voxels": active,
+        "value_range": value_range,
+        "render": {"mode": mode.name(), "width": w, "height": h, "frame": a.frame, "runs": runs,
+                    "camera": {"eye": camera.eye, "look_at": camera.look_at, "fov_y_deg": camera.fov_y_deg}},
+        "tolerances": tolerances,
+        "machine": machine(),
+        "gpu": gpu_name,
+        "gpu_timing": gpu.as_ref().map(|_| "timestamp queries when the adapter has them, else submit-to-idle wall time"),
+        "vdbcook": env!("CARGO_PKG_VERSION"),
+        "seconds": t_all.elapsed().as_secs_f64(),
+    });
+    let doc = json!({"rows": rows, "peers": peer_rows, "notes": notes, "meta": meta,
+                     "files": ["report.md", "report.json", "report.csv", "size_vs_error.png",
+                               "cook_time_vs_error.png", "trace_time_vs_error.png", "renders.png"]});
+    let md = markdown(a, &rows, &peer_rows, &notes, &meta, &gpu_layouts);
+    std::fs::create_dir_all(&a.output)
+        .map_err(|e| other(format!("{}: cannot create: {e}", a.output.display())))?;
+    write_file(&a.output, "size_vs_error.png", &size_png)?;
+    write_file(&a.output, "cook_time_vs_error.png", &cook_png)?;
+    write_file(&a.output, "trace_time_vs_error.png", &trace_png)?;
+    write_file(&a.output, "renders.png", &fig_png)?;
+    write_file(&a.output, "report.csv", to_csv(&rows).as_bytes())?;
+    write_file(
+        &a.output,
+        "report.json",
+        serde_json::to_string_pretty(&doc).expect("json").as_bytes(),
+    )?;
+    write_file(&a.output, "report.md", md.as_bytes())?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+    } else {
+        println!("{}", table(&rows));
+        for n in &notes {
+            println!("note: {n}");
+        }
+        println!(
+            "wrote {} (report.md, report.json, report.csv, 4 PNGs) in {:.1} s",
+            a.output.display(),
+            t_all.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
+/// The rows as a Markdown table.
+fn table(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| config | GPU bit/vox | file bit/vox | voxel RMSE | PSNR dB | max abs | image RMSE | cook s | CPU trace ms | GPU trace ms |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {:.3} | {:.3} | {} | {} | {} | {} | {:.3} | {:.1} | {} |\n",
+            r.label,
+            r.bits_per_active_voxel_gpu,
+            r.bits_per_active_voxel,
+            sci(r.rmse),
+            fmt_opt(r.psnr_db, 1),
+            sci(r.max_abs),
+            sci(r.image_rmse),
+            r.cook_seconds,
+            r.trace_ms_cpu,
+            fmt_opt(r.trace_ms_gpu, 1)
+        );
+    }
+    s
+}
+
+fn markdown(
+    a: &Args,
+    rows: &[Row],
+    peers: &[PeerRow],
+    notes: &[String],
+    meta: &Value,
+    layouts: &[String],
+) -> String {
+    let mut s = format!("# vdbcook report: {}\n\n", a.inputs.join(" "));
+    s += &format!(
+        "Grid `{}`, {} frame(s), {} active voxels, value range {:.4}. Machine: {}. GPU: {}.\n\n",
+        meta["grid"].as_str().unwrap_or(""),
+        meta["frames"],
+        meta["active_voxels"],
+        meta["value_range"].as_f64().unwrap_or(0.0),
+        meta["machine"].as_str().unwrap_or(""),
+        meta["gpu"].as_str().unwrap_or("none")
+    );
+    let mut cmd = format!("vdbcook report {} -o {}", a.inputs.join(" "), a.output.display());
+    if a.quick {
+        cmd += " --quick";
+    }
+    if let Some(g) = &a.grid {
+        cmd += &format!(" --grid {g}");
+    }
+    s += &format!("Regenerate: `{cmd}`\n\n");
+    s += "![size vs error](size_vs_error.png)\n\n![cook time vs error](cook_time_vs_error.png)\n\n![trace time vs error](trace_time_vs_error.png)\n\n![renders](renders.png)\n\n";
+    s += "## Configurations\n\n";
+    s += "`E=…r` rows are `--max-error` at that fraction r of the value range (each brick the \
+          cheapest representation within E); `k`/`T` rows cluster with `--clusters k \
+          --variance-threshold T`. Voxel error is over every active voxel of every frame; image \
+          error is over the RGB of one render against the f32 asset's render. Times are medians; \
+          cook time is the whole in-memory cook (read included, no file write).\n\n";
+    s += &table(rows);
+    if !peers.is_empty() {
+        s += "\n## Peers (same input, same run)\n\n| tool | config | GPU bit/vox | voxel RMSE | max abs | convert s | trace ms | image RMSE |\n|---|---|---:|---:|---:|---:|---:|---:|\n";
+        for p in peers {
+            s += &format!(
+                "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                p.tool,
+                p.config,
+                fmt_opt(p.bits_per_active_voxel_gpu, 3),
+                p.rmse.map(sci).unwrap_or_else(|| "–".into()),
+                p.max_abs.map(sci).unwrap_or_else(|| "–".into()),
+                fmt_opt(p.cook_seconds, 3),
+                fmt_opt(p.trace_ms_cpu, 1),
+                p.image_rmse.map(sci).unwrap_or_else(|| "–".into()),
+            );
+        }
+        s += "\nNanoVDB bytes are the `.nvdb` file (its GPU buffer); its error is measured by \
+              converting back to VDB and comparing every source voxel. `vdb_render` renders the \
+              source VDB with trilinear sampling; its image error is against our f32 render in \
+              8-bit RGB, so it shows the filtering difference, not a loss.\n";
+    }
+    if !layouts.is_empty() {
+        s += "\n## GPU payload layout chosen by the runtime\n\n";
+        for l in layouts {
+            s += &format!("- {l}\n");
+        }
+    }
+    if !notes.is_empty() {
+        s += "\n## Notes\n\n";
+        for n in notes {
+            s += &format!("- {n}\n");
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_matrix_has_every_format_clustering_and_tolerance() {
+        let m = matrix(false, &[0.002, 0.01, 0.05]);
+        let labels: Vec<&str> = m.iter().map(|c| c.label.as_str()).collect();
+        for f in ["f32", "f16", "unorm8", "bc4", "bc7"] {
+            assert!(labels.contains(&f));
+        }
+        assert_eq!(m[0].label, "f32", "the reference comes first");
+        assert_eq!(m.iter().filter(|c| c.clusters.is_some()).count(), 3);
+        assert_eq!(m.iter().filter(|c| c.tolerance.is_some()).count(), 4);
+        let q = matrix(true, &[0.01]);
+        assert!(q.len() < m.len());
+    }
+
+    #[test]
+    fn shrink_halves_with_a_box_filter() {
+        let rgb: Vec<u8> = [0u8, 0, 0, 100, 100, 100, 200, 200, 200, 100, 100, 100]
+            .to_vec();
+        let (out, w, h) = shrink(rgb, 2, 2, 1);
+        assert_eq!((w, h), (1, 1));
+        assert_eq!(out, vec![100, 100, 100]);
+    }
+
+    #[test]
+    fn csv_quotes_fields_with_commas() {
+        assert_eq!(csv_field(&json!("a,b")), "\"a,b\"");
+        assert_eq!(csv_field(&Value::Null), "");
+        assert_eq!(csv_field(&json!(1.5)), "1.5");
+    }
+}
