@@ -17,8 +17,8 @@ use crate::bcenc::Bc7Quality;
 use crate::build::{build_frame, BuiltFrame, NonFinite};
 use crate::cluster;
 use crate::encode;
-use crate::pool::{ranges, Pool};
 use crate::errors::CliError;
+use crate::pool::{ranges, Pool};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -216,9 +216,7 @@ impl Progress {
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
-    let Cooked {
-        bytes, mut doc, ..
-    } = cook(a)?;
+    let Cooked { bytes, mut doc, .. } = cook(a)?;
     let t = Instant::now();
     write_atomically(&a.output, &bytes)?;
     doc["seconds"]["write"] = json!(t.elapsed().as_secs_f64());
@@ -618,7 +616,6 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         .to_bytes()
         .map_err(|e| CliError::Other(e.to_string()))?;
     st.encode += t.elapsed().as_secs_f64();
-
 
     let active: u64 = asset.header.frames.iter().map(|f| f.active_voxels).sum();
     let sizes = section_sizes(&asset);

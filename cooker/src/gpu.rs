@@ -58,16 +58,17 @@ mod imp {
         pub fn open() -> Result<Gpu, String> {
             let instance =
                 wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-            let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-                power_preference: wgpu::PowerPreference::HighPerformance,
-                ..Default::default()
-            }))
-            .map_err(|e| {
-                format!(
+            let adapter =
+                pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    ..Default::default()
+                }))
+                .map_err(|e| {
+                    format!(
                     "no GPU adapter ({e}); on Linux install mesa-vulkan-drivers for a software \
                      one, or use --backend cpu"
                 )
-            })?;
+                })?;
             let wanted = wgpu::Features::TIMESTAMP_QUERY
                 | wgpu::Features::TEXTURE_COMPRESSION_BC
                 | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D;
@@ -90,11 +91,7 @@ mod imp {
 
         /// The adapter's name and backend, marked when it is a software rasterizer.
         pub fn describe(&self) -> String {
-            let soft = if self.is_software() {
-                ", software"
-            } else {
-                ""
-            };
+            let soft = if self.is_software() { ", software" } else { "" };
             format!("{} ({:?}{soft})", self.info.name, self.info.backend)
         }
 

@@ -7,6 +7,7 @@ mod build;
 mod cluster;
 mod cook;
 mod encode;
+mod errors;
 mod eval;
 mod gpu;
 mod info;
@@ -14,7 +15,6 @@ mod inspect;
 mod pool;
 mod render;
 mod report;
-mod errors;
 
 use clap::{Parser, Subcommand};
 
@@ -56,7 +56,8 @@ pattern (smoke.####.vdb, smoke.%04d.vdb) or a glob ('smoke.*.vdb').\n\nExamples:
         after_help = "Examples:\n  vdbcook eval smoke.vdbc 'cache/smoke.####.vdb'\n  vdbcook eval smoke.vdbc cache/ --json"
     )]
     Eval(eval::Args),
-    /// Render one frame of an asset to a PNG (CPU reference tracer; GPU backend to come).
+    /// Render one frame of an asset (or of VDB sources, cooked in memory) to a PNG, on the CPU
+    /// reference tracer or the GPU runtime.
     #[command(
         after_help = "MODE: density, depth, first-hit, brick-hue, steps, scatter (vdb_render's \
 single scattering), delta (delta tracking).\n\nExamples:\n  vdbcook render smoke.vdbc -o smoke.png\n  \

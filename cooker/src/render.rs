@@ -233,7 +233,12 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         Some(g) => {
             let up = g.upload(&asset).map_err(|e| at(&e))?;
             let r = g.render(&up, &camera, &s, 1).map_err(|e| at(&e))?;
-            (r.image, "gpu", Some(g.describe()), r.gpu_ms.first().copied())
+            (
+                r.image,
+                "gpu",
+                Some(g.describe()),
+                r.gpu_ms.first().copied(),
+            )
         }
         None => (
             vdbcook_trace::render(&asset, &camera, &s).map_err(|e| at(&e))?,

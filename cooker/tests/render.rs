@@ -193,7 +193,10 @@ fn vdb_input_is_cooked_in_memory_and_renders_as_its_asset_does() {
         assert_eq!(code, 0, "{input}: {err}");
     }
     let (pa, pb) = (read_png(&a), read_png(&b));
-    assert!(pa.2.iter().any(|&v| v > 0 && v < 255), "an image with content");
+    assert!(
+        pa.2.iter().any(|&v| v > 0 && v < 255),
+        "an image with content"
+    );
     assert_eq!(pa, pb, "VDB input renders exactly as the cooked asset");
 }
 
@@ -242,7 +245,10 @@ fn gpu_backend_draws_what_the_cpu_reference_draws() {
         let (cpu, gpu) = (&pngs[0].2, &pngs[1].2);
         assert_eq!(cpu.len(), gpu.len());
         let lit = cpu.chunks(4).filter(|p| p[3] > 0 && p[0] > 8).count();
-        assert!(lit > cpu.len() / 4 / 20, "{mode}: the volume fills part of the frame ({lit} px)");
+        assert!(
+            lit > cpu.len() / 4 / 20,
+            "{mode}: the volume fills part of the frame ({lit} px)"
+        );
         let max = cpu
             .iter()
             .zip(gpu.iter())

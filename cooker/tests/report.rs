@@ -112,10 +112,18 @@ fn quick_report_rows_agree_with_separate_cook_and_eval() {
         assert!(w >= 300 && h >= 100, "{png}: {w}x{h}");
     }
     let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
-    assert_eq!(csv.lines().count(), rows.len() + 1, "a header and a line per row");
+    assert_eq!(
+        csv.lines().count(),
+        rows.len() + 1,
+        "a header and a line per row"
+    );
     assert!(csv.starts_with("label,format,clusters,"));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    for png in ["size_vs_error.png", "renders.png", "trace_time_vs_error.png"] {
+    for png in [
+        "size_vs_error.png",
+        "renders.png",
+        "trace_time_vs_error.png",
+    ] {
         assert!(md.contains(&format!("({png})")), "report.md embeds {png}");
     }
     let on_disk: Value =
@@ -161,8 +169,16 @@ fn missing_peers_and_gpu_are_notes_not_failures() {
         .iter()
         .map(|n| n.as_str().unwrap())
         .collect();
-    assert!(notes.iter().any(|n| n.contains("nanovdb_convert not found")), "{notes:?}");
-    assert!(notes.iter().any(|n| n.starts_with("vdb_render: skipped")), "{notes:?}");
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.contains("nanovdb_convert not found")),
+        "{notes:?}"
+    );
+    assert!(
+        notes.iter().any(|n| n.starts_with("vdb_render: skipped")),
+        "{notes:?}"
+    );
     assert_eq!(doc["peers"].as_array().unwrap().len(), 0);
     assert_eq!(doc["meta"]["render"]["width"], 64);
     assert_eq!(doc["meta"]["tolerances"][0], 0.05);
@@ -176,7 +192,10 @@ fn a_failing_report_leaves_no_folder_and_says_why() {
     let cases: [(&[&str], &str); 4] = [
         (&["fixtures/missing.vdb"], "missing.vdb"),
         (&["fixtures/seq/smoke5", "--frame", "9"], "--frame 9"),
-        (&["fixtures/seq/smoke5", "--tolerances", "0"], "--tolerances"),
+        (
+            &["fixtures/seq/smoke5", "--tolerances", "0"],
+            "--tolerances",
+        ),
         (&["fixtures/seq/smoke5", "--width", "0"], "image 0x"),
     ];
     for (extra, want) in cases {

@@ -197,7 +197,9 @@ fn legend_corner(
             count[if right { 3 } else { 2 }] += 1;
         }
     }
-    let best = (0..4).min_by_key(|&i| (count[i], [1, 0, 3, 2][i])).unwrap_or(1);
+    let best = (0..4)
+        .min_by_key(|&i| (count[i], [1, 0, 3, 2][i]))
+        .unwrap_or(1);
     match best {
         0 => SeriesLabelPosition::UpperLeft,
         1 => SeriesLabelPosition::UpperRight,

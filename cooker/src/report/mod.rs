@@ -458,7 +458,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         notes.push("Peers: skipped (--no-peers).".into());
     } else {
         if !nano {
-            notes.push("NanoVDB: skipped (nanovdb_convert not found; Debian: libnanovdb-tools).".into());
+            notes.push(
+                "NanoVDB: skipped (nanovdb_convert not found; Debian: libnanovdb-tools).".into(),
+            );
         }
         if mode != Mode::SingleScatter {
             notes.push("vdb_render: skipped (it draws single scatter; use --mode scatter).".into());
@@ -478,10 +480,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     } else {
         Vec::new()
     };
-    let mut progress = Progress::new(
-        configs.len() + nano_cfgs.len() + vdbr as usize + 1,
-        a.json,
-    );
+    let mut progress = Progress::new(configs.len() + nano_cfgs.len() + vdbr as usize + 1, a.json);
 
     // The f32 cook is the reference: its render is what image errors are measured against.
     let mut rows: Vec<Row> = Vec::new();
@@ -599,14 +598,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             o.push("-a".into());
             o.push(format!("{}", t * value_range));
         }
-        match peers::nanovdb(
-            &frames,
-            a.grid.as_deref(),
-            &grid_name,
-            name,
-            &o,
-            &scratch.0,
-        ) {
+        match peers::nanovdb(&frames, a.grid.as_deref(), &grid_name, name, &o, &scratch.0) {
             Ok(r) => {
                 if r.err.is_none() {
                     notes.push(format!(
@@ -753,7 +745,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     )
     .map_err(other)?;
     let mut trace_series = vec![Series {
-        name: format!("CPU reference tracer ({} threads)", rayon::current_num_threads()),
+        name: format!(
+            "CPU reference tracer ({} threads)",
+            rayon::current_num_threads()
+        ),
         color: PALETTE[0],
     }];
     let mut trace_pts: Vec<Point> = rows
@@ -793,7 +788,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         });
     }
     let trace_png = chart::scatter_chart(
-        &format!("Trace time vs image error ({}, {w}×{h}, frame {})", mode.name(), a.frame),
+        &format!(
+            "Trace time vs image error ({}, {w}×{h}, frame {})",
+            mode.name(),
+            a.frame
+        ),
         "image RMSE vs the f32 render (linear RGB, log)",
         "ms per frame (median, log)",
         &trace_series,
@@ -812,15 +811,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .map(|(i, _)| i)
         .filter(|&i| {
             let c = &configs[i];
-            c.series == 0
-                || c.tolerance == tolerances.get(tolerances.len() / 2).copied()
+            c.series == 0 || c.tolerance == tolerances.get(tolerances.len() / 2).copied()
         })
         .collect();
     for &i in &shown {
         let (r, img) = (&rows[i], &images[i]);
         let (rgb, tw, th) = shrink(chart::display_rgb(&img.rgba), w, h, 420);
         let error = (i != 0).then(|| {
-            shrink(chart::error_rgb(&img.rgba, &reference.rgba, gain), w, h, 420).0
+            shrink(
+                chart::error_rgb(&img.rgba, &reference.rgba, gain),
+                w,
+                h,
+                420,
+            )
+            .0
         });
         (fig_w, fig_h) = (tw, th);
         tiles.push(Tile {
@@ -947,7 +951,11 @@ fn markdown(
         meta["machine"].as_str().unwrap_or(""),
         meta["gpu"].as_str().unwrap_or("none")
     );
-    let mut cmd = format!("vdbcook report {} -o {}", a.inputs.join(" "), a.output.display());
+    let mut cmd = format!(
+        "vdbcook report {} -o {}",
+        a.inputs.join(" "),
+        a.output.display()
+    );
     if a.quick {
         cmd += " --quick";
     }
@@ -1018,8 +1026,7 @@ mod tests {
 
     #[test]
     fn shrink_halves_with_a_box_filter() {
-        let rgb: Vec<u8> = [0u8, 0, 0, 100, 100, 100, 200, 200, 200, 100, 100, 100]
-            .to_vec();
+        let rgb: Vec<u8> = [0u8, 0, 0, 100, 100, 100, 200, 200, 200, 100, 100, 100].to_vec();
         let (out, w, h) = shrink(rgb, 2, 2, 1);
         assert_eq!((w, h), (1, 1));
         assert_eq!(out, vec![100, 100, 100]);
