@@ -17,6 +17,16 @@ bench:
     cargo bench -p vdbcook-vdb --bench read -- "$(pwd)/bench-data/fog256.vdb"
     cargo bench -p vdbcook --bench cook -- "$(realpath ../shared/samples/stormscape-cloud-seq)" 9
 
+# The speed-vs-accuracy reports of docs/performance.md and docs/accuracy.md: the wdas cloud, the
+# stormscape sequence (../shared/samples) and a generated 100-frame smoke (python3-openvdb once).
+# NanoVDB and vdb_render join when installed (Debian: libnanovdb-tools, libopenvdb-tools).
+report-docs:
+    cargo build --release -p vdbcook
+    test -d bench-data/smoke100 || /usr/bin/python3 cooker/benches/gen_smoke_seq.py bench-data/smoke100 100
+    target/release/vdbcook report ../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb -o docs/report/wdas
+    target/release/vdbcook report ../shared/samples/stormscape-cloud-seq -o docs/report/stormscape
+    target/release/vdbcook report bench-data/smoke100 -o docs/report/smoke100
+
 # Regenerate fixtures/ with OpenVDB (installs Debian's OpenVDB packages first).
 fixtures:
     bash fixtures/gen/build.sh

@@ -134,6 +134,55 @@ pub fn scatter_chart(
             .bold_line_style(RGBColor(205, 205, 205))
             .draw()
             .map_err(err)?;
+        // Labels: greedy placement in pixel space — each label takes the first of eight spots
+        // around its point that overlaps no point and no label placed before it.
+        let px: Vec<(i32, i32)> = pts
+            .iter()
+            .map(|p| chart.backend_coord(&(if p.x == 0.0 { floor } else { p.x }, p.y)))
+            .collect();
+        let plot = chart.plotting_area().get_pixel_range();
+        let mut taken: Vec<[i32; 4]> = px.iter().map(|&(x, y)| [x - 7, y - 7, x + 7, y + 7]).collect();
+        let mut placed: Vec<(String, (i32, i32), bool)> = Vec::new();
+        for (p, &(x, y)) in pts.iter().zip(&px) {
+            let label = if p.x == 0.0 {
+                format!("{} (exact)", p.label)
+            } else {
+                p.label.clone()
+            };
+            let tw = (label.chars().count() as f64 * 7.6) as i32 + 4;
+            let th = 16;
+            let spots = [
+                (9, -16, false),
+                (9, 2, false),
+                (-9, -16, true),
+                (-9, 2, true),
+                (-tw / 2, -26, false),
+                (-tw / 2, 10, false),
+                (9, -30, false),
+                (9, 16, false),
+            ];
+            let rect = |(dx, dy, left): (i32, i32, bool)| {
+                let x0 = if left { x + dx - tw } else { x + dx };
+                [x0, y + dy, x0 + tw, y + dy + th]
+            };
+            let inside = |r: &[i32; 4]| {
+                r[0] >= plot.0.start && r[2] <= plot.0.end && r[1] >= plot.1.start && r[3] <= plot.1.end
+            };
+            let free = |r: &[i32; 4]| {
+                taken
+                    .iter()
+                    .all(|t| r[2] <= t[0] || t[2] <= r[0] || r[3] <= t[1] || t[3] <= r[1])
+            };
+            let pick = spots
+                .iter()
+                .copied()
+                .find(|&sp| inside(&rect(sp)) && free(&rect(sp)))
+                .or_else(|| spots.iter().copied().find(|&sp| inside(&rect(sp))))
+                .unwrap_or(spots[0]);
+            let r = rect(pick);
+            taken.push(r);
+            placed.push((label, (r[0], r[1]), false));
+        }
         for (si, s) in series.iter().enumerate() {
             let color = s.color;
             let mine: Vec<&&Point> = pts.iter().filter(|p| p.series == si).collect();
@@ -141,26 +190,21 @@ pub fn scatter_chart(
                 continue;
             }
             chart
-                .draw_series(mine.iter().enumerate().map(|(k, p)| {
+                .draw_series(mine.iter().map(|p| {
                     let x = if p.x == 0.0 { floor } else { p.x };
-                    // Alternate label offsets so neighbours overlap less.
-                    let dy = if k % 2 == 0 { -16 } else { 6 };
-                    let label = if p.x == 0.0 {
-                        format!("{} (exact)", p.label)
-                    } else {
-                        p.label.clone()
-                    };
-                    EmptyElement::at((x, p.y))
-                        + Circle::new((0, 0), 6, color.filled())
-                        + Text::new(
-                            label,
-                            (9, dy),
-                            (FAMILY, 14).into_font().color(&RGBColor(40, 40, 40)),
-                        )
+                    EmptyElement::at((x, p.y)) + Circle::new((0, 0), 6, color.filled())
                 }))
                 .map_err(err)?
                 .label(s.name.clone())
                 .legend(move |(x, y)| Circle::new((x + 8, y), 6, color.filled()));
+        }
+        for (label, at, _) in &placed {
+            root.draw(&Text::new(
+                label.clone(),
+                *at,
+                (FAMILY, 14).into_font().color(&RGBColor(40, 40, 40)),
+            ))
+            .map_err(err)?;
         }
         chart
             .configure_series_labels()
@@ -291,6 +335,10 @@ pub fn png_rgb(w: u32, h: u32, rgb: &[u8]) -> Result<Vec<u8>, String> {
         let mut enc = png::Encoder::new(&mut out, w, h);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        // Charts are flat colour: the best deflate level and per-row filters keep them small
+        // enough to commit under docs/.
+        enc.set_compression(png::Compression::Best);
+        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
         let mut wr = enc.write_header().map_err(err)?;
         wr.write_image_data(rgb).map_err(err)?;
         wr.finish().map_err(err)?;
