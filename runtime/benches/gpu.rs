@@ -53,11 +53,12 @@ fn main() {
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("gpu bench"),
         required_limits: adapter.limits(),
-        required_features: if timestamps {
-            wgpu::Features::TIMESTAMP_QUERY
-        } else {
-            wgpu::Features::empty()
-        },
+        required_features: (adapter.features() & vdbcook_runtime::OPTIONAL_FEATURES)
+            | if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
         ..Default::default()
     }))
     .expect("device");
