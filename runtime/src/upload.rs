@@ -853,7 +853,11 @@ impl GpuVolume {
     /// One line saying how the pool lies on the GPU (layout, textures, buffers, bytes).
     pub fn describe(&self) -> String {
         let l = &self.layout;
-        let mut parts = vec![format!("layout {}", l.layout.name())];
+        let mut parts = vec![if l.textures.is_empty() && l.layout != Layout::Buffers {
+            "no quantized bricks".to_string()
+        } else {
+            format!("layout {}", l.layout.name())
+        }];
         for t in &l.textures {
             parts.push(format!(
                 "{} bricks in a {:?} {} {}×{}×{} ({} bytes)",

@@ -1015,3 +1015,49 @@ fn small_limits_fall_back_to_buffers_and_a_pool_too_big_is_an_error() {
         Ok(v) => panic!("uploaded as {}", v.describe()),
     }
 }
+
+/// Cooked assets (real encoder output, not seeded noise): `VDBCOOK_TEST_ASSETS=a.vdbc,b.vdbc`
+/// reads every voxel back in every layout and prints how far native BC4 lands from the exact
+/// decode. Skipped (with a line saying so) when the variable is unset.
+#[test]
+fn cooked_assets_from_the_environment_read_back_in_every_layout() {
+    let Ok(list) = std::env::var("VDBCOOK_TEST_ASSETS") else {
+        eprintln!("skipped: set VDBCOOK_TEST_ASSETS=a.vdbc,b.vdbc to check cooked assets");
+        return;
+    };
+    let Some(gpu) = Gpu::new("cooked_assets_from_the_environment_read_back_in_every_layout") else {
+        return;
+    };
+    for path in list.split(',').filter(|p| !p.is_empty()) {
+        let asset = Asset::load(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        if asset.brick_count() * 512 / 64 > 65535 {
+            eprintln!(
+                "{path}: {} bricks, too many for one dispatch row",
+                asset.brick_count()
+            );
+            continue;
+        }
+        for layout in Layout::ALL {
+            let force = Some(layout);
+            let vol = match GpuVolume::upload_with(
+                &gpu.device,
+                &gpu.queue,
+                &asset,
+                UploadOptions { force },
+            ) {
+                Ok(v) => v,
+                Err(e) => {
+                    eprintln!("{path} {}: {e}", layout.name());
+                    continue;
+                }
+            };
+            let (off, max_codes) = check_voxels(&gpu, &vol, &asset, path);
+            eprintln!(
+                "{path} {}: {off}/{} voxels beyond f32 rounding, max {max_codes:.3}/255; {}",
+                layout.name(),
+                asset.brick_count() * 512,
+                vol.describe()
+            );
+        }
+    }
+}
