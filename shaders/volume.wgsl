@@ -173,43 +173,52 @@ fn vdb_buffer_voxel(local: u32, m: vec3<u32>) -> f32 {
     return select(pair.x, pair.y, (i & 1u) == 1u);
 }
 
+// Which brick read paths a pipeline keeps (a bit mask; `GpuVolume::pipeline_constants` gives
+// the volume's value, the default keeps them all): 1 buffers, 2 BC7 3D, 4 BC7 2D array, 8 BC4
+// 3D, 16 BC4 2D array, 32 unorm8 3D, 64 unorm8 2D array. The paths a volume does not use are then
+// dead code the driver removes; with buffers alone the read is the plain buffer read (a volume
+// whose bricks are all buffered has local index = brick index), which keeps software
+// rasterizers (lavapipe runs every side of a divergent branch) from paying for texture paths.
+override VDB_PATHS: u32 = 127u;
+
 // Voxel `v` (0..8 per axis, taken mod 8) of brick `b`: one buffer word or one texel (nearest
 // voxel, no filtering), dequantized with the brick's range.
 fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
     let m = vec3<u32>(v & vec3<i32>(7));
+    if (VDB_PATHS == 1u) {
+        return vdb_buffer_voxel(b, m);
+    }
     let g = vdb_brick_group(b);
     let grp = vdb_info.groups[g];
     let local = b - grp.first + grp.base;
-    if (grp.kind == 0u) {
+    if ((VDB_PATHS & 1u) != 0u && grp.kind == 0u) {
         return vdb_buffer_voxel(local, m);
     }
     let tile = vec3<u32>(local % grp.tiles_x, (local / grp.tiles_x) % grp.tiles_y,
                          local / (grp.tiles_x * grp.tiles_y));
     let xy = vec2<i32>(8u * tile.xy + m.xy);
-    var t: f32;
+    let s8 = i32(8u * tile.z + m.z);
+    var t = 0.0;
     if (g == 0u) {
         let s = i32(2u * tile.z + (m.z >> 2u));
-        var c: vec4<f32>;
-        if (grp.kind == 1u) {
+        var c = vec4<f32>(0.0);
+        if ((VDB_PATHS & 2u) != 0u && grp.kind == 1u) {
             c = textureLoad(vdb_bc7_3d, vec3<i32>(xy, s), 0);
-        } else {
+        } else if ((VDB_PATHS & 4u) != 0u && grp.kind == 2u) {
             c = textureLoad(vdb_bc7_array, xy, s, 0);
         }
         t = c[m.z & 3u];
+    } else if (g == 1u) {
+        if ((VDB_PATHS & 8u) != 0u && grp.kind == 1u) {
+            t = textureLoad(vdb_bc4_3d, vec3<i32>(xy, s8), 0).x;
+        } else if ((VDB_PATHS & 16u) != 0u && grp.kind == 2u) {
+            t = textureLoad(vdb_bc4_array, xy, s8, 0).x;
+        }
     } else {
-        let s = i32(8u * tile.z + m.z);
-        if (g == 1u) {
-            if (grp.kind == 1u) {
-                t = textureLoad(vdb_bc4_3d, vec3<i32>(xy, s), 0).x;
-            } else {
-                t = textureLoad(vdb_bc4_array, xy, s, 0).x;
-            }
-        } else {
-            if (grp.kind == 1u) {
-                t = textureLoad(vdb_u8_3d, vec3<i32>(xy, s), 0).x;
-            } else {
-                t = textureLoad(vdb_u8_array, xy, s, 0).x;
-            }
+        if ((VDB_PATHS & 32u) != 0u && grp.kind == 1u) {
+            t = textureLoad(vdb_u8_3d, vec3<i32>(xy, s8), 0).x;
+        } else if ((VDB_PATHS & 64u) != 0u && grp.kind == 2u) {
+            t = textureLoad(vdb_u8_array, xy, s8, 0).x;
         }
     }
     let q = vdb_brick_quant(b);

@@ -138,7 +138,11 @@ fn main() {
         eprintln!("{}: {}", path.display(), volume.describe());
         let l = volume.layout();
         let payload_bytes = l.buffer_bytes + l.textures.iter().map(|t| t.bytes).sum::<u64>();
-        let layout_name = l.layout.name();
+        let layout_name = if l.textures.is_empty() && l.layout != Layout::Buffers {
+            "(no quantized bricks)"
+        } else {
+            l.layout.name()
+        };
         let format = wgpu::TextureFormat::Rgba8Unorm;
         let renderer = Renderer::new(&device, &volume, format).expect("renderer");
         let name = path.file_stem().unwrap().to_string_lossy().into_owned();

@@ -850,6 +850,25 @@ impl GpuVolume {
     pub fn layout(&self) -> &PayloadLayout {
         &self.layout
     }
+    /// Pipeline-overridable constants of `VOLUME_WGSL` for this volume (`VDB_PATHS`: the brick
+    /// read paths it uses). Pass them as `PipelineCompilationOptions::constants` so the unused
+    /// paths compile away; pipelines without them keep every path and work too.
+    pub fn pipeline_constants(&self) -> Vec<(&'static str, f64)> {
+        let l = &self.layout;
+        let mut paths = 0u32;
+        if l.buffers != BufferLayout::None {
+            paths |= 1;
+        }
+        for t in &l.textures {
+            let slot = match t.source {
+                PayloadFormat::Bc7 => 0,
+                PayloadFormat::Bc4 => 1,
+                _ => 2,
+            };
+            paths |= 2 << (2 * slot + (!t.dim3) as u32);
+        }
+        vec![("VDB_PATHS", paths.max(1) as f64)]
+    }
     /// One line saying how the pool lies on the GPU (layout, textures, buffers, bytes).
     pub fn describe(&self) -> String {
         let l = &self.layout;
