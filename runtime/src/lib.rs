@@ -27,6 +27,8 @@
 //! `Rgba8Unorm` textures; f16/f32 bricks live in storage buffers. [`GpuVolume::upload`] picks
 //! the first layout the device's features and limits allow and logs it; request
 //! [`OPTIONAL_FEATURES`] on the device to let it use BC; [`GpuVolume::upload_with`] can force one.
+//! An engine's own pipelines over [`VOLUME_WGSL`] should pass [`GpuVolume::pipeline_constants`]
+//! (the read paths the volume uses) so the others compile away.
 //!
 //! Submission rule: `render` writes the parameters with `Queue::write_buffer`, which takes
 //! effect at the next `submit`; record at most one render per renderer per submission.

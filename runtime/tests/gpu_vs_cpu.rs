@@ -5,9 +5,15 @@
 //! a bad frame index. Runs on whatever adapter exists (software Vulkan in CI); without one each
 //! test prints why it skipped, unless `VDBCOOK_REQUIRE_GPU=1`.
 //!
-//! Tolerances: the GPU works in f32 where the CPU works in f64, and both decode bricks with the
-//! same code (the runtime decodes at upload), so values agree to rounding: density and depth
-//! within 1e-3 (relative for depth). Discrete answers (first-hit value, brick index, step
+//! Payload layouts: every `Layout` is forced on the same adapter (BC in 3D textures, BC in 2D
+//! arrays, BC decoded into 8-bit textures, everything in buffers), every voxel is read back
+//! through `VOLUME_WGSL` and compared with `Asset::decode_brick`, and every deterministic mode is
+//! rendered in every layout; an adapter without BC features and too-small limits are covered too.
+//!
+//! Tolerances: the GPU works in f32 where the CPU works in f64; bricks read exactly as the CPU
+//! decodes them up to f32 rounding of the dequantization (native BC4 excepted: `BC4_CODES`), so
+//! values agree to rounding: density and depth within 1e-3 (relative for depth), first-hit
+//! values within `FIRST_HIT_TOL`. Discrete answers (first-hit voxel, brick index, step
 //! count) are equal except where a ray passes within f32 rounding of a voxel edge or corner,
 //! where the two DDAs may order a tie differently: at most 0.5% of pixels may differ, and the
 //! counts are printed.
