@@ -9,13 +9,37 @@
 //
 // Group 0 (created by `GpuVolume::upload`):
 //   binding 0: `vdb_info` (uniform): section offsets into `vdb_topo`, root dims, background,
-//              payload layout;
+//              buffer payload layout, brick groups;
 //   binding 1: `vdb_topo` (storage, u32 words): roots of all frames, L2 masks (each u64 as two
 //              u32, low word first), L2 bases, L2 prefixes (one u32 each), L2 ranges and brick
 //              ranges (f32 bits, [min, max] pairs), L3 refs, tile values (f32 bits);
-//   bindings 2..5: the decoded brick pool, split over four buffers of `bricks_per_binding`
-//              bricks each: f32 bits (layout 0) or two f16 per u32 (layout 1), voxel (x, y, z)
-//              of a brick at 64x + 8y + z. Unused bindings hold a 4-byte dummy.
+//   bindings 2..5: the bricks kept in storage buffers (f16/f32 bricks; every brick with the
+//              `buffers` layout), split over four buffers of `bricks_per_binding` bricks each:
+//              f32 bits (payload_layout 0) or two f16 per u32 (payload_layout 1), voxel (x, y, z)
+//              of a brick at 64x + 8y + z. Unused bindings hold a 4-byte dummy;
+//   bindings 6..11: the quantized bricks as textures, per format (BC7, BC4, unorm8) a 3D and a
+//              2D-array binding (the one not used, and those of formats without bricks, hold a
+//              1-texel dummy). A brick is a tile of 8×8 texels and S slices (8; BC7: 2, voxel z
+//              in channel z % 4 of slice z / 4); local brick i lies at tile
+//              (i % tiles_x, (i / tiles_x) % tiles_y, i / (tiles_x·tiles_y)), texels
+//              8·tile.xy + (x, y) and slice S·tile.z + z (3D depth or array layer). Texel formats:
+//              Bc4RUnorm / Bc7RgbaUnorm (native), or R8Unorm / Rgba8Unorm holding the 8-bit codes.
+//              A voxel is lo + (hi − lo)·texel over the brick's quantization range [lo, hi].
+//
+// Bricks are grouped by format (BC7, BC4, unorm8, then f16 and f32): `groups[g]` says where
+// the bricks from `groups[g].first` to the next group's first are read (kind 0: buffers at local
+// index b − first + base; 1: the group's 3D texture; 2: its 2D array).
+
+struct VdbGroup {
+    first: u32,
+    base: u32,
+    kind: u32,
+    tiles_x: u32,
+    tiles_y: u32,
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
+}
 
 struct VolumeInfo {
     root_dims: vec3<u32>,
@@ -29,10 +53,12 @@ struct VolumeInfo {
     off_brick_ranges: u32,
     bricks_per_binding: u32,
     background: f32,
-    // 0: f32 bits, one per word; 1: f16 pairs.
+    // Buffered bricks: 0: f32 bits, one per word; 1: f16 pairs.
     payload_layout: u32,
     frames: u32,
-    _pad: u32,
+    off_brick_quant: u32,
+    // BC7, BC4, unorm8, floats (f16 and f32).
+    groups: array<VdbGroup, 4>,
 }
 
 @group(0) @binding(0) var<uniform> vdb_info: VolumeInfo;
@@ -41,6 +67,12 @@ struct VolumeInfo {
 @group(0) @binding(3) var<storage, read> vdb_payload1: array<u32>;
 @group(0) @binding(4) var<storage, read> vdb_payload2: array<u32>;
 @group(0) @binding(5) var<storage, read> vdb_payload3: array<u32>;
+@group(0) @binding(6) var vdb_bc7_3d: texture_3d<f32>;
+@group(0) @binding(7) var vdb_bc7_array: texture_2d_array<f32>;
+@group(0) @binding(8) var vdb_bc4_3d: texture_3d<f32>;
+@group(0) @binding(9) var vdb_bc4_array: texture_2d_array<f32>;
+@group(0) @binding(10) var vdb_u8_3d: texture_3d<f32>;
+@group(0) @binding(11) var vdb_u8_array: texture_2d_array<f32>;
 
 const VDB_EMPTY: u32 = 0xffffffffu;
 const VDB_TILE_BIT: u32 = 0x80000000u;
@@ -108,18 +140,89 @@ fn vdb_payload_word(binding: u32, i: u32) -> u32 {
     }
 }
 
-// Voxel `v` (0..8 per axis) of brick `b`.
-fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
+// [lo, hi] of the quantization range of brick `b` ([0, 0] for float bricks).
+fn vdb_brick_quant(b: u32) -> vec2<f32> {
+    let i = vdb_info.off_brick_quant + 2u * b;
+    return vec2<f32>(bitcast<f32>(vdb_topo[i]), bitcast<f32>(vdb_topo[i + 1u]));
+}
+
+// The group (0: BC7, 1: BC4, 2: unorm8, 3: floats) brick `b` belongs to.
+fn vdb_brick_group(b: u32) -> u32 {
+    var g = 0u;
+    if (b >= vdb_info.groups[1].first) {
+        g = 1u;
+    }
+    if (b >= vdb_info.groups[2].first) {
+        g = 2u;
+    }
+    if (b >= vdb_info.groups[3].first) {
+        g = 3u;
+    }
+    return g;
+}
+
+// Voxel `m` (0..8 per axis) of the `local`-th buffered brick.
+fn vdb_buffer_voxel(local: u32, m: vec3<u32>) -> f32 {
     let per = vdb_info.bricks_per_binding;
-    let binding = b / per;
-    let local = b - binding * per;
-    let m = vec3<u32>(v & vec3<i32>(7));
-    let i = local * 512u + 64u * m.x + 8u * m.y + m.z;
+    let binding = local / per;
+    let i = (local - binding * per) * 512u + 64u * m.x + 8u * m.y + m.z;
     if (vdb_info.payload_layout == 0u) {
         return bitcast<f32>(vdb_payload_word(binding, i));
     }
     let pair = unpack2x16float(vdb_payload_word(binding, i >> 1u));
     return select(pair.x, pair.y, (i & 1u) == 1u);
+}
+
+// Which brick read paths a pipeline keeps (a bit mask; `GpuVolume::pipeline_constants` gives
+// the volume's value, the default keeps them all): 1 buffers, 2 BC7 3D, 4 BC7 2D array, 8 BC4
+// 3D, 16 BC4 2D array, 32 unorm8 3D, 64 unorm8 2D array. The paths a volume does not use are then
+// dead code the driver removes; with buffers alone the read is the plain buffer read (a volume
+// whose bricks are all buffered has local index = brick index), which keeps software
+// rasterizers (lavapipe runs every side of a divergent branch) from paying for texture paths.
+override VDB_PATHS: u32 = 127u;
+
+// Voxel `v` (0..8 per axis, taken mod 8) of brick `b`: one buffer word or one texel (nearest
+// voxel, no filtering), dequantized with the brick's range.
+fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
+    let m = vec3<u32>(v & vec3<i32>(7));
+    if (VDB_PATHS == 1u) {
+        return vdb_buffer_voxel(b, m);
+    }
+    let g = vdb_brick_group(b);
+    let grp = vdb_info.groups[g];
+    let local = b - grp.first + grp.base;
+    if ((VDB_PATHS & 1u) != 0u && grp.kind == 0u) {
+        return vdb_buffer_voxel(local, m);
+    }
+    let tile = vec3<u32>(local % grp.tiles_x, (local / grp.tiles_x) % grp.tiles_y,
+                         local / (grp.tiles_x * grp.tiles_y));
+    let xy = vec2<i32>(8u * tile.xy + m.xy);
+    let s8 = i32(8u * tile.z + m.z);
+    var t = 0.0;
+    if (g == 0u) {
+        let s = i32(2u * tile.z + (m.z >> 2u));
+        var c = vec4<f32>(0.0);
+        if ((VDB_PATHS & 2u) != 0u && grp.kind == 1u) {
+            c = textureLoad(vdb_bc7_3d, vec3<i32>(xy, s), 0);
+        } else if ((VDB_PATHS & 4u) != 0u && grp.kind == 2u) {
+            c = textureLoad(vdb_bc7_array, xy, s, 0);
+        }
+        t = c[m.z & 3u];
+    } else if (g == 1u) {
+        if ((VDB_PATHS & 8u) != 0u && grp.kind == 1u) {
+            t = textureLoad(vdb_bc4_3d, vec3<i32>(xy, s8), 0).x;
+        } else if ((VDB_PATHS & 16u) != 0u && grp.kind == 2u) {
+            t = textureLoad(vdb_bc4_array, xy, s8, 0).x;
+        }
+    } else {
+        if ((VDB_PATHS & 32u) != 0u && grp.kind == 1u) {
+            t = textureLoad(vdb_u8_3d, vec3<i32>(xy, s8), 0).x;
+        } else if ((VDB_PATHS & 64u) != 0u && grp.kind == 2u) {
+            t = textureLoad(vdb_u8_array, xy, s8, 0).x;
+        }
+    }
+    let q = vdb_brick_quant(b);
+    return q.x + (q.y - q.x) * t;
 }
 
 // The value at asset index `a` of the frame whose roots start at `frame_root` (background where

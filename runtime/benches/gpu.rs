@@ -4,15 +4,27 @@
 //! feature only the wall time is printed. The results: `docs/rendering.md`.
 //!
 //! `cargo bench -p vdbcook-runtime --bench gpu [-- ASSET.vdbc ...]`; by default the f32 assets
-//! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`.
+//! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`. Each asset is
+//! uploaded with the automatic layout, or with every layout when `VDBCOOK_BENCH_LAYOUTS=all`
+//! (the table gives the layout and the payload bytes on the GPU); `VDBCOOK_BENCH_SIZES=small`
+//! renders 640×360 only.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use vdbcook_runtime::{Asset, Camera, GpuVolume, Mode, Renderer, Settings};
+use vdbcook_runtime::{Asset, Camera, GpuVolume, Layout, Mode, Renderer, Settings, UploadOptions};
 
 const RUNS: usize = 5;
 const SIZES: [(u32, u32); 2] = [(640, 360), (1920, 1080)];
+
+/// `VDBCOOK_BENCH_SIZES=small`: only the first size.
+fn sizes() -> &'static [(u32, u32)] {
+    if std::env::var("VDBCOOK_BENCH_SIZES").as_deref() == Ok("small") {
+        &SIZES[..1]
+    } else {
+        &SIZES
+    }
+}
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
@@ -53,11 +65,12 @@ fn main() {
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("gpu bench"),
         required_limits: adapter.limits(),
-        required_features: if timestamps {
-            wgpu::Features::TIMESTAMP_QUERY
-        } else {
-            wgpu::Features::empty()
-        },
+        required_features: (adapter.features() & vdbcook_runtime::OPTIONAL_FEATURES)
+            | if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
         ..Default::default()
     }))
     .expect("device");
@@ -67,8 +80,11 @@ fn main() {
         adapter.get_info().name,
         adapter.get_info().backend
     );
-    println!("| asset | size | mode | GPU ms (timestamps) | submit+wait ms |");
-    println!("|---|---|---|---:|---:|");
+    println!(
+        "| asset | layout | payload bytes on GPU | size | mode | GPU ms (timestamps) | submit+wait ms |"
+    );
+    println!("|---|---|---:|---|---|---:|---:|");
+    let all_layouts = std::env::var("VDBCOOK_BENCH_LAYOUTS").as_deref() == Ok("all");
 
     let queries = timestamps.then(|| {
         let set = device.create_query_set(&wgpu::QuerySetDescriptor {
@@ -91,13 +107,46 @@ fn main() {
         (set, resolve, read)
     });
 
-    for path in &assets {
+    let runs: Vec<(PathBuf, Option<Layout>)> = assets
+        .iter()
+        .flat_map(|p| {
+            // Layouts only matter for quantized bricks.
+            let quantized = all_layouts
+                && Asset::load(p).is_ok_and(|a| a.header.brick_counts[..3].iter().sum::<u64>() > 0);
+            let layouts: Vec<Option<Layout>> = if quantized {
+                Layout::ALL.iter().map(|&l| Some(l)).collect()
+            } else {
+                vec![None]
+            };
+            layouts.into_iter().map(move |l| (p.clone(), l))
+        })
+        .collect();
+    for (path, force) in &runs {
         let asset = Asset::load(path).expect("a valid asset");
-        let volume = GpuVolume::upload(&device, &queue, &asset).expect("upload");
+        let volume = match GpuVolume::upload_with(
+            &device,
+            &queue,
+            &asset,
+            UploadOptions { force: *force },
+        ) {
+            Ok(v) => v,
+            Err(e) => {
+                eprintln!("{}: {e}", path.display());
+                continue;
+            }
+        };
+        eprintln!("{}: {}", path.display(), volume.describe());
+        let l = volume.layout();
+        let payload_bytes = l.buffer_bytes + l.textures.iter().map(|t| t.bytes).sum::<u64>();
+        let layout_name = if l.textures.is_empty() && l.layout != Layout::Buffers {
+            "(no quantized bricks)"
+        } else {
+            l.layout.name()
+        };
         let format = wgpu::TextureFormat::Rgba8Unorm;
         let renderer = Renderer::new(&device, &volume, format).expect("renderer");
         let name = path.file_stem().unwrap().to_string_lossy().into_owned();
-        for (w, h) in SIZES {
+        for &(w, h) in sizes() {
             let texture = device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("gpu bench target"),
                 size: wgpu::Extent3d {
@@ -180,7 +229,7 @@ fn main() {
                 format!("{:.1}", median(gpu) * 1e3)
             };
             println!(
-                "| {name} | {w}×{h} | density | {g} | {:.1} |",
+                "| {name} | {layout_name} | {payload_bytes} | {w}×{h} | density | {g} | {:.1} |",
                 median(wall) * 1e3
             );
         }

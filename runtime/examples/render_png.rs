@@ -40,15 +40,16 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("render_png"),
         required_limits: adapter.limits(),
+        // BC textures where the adapter has them (the upload falls back without).
+        required_features: adapter.features() & vdbcook_runtime::OPTIONAL_FEATURES,
         ..Default::default()
     }))?;
 
     let volume = GpuVolume::upload(&device, &queue, &asset)?;
     eprintln!(
-        "uploaded {} frames as {:?}, {} bytes",
+        "uploaded {} frames: {}",
         volume.frame_count(),
-        volume.layout(),
-        volume.gpu_bytes()
+        volume.describe()
     );
     let format = wgpu::TextureFormat::Rgba8Unorm;
     let renderer = Renderer::new(&device, &volume, format)?;

@@ -18,10 +18,17 @@
 //! (the CPU's PCG stream per (seed, pixel, sample), so the images agree statistically; f32 free
 //! flights make a few paths branch differently from the CPU's f64 ones).
 //!
-//! Brick payload on the GPU (see [`PayloadLayout`]): every brick is decoded on the CPU at upload
-//! (`Asset::decode_brick`, so BC4/BC7/unorm8 bricks arrive exactly as the CPU sampler reads
-//! them) into f32 storage buffers, or packed f16 pairs when every brick is f16 (bit exact) or
-//! when f32 would not fit. Native BC / unorm8 textures are a later step.
+//! Brick payload on the GPU (see [`PayloadLayout`], [`Layout`] and `upload.rs`): the quantized
+//! formats stay quantized — BC4/BC7 bricks as BC textures (3D with
+//! `TEXTURE_COMPRESSION_BC_SLICED_3D`, else 2D arrays with `TEXTURE_COMPRESSION_BC`), unorm8
+//! bricks as `R8Unorm` textures — and the shader reads one texel per voxel (`textureLoad`, the
+//! nearest voxel as on the CPU) and dequantizes it with the brick's `[lo, hi]`. Without BC
+//! support the BC bricks are decoded at upload (the asset's decoder) into `R8Unorm` /
+//! `Rgba8Unorm` textures; f16/f32 bricks live in storage buffers. [`GpuVolume::upload`] picks
+//! the first layout the device's features and limits allow and logs it; request
+//! [`OPTIONAL_FEATURES`] on the device to let it use BC; [`GpuVolume::upload_with`] can force one.
+//! An engine's own pipelines over [`VOLUME_WGSL`] should pass [`GpuVolume::pipeline_constants`]
+//! (the read paths the volume uses) so the others compile away.
 //!
 //! Submission rule: `render` writes the parameters with `Queue::write_buffer`, which takes
 //! effect at the next `submit`; record at most one render per renderer per submission.
@@ -37,7 +44,9 @@ mod upload;
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
-pub use upload::{GpuVolume, PayloadLayout};
+pub use upload::{
+    BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
+};
 pub use vdbcook_asset::Asset;
 
 /// Bindings of an uploaded volume (group 0), tree access, sampling and the DDA.

@@ -214,7 +214,10 @@ impl Renderer {
             layout: Some(&layout),
             module: &module,
             entry_point: Some("trace_main"),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &volume.pipeline_constants(),
+                ..Default::default()
+            },
             cache: None,
         });
         let params = device.create_buffer(&wgpu::BufferDescriptor {

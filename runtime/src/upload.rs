@@ -1,15 +1,31 @@
 //! Uploads an asset once: every frame's roots, the L2 nodes (masks, bases, prefixes, ranges),
-//! the leaf refs, tile values and brick ranges into one storage buffer of u32 words, and the
-//! brick pool — decoded on the CPU with the asset's own decoders, so every payload format
-//! (BC7, BC4, unorm8, f16, f32) reaches the shader exactly as the CPU sampler reads it — into up
-//! to four storage buffers that each respect `max_storage_buffer_binding_size`. It also keeps
-//! what the renderer needs per frame on the CPU side (stored boxes, value ranges).
+//! the leaf refs, tile values, brick ranges and quantization ranges into one storage buffer of
+//! u32 words, and the brick pool — the quantized formats (BC7, BC4, unorm8) as **textures**, the
+//! float formats (f16, f32) in up to four storage buffers — plus what the renderer needs per
+//! frame on the CPU side (stored boxes, value ranges).
 //!
-//! Native BC / unorm8 textures (3D with `TEXTURE_COMPRESSION_BC_SLICED_3D`, else 2D arrays) are
-//! a later step: today's layouts cost 4 (f32) or 2 (f16) bytes per voxel of the pool.
+//! The upload checks the device's features and limits and picks a [`Layout`] for the quantized
+//! bricks (first that works: BC in 3D textures, BC in 2D arrays, BC decoded at upload into
+//! unorm8 textures, everything decoded into storage buffers); [`UploadOptions::force`] pins one
+//! (tests use it to cover every path on one adapter). The choice is logged (`log::info!`) and
+//! readable through [`GpuVolume::layout`] and [`GpuVolume::describe`].
+//!
+//! # Texture layouts (shared by every texture-backed group; `volume.wgsl` reads them)
+//! Each quantized format that has bricks gets one texture ("group": BC7, BC4, unorm8). A brick is
+//! a *tile* of 8×8 texels and `S` slices: `S = 8` for BC4 and unorm8 (slice `z` = voxel z), `S =
+//! 2` for BC7 (texel (x, y) of slice `s` holds voxels z = 4s..4s+3 in R, G, B, A — the asset's
+//! own encoding, see `docs/payloads.md`). Brick `b` of the group (its index minus the group's
+//! first brick) lies at tile `(b mod tx, (b / tx) mod ty, b / (tx·ty))`, i.e. texels
+//! `[8·cx, 8·cx+8) × [8·cy, 8·cy+8) × [S·cz, S·cz+S)`, in a texture of `8·tx × 8·ty × S·tz`
+//! texels (3D) or `8·tx × 8·ty` texels and `S·tz` layers (2D array): the two are addressed
+//! alike, only the binding differs. Texel formats: `Bc4RUnorm` / `Bc7RgbaUnorm` (the asset's
+//! blocks copied as they are: BC blocks are 4×4×1, so every slice is independent), or
+//! `R8Unorm` / `Rgba8Unorm` holding the 8-bit codes (unorm8 bricks, and BC bricks decoded at
+//! upload with the asset's decoder). A voxel is `lo + (hi − lo)·texel` with the brick's
+//! `brick_quant` `[lo, hi]`, the CPU's `payload::dequantize`.
 
 use bytemuck::{Pod, Zeroable};
-use vdbcook_asset::{Asset, LeafRef, PayloadFormat, BRICK_VOXELS, L2_WORDS};
+use vdbcook_asset::{bc, Asset, LeafRef, PayloadFormat, BRICK_VOXELS, L2_WORDS};
 use wgpu::util::DeviceExt;
 
 use crate::{Result, RuntimeError};
@@ -17,16 +33,76 @@ use crate::{Result, RuntimeError};
 /// Payload storage buffers the shader binds (`vdb_payload0..3`).
 pub const PAYLOAD_BINDINGS: usize = 4;
 
-/// How the brick pool lies on the GPU.
+/// Device features the runtime uses when they are enabled (BC textures, BC in 3D textures).
+/// Request `adapter.features() & OPTIONAL_FEATURES` when creating the device; without them the
+/// upload falls back to decoding BC bricks (same images, more bytes).
+pub const OPTIONAL_FEATURES: wgpu::Features =
+    wgpu::Features::TEXTURE_COMPRESSION_BC.union(wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D);
+
+/// Where the quantized bricks (BC7, BC4, unorm8) go; f16/f32 bricks are always in storage
+/// buffers. Listed in the order the automatic choice tries them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Layout {
+    /// BC bricks as BC 3D textures (needs `TEXTURE_COMPRESSION_BC` and
+    /// `TEXTURE_COMPRESSION_BC_SLICED_3D`), unorm8 as an `R8Unorm` 3D texture.
+    Bc3d,
+    /// BC bricks as BC 2D-array textures (needs `TEXTURE_COMPRESSION_BC`), unorm8 as an
+    /// `R8Unorm` 2D array.
+    Bc2dArray,
+    /// BC bricks decoded at upload into `R8Unorm` (BC4) / `Rgba8Unorm` (BC7) 3D textures,
+    /// unorm8 as is: works on any adapter, exact, 2 (BC4) or 4 (BC7) times the BC bytes.
+    Decoded3d,
+    /// As [`Layout::Decoded3d`] in 2D arrays (for 3D limits too small for the pool).
+    Decoded2dArray,
+    /// Every brick decoded to f32 (or f16 when f32 would not fit) in storage buffers.
+    Buffers,
+}
+
+impl Layout {
+    /// Every layout, in the order the automatic choice tries them.
+    pub const ALL: [Layout; 5] = [
+        Layout::Bc3d,
+        Layout::Bc2dArray,
+        Layout::Decoded3d,
+        Layout::Decoded2dArray,
+        Layout::Buffers,
+    ];
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Bc3d => "bc-3d",
+            Layout::Bc2dArray => "bc-2d-array",
+            Layout::Decoded3d => "decoded-3d",
+            Layout::Decoded2dArray => "decoded-2d-array",
+            Layout::Buffers => "buffers",
+        }
+    }
+    fn native_bc(self) -> bool {
+        matches!(self, Layout::Bc3d | Layout::Bc2dArray)
+    }
+    fn dim3(self) -> bool {
+        matches!(self, Layout::Bc3d | Layout::Decoded3d)
+    }
+}
+
+/// Options of [`GpuVolume::upload_with`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UploadOptions {
+    /// Use this layout or fail (`RuntimeError::Limits` / `Unsupported`) instead of choosing.
+    pub force: Option<Layout>,
+}
+
+/// How the bricks held in storage buffers are stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PayloadLayout {
-    /// Every brick decoded to f32 (exact for every format).
+pub enum BufferLayout {
+    /// No brick is in a buffer (the bindings hold 4-byte dummies).
+    None,
+    /// Every buffered brick decoded to f32 (exact for every format).
     F32 {
         buffers: usize,
         bricks_per_buffer: u32,
     },
-    /// Two f16 per u32 (`unpack2x16float`): `exact` when every brick is stored as f16, else the
-    /// decoded values rounded to half (chosen only when f32 would not fit the limits).
+    /// Two f16 per u32 (`unpack2x16float`): `exact` when every buffered brick is stored as
+    /// f16, else the decoded values rounded to half (chosen only when f32 would not fit).
     F16 {
         buffers: usize,
         bricks_per_buffer: u32,
@@ -34,24 +110,73 @@ pub enum PayloadLayout {
     },
 }
 
-impl PayloadLayout {
+impl BufferLayout {
     fn code(self) -> u32 {
         match self {
-            PayloadLayout::F32 { .. } => 0,
-            PayloadLayout::F16 { .. } => 1,
+            BufferLayout::F16 { .. } => 1,
+            _ => 0,
         }
     }
     /// Bricks each payload buffer holds.
     pub fn bricks_per_buffer(self) -> u32 {
         match self {
-            PayloadLayout::F32 {
+            BufferLayout::None => 1,
+            BufferLayout::F32 {
                 bricks_per_buffer, ..
             }
-            | PayloadLayout::F16 {
+            | BufferLayout::F16 {
                 bricks_per_buffer, ..
             } => bricks_per_buffer,
         }
     }
+}
+
+/// One texture of the brick pool (see the module docs for the tile layout).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TextureGroup {
+    /// The asset format whose bricks it holds.
+    pub source: PayloadFormat,
+    pub format: wgpu::TextureFormat,
+    /// 3D texture (`true`) or 2D array.
+    pub dim3: bool,
+    /// Tiles per row, rows per slice, tile layers (bricks along x, y, z).
+    pub tiles: [u32; 3],
+    /// Texels: width, height, depth or layers.
+    pub size: [u32; 3],
+    pub bytes: u64,
+}
+
+/// How the brick pool lies on the GPU.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PayloadLayout {
+    /// The layout of the quantized bricks.
+    pub layout: Layout,
+    /// The bricks in storage buffers (float bricks; every brick with [`Layout::Buffers`]).
+    pub buffers: BufferLayout,
+    /// Bytes of the payload buffers.
+    pub buffer_bytes: u64,
+    /// One per quantized format with bricks in a texture.
+    pub textures: Vec<TextureGroup>,
+}
+
+/// Group slots of `VolumeInfo` (BC7, BC4, unorm8, floats), in brick order.
+const GROUPS: usize = 4;
+const KIND_BUFFER: u32 = 0;
+const KIND_3D: u32 = 1;
+const KIND_ARRAY: u32 = 2;
+
+/// `VdbGroup` of `volume.wgsl`: bricks `[first, next group's first)` are read at local index
+/// `b − first + base`, from the payload buffers (`kind` 0) or the group's texture (1: 3D, 2:
+/// 2D array) with `tiles` tiles per row / rows per slice.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, Default)]
+struct GroupInfo {
+    first: u32,
+    base: u32,
+    kind: u32,
+    tiles_x: u32,
+    tiles_y: u32,
+    _pad: [u32; 3],
 }
 
 /// The `VolumeInfo` uniform of `volume.wgsl`.
@@ -71,7 +196,8 @@ struct VolumeInfo {
     background: f32,
     payload_layout: u32,
     frames: u32,
-    _pad: u32,
+    off_brick_quant: u32,
+    groups: [GroupInfo; GROUPS],
 }
 
 /// An asset on the GPU: all frames and the whole brick pool, with the bind group (group 0 of
@@ -109,11 +235,332 @@ fn words_of_f32(v: &[[f32; 2]]) -> impl Iterator<Item = u32> + '_ {
     v.iter().flat_map(|p| [p[0].to_bits(), p[1].to_bits()])
 }
 
+/// A texture group's geometry before it exists: texel format, bytes per storage unit (a BC
+/// block or a texel), unit edge in texels (4 for BC, 1 otherwise), slices per brick.
+#[derive(Debug, Clone, Copy)]
+struct Plan {
+    source: PayloadFormat,
+    format: wgpu::TextureFormat,
+    unit_bytes: usize,
+    unit_dim: u32,
+    slices: u32,
+    bricks: u32,
+    dim3: bool,
+    tiles: [u32; 3],
+}
+
+impl Plan {
+    fn size(&self) -> [u32; 3] {
+        [
+            8 * self.tiles[0],
+            8 * self.tiles[1],
+            self.slices * self.tiles[2],
+        ]
+    }
+    fn bytes(&self) -> u64 {
+        let [w, h, d] = self.size();
+        let u = self.unit_dim as u64;
+        (w as u64 / u) * (h as u64 / u) * d as u64 * self.unit_bytes as u64
+    }
+    fn group(&self) -> TextureGroup {
+        TextureGroup {
+            source: self.source,
+            format: self.format,
+            dim3: self.dim3,
+            tiles: self.tiles,
+            size: self.size(),
+            bytes: self.bytes(),
+        }
+    }
+}
+
+/// Tiles `[tx, ty, tz]` for `n` bricks of `slices` slices in a texture of at most `max` texels
+/// (width, height, depth or layers), or why they do not fit.
+fn tile_grid(n: u32, slices: u32, max: [u32; 3]) -> std::result::Result<[u32; 3], String> {
+    let (mx, my, mz) = (max[0] / 8, max[1] / 8, max[2] / slices);
+    if mx == 0 || my == 0 || mz == 0 {
+        return Err(format!("texture limits {max:?} hold no 8×8×{slices} tile"));
+    }
+    let tx = n.min(mx);
+    let rows = n.div_ceil(tx);
+    let tz = rows.div_ceil(my);
+    if tz > mz {
+        return Err(format!(
+            "{n} bricks need {} tile layers of {tx}×{my}, the limits {max:?} allow {mz}",
+            tz
+        ));
+    }
+    let ty = rows.div_ceil(tz);
+    // Narrow the rows again so the last tile row and layer waste fewer than ty·tz tiles.
+    let tx = n.div_ceil(ty * tz);
+    Ok([tx, ty, tz])
+}
+
+/// The texture plan of one quantized format under `layout`, or why it cannot be used.
+fn plan_group(
+    device: &wgpu::Device,
+    layout: Layout,
+    source: PayloadFormat,
+    bricks: u32,
+) -> std::result::Result<Plan, String> {
+    use wgpu::TextureFormat as F;
+    let (format, unit_bytes, unit_dim, slices) = match (source, layout.native_bc()) {
+        (PayloadFormat::Bc4, true) => (F::Bc4RUnorm, 8, 4, 8),
+        (PayloadFormat::Bc7, true) => (F::Bc7RgbaUnorm, 16, 4, 2),
+        (PayloadFormat::Bc4, false) | (PayloadFormat::Unorm8, _) => (F::R8Unorm, 1, 1, 8),
+        (PayloadFormat::Bc7, false) => (F::Rgba8Unorm, 4, 1, 2),
+        (f, _) => return Err(format!("{} bricks are not texture bricks", f.name())),
+    };
+    let features = device.features();
+    if format.is_compressed() {
+        if !features.contains(wgpu::Features::TEXTURE_COMPRESSION_BC) {
+            return Err("the device has no TEXTURE_COMPRESSION_BC".into());
+        }
+        if layout.dim3() && !features.contains(wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D) {
+            return Err("the device has no TEXTURE_COMPRESSION_BC_SLICED_3D".into());
+        }
+    }
+    let l = device.limits();
+    let max = if layout.dim3() {
+        [l.max_texture_dimension_3d; 3]
+    } else {
+        [
+            l.max_texture_dimension_2d,
+            l.max_texture_dimension_2d,
+            l.max_texture_array_layers,
+        ]
+    };
+    let tiles = tile_grid(bricks, slices, max).map_err(|e| format!("{}: {e}", source.name()))?;
+    Ok(Plan {
+        source,
+        format,
+        unit_bytes,
+        unit_dim,
+        slices,
+        bricks,
+        dim3: layout.dim3(),
+        tiles,
+    })
+}
+
+/// The bytes of a brick as `plan` stores it: storage units ordered slice, unit row, unit column
+/// (the asset's own order for BC blocks and unorm8 texels; BC decoded here when `plan` is 8-bit).
+fn brick_units(plan: &Plan, format: PayloadFormat, bytes: &[u8], out: &mut Vec<u8>) {
+    out.clear();
+    match (format, plan.format.is_compressed()) {
+        (PayloadFormat::Unorm8, _) | (_, true) => out.extend_from_slice(bytes),
+        (PayloadFormat::Bc4, false) => {
+            out.resize(BRICK_VOXELS, 0);
+            for (bi, block) in bytes.chunks_exact(8).enumerate() {
+                let texels = bc::decode_bc4_block(block.try_into().expect("8-byte block"));
+                let (z, by, bx) = (bi / 4, (bi / 2) % 2, bi % 2);
+                for (t, &q) in texels.iter().enumerate() {
+                    let (x, y) = (4 * bx + t % 4, 4 * by + t / 4);
+                    out[x + 8 * y + 64 * z] = q;
+                }
+            }
+        }
+        (PayloadFormat::Bc7, false) => {
+            out.resize(2 * 64 * 4, 0);
+            for (bi, block) in bytes.chunks_exact(16).enumerate() {
+                let texels = bc::decode_bc7_block(block.try_into().expect("16-byte block"));
+                let (s, by, bx) = (bi / 4, (bi / 2) % 2, bi % 2);
+                for (t, rgba) in texels.iter().enumerate() {
+                    let (x, y) = (4 * bx + t % 4, 4 * by + t / 4);
+                    let i = 4 * (x + 8 * y + 64 * s);
+                    out[i..i + 4].copy_from_slice(rgba);
+                }
+            }
+        }
+        (f, _) => unreachable!("{} is not a texture format", f.name()),
+    }
+}
+
+/// Creates the texture of `plan` and writes every brick of its format, one tile layer at a time.
+fn create_group_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    asset: &Asset,
+    plan: &Plan,
+    first_brick: u32,
+) -> wgpu::TextureView {
+    let [w, h, d] = plan.size();
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("vdbcook brick texture"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: d,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: if plan.dim3 {
+            wgpu::TextureDimension::D3
+        } else {
+            wgpu::TextureDimension::D2
+        },
+        format: plan.format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let ud = plan.unit_dim as usize;
+    let (units_x, units_y) = (w as usize / ud, h as usize / ud);
+    let tile_units = 8 / ud;
+    let slices = plan.slices as usize;
+    let row_bytes = units_x * plan.unit_bytes;
+    let [tx, ty, tz] = plan.tiles.map(|t| t as usize);
+    let mut layer = vec![0u8; row_bytes * units_y * slices];
+    let mut units = Vec::new();
+    for cz in 0..tz {
+        layer.fill(0);
+        for cy in 0..ty {
+            for cx in 0..tx {
+                let local = (cz * ty + cy) * tx + cx;
+                if local >= plan.bricks as usize {
+                    continue;
+                }
+                let (format, bytes) = asset.brick_bytes(first_brick + local as u32);
+                brick_units(plan, format, bytes, &mut units);
+                let ub = plan.unit_bytes;
+                for s in 0..slices {
+                    for uy in 0..tile_units {
+                        let src = ((s * tile_units + uy) * tile_units) * ub;
+                        let dst =
+                            (s * units_y + cy * tile_units + uy) * row_bytes + cx * tile_units * ub;
+                        layer[dst..dst + tile_units * ub]
+                            .copy_from_slice(&units[src..src + tile_units * ub]);
+                    }
+                }
+            }
+        }
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: 0,
+                    z: (cz * slices) as u32,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            &layer,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row_bytes as u32),
+                rows_per_image: Some(units_y as u32),
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: plan.slices,
+            },
+        );
+    }
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        label: Some("vdbcook brick texture"),
+        dimension: Some(if plan.dim3 {
+            wgpu::TextureViewDimension::D3
+        } else {
+            wgpu::TextureViewDimension::D2Array
+        }),
+        ..Default::default()
+    })
+}
+
+/// Bricks in the buffers and how they are stored, or why they do not fit.
+fn plan_buffers(
+    buffered: u64,
+    all_f16: bool,
+    max_binding: u64,
+) -> std::result::Result<BufferLayout, String> {
+    if buffered == 0 {
+        return Ok(BufferLayout::None);
+    }
+    let fits = |bytes_per_brick: u64| {
+        let per = (max_binding / bytes_per_brick).min(1 << 22);
+        (per > 0 && buffered <= per * PAYLOAD_BINDINGS as u64)
+            .then(|| ((buffered.div_ceil(per) as usize).max(1), per as u32))
+    };
+    let layout = if all_f16 {
+        fits(1024).map(|(buffers, per)| BufferLayout::F16 {
+            buffers,
+            bricks_per_buffer: per,
+            exact: true,
+        })
+    } else {
+        fits(2048)
+            .map(|(buffers, per)| BufferLayout::F32 {
+                buffers,
+                bricks_per_buffer: per,
+            })
+            .or_else(|| {
+                fits(1024).map(|(buffers, per)| BufferLayout::F16 {
+                    buffers,
+                    bricks_per_buffer: per,
+                    exact: false,
+                })
+            })
+    };
+    layout.ok_or_else(|| {
+        format!(
+            "{buffered} buffered bricks do not fit {PAYLOAD_BINDINGS} storage bindings of \
+             {max_binding} bytes"
+        )
+    })
+}
+
+/// A full plan: texture groups (BC7, BC4, unorm8 slots) and the buffer layout.
+struct FullPlan {
+    layout: Layout,
+    textures: [Option<Plan>; 3],
+    buffers: BufferLayout,
+}
+
+fn plan_layout(
+    device: &wgpu::Device,
+    asset: &Asset,
+    layout: Layout,
+    max_binding: u64,
+) -> std::result::Result<FullPlan, String> {
+    let counts = asset.header.brick_counts;
+    let mut textures = [None; 3];
+    if layout != Layout::Buffers {
+        for (slot, format) in PayloadFormat::ORDER[..3].iter().enumerate() {
+            let n = counts[format.rank()];
+            if n == 0 {
+                continue;
+            }
+            let n = u32::try_from(n).map_err(|_| format!("{n} {} bricks", format.name()))?;
+            textures[slot] = Some(plan_group(device, layout, *format, n)?);
+        }
+    }
+    let textured: u64 = textures.iter().flatten().map(|p| p.bricks as u64).sum();
+    let buffered = asset.brick_count() as u64 - textured;
+    let all_f16 = buffered > 0 && counts[PayloadFormat::F16.rank()] == buffered;
+    let buffers = plan_buffers(buffered, all_f16, max_binding)?;
+    Ok(FullPlan {
+        layout,
+        textures,
+        buffers,
+    })
+}
+
 impl GpuVolume {
-    /// Uploads every frame and the whole brick pool. Checks the device's limits and picks the
-    /// payload layout (logged, and returned by [`GpuVolume::layout`]); refuses an asset whose
-    /// topology or pool cannot fit them.
-    pub fn upload(device: &wgpu::Device, _queue: &wgpu::Queue, asset: &Asset) -> Result<GpuVolume> {
+    /// Uploads every frame and the whole brick pool. Checks the device's features and limits
+    /// and picks the payload layout (logged, and returned by [`GpuVolume::layout`]); refuses an
+    /// asset whose topology or pool cannot fit them.
+    pub fn upload(device: &wgpu::Device, queue: &wgpu::Queue, asset: &Asset) -> Result<GpuVolume> {
+        Self::upload_with(device, queue, asset, UploadOptions::default())
+    }
+
+    /// [`GpuVolume::upload`] with options (e.g. a forced [`Layout`]).
+    pub fn upload_with(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        asset: &Asset,
+        options: UploadOptions,
+    ) -> Result<GpuVolume> {
         let limits = device.limits();
         let max_binding = limits
             .max_storage_buffer_binding_size
@@ -123,6 +570,12 @@ impl GpuVolume {
                 "max_storage_buffers_per_shader_stage {} (need {})",
                 limits.max_storage_buffers_per_shader_stage,
                 1 + PAYLOAD_BINDINGS
+            )));
+        }
+        if limits.max_sampled_textures_per_shader_stage < TEXTURE_BINDINGS {
+            return Err(RuntimeError::Limits(format!(
+                "max_sampled_textures_per_shader_stage {} (need {TEXTURE_BINDINGS})",
+                limits.max_sampled_textures_per_shader_stage
             )));
         }
 
@@ -148,6 +601,8 @@ impl GpuVolume {
         topo.extend(asset.tiles.iter().map(|t| t.to_bits()));
         let off_brick_ranges = topo.len();
         topo.extend(words_of_f32(&asset.brick_ranges));
+        let off_brick_quant = topo.len();
+        topo.extend(words_of_f32(&asset.brick_quant));
         if topo.is_empty() {
             topo.push(0);
         }
@@ -158,68 +613,114 @@ impl GpuVolume {
             )));
         }
         debug_assert_eq!(asset.l2_masks.len(), asset.l2_count() * L2_WORDS);
-
-        // Payload layout.
         let bricks = asset.brick_count() as u64;
-        let all_f16 = bricks > 0 && asset.header.brick_counts[PayloadFormat::F16.rank()] == bricks;
-        let fits = |bytes_per_brick: u64| {
-            let per = (max_binding / bytes_per_brick).min(1 << 22);
-            (per > 0 && bricks <= per * PAYLOAD_BINDINGS as u64).then_some(per)
-        };
-        let layout = if all_f16 {
-            fits(1024).map(|per| (per, true, true))
-        } else {
-            fits(2048)
-                .map(|per| (per, false, true))
-                .or_else(|| fits(1024).map(|per| (per, true, false)))
-        };
-        let Some((per, half_layout, exact)) = layout else {
-            return Err(RuntimeError::Limits(format!(
-                "{bricks} bricks do not fit {PAYLOAD_BINDINGS} storage bindings of {max_binding} bytes"
-            )));
-        };
-        let buffers = (bricks.div_ceil(per) as usize).max(1);
-        let per = per as u32;
-        let layout = if half_layout {
-            PayloadLayout::F16 {
-                buffers,
-                bricks_per_buffer: per,
-                exact,
-            }
-        } else {
-            PayloadLayout::F32 {
-                buffers,
-                bricks_per_buffer: per,
+        if bricks > u32::MAX as u64 / 2 {
+            return Err(RuntimeError::Limits(format!("{bricks} bricks")));
+        }
+
+        // Layout: the forced one, or the first that works.
+        let plan = match options.force {
+            Some(layout) => plan_layout(device, asset, layout, max_binding).map_err(|e| {
+                RuntimeError::Limits(format!("forced layout {}: {e}", layout.name()))
+            })?,
+            None => {
+                let mut refusals = Vec::new();
+                let mut chosen = None;
+                for layout in Layout::ALL {
+                    match plan_layout(device, asset, layout, max_binding) {
+                        Ok(p) => {
+                            chosen = Some(p);
+                            break;
+                        }
+                        Err(e) => refusals.push(format!("{}: {e}", layout.name())),
+                    }
+                }
+                match chosen {
+                    Some(p) => {
+                        if !refusals.is_empty() {
+                            log::info!("vdbcook: layouts passed over: {}", refusals.join("; "));
+                        }
+                        p
+                    }
+                    None => {
+                        return Err(RuntimeError::Limits(format!(
+                            "no payload layout fits: {}",
+                            refusals.join("; ")
+                        )))
+                    }
+                }
             }
         };
 
-        // Decode every brick once: payload words and the per-brick stored boxes.
+        // Per-group bookkeeping: first brick of each format, and where it is read.
+        let counts = asset.header.brick_counts;
+        let mut firsts = [0u32; 5];
+        for i in 1..5 {
+            firsts[i] = firsts[i - 1] + counts[i - 1] as u32;
+        }
+        let mut groups = [GroupInfo::default(); GROUPS];
+        let mut buffered_before = 0u32;
+        for slot in 0..GROUPS {
+            groups[slot].first = firsts[slot];
+            let n: u32 = if slot < 3 {
+                counts[slot] as u32
+            } else {
+                (counts[3] + counts[4]) as u32
+            };
+            match plan.textures.get(slot).copied().flatten() {
+                Some(p) => {
+                    groups[slot].kind = if p.dim3 { KIND_3D } else { KIND_ARRAY };
+                    groups[slot].tiles_x = p.tiles[0];
+                    groups[slot].tiles_y = p.tiles[1];
+                }
+                None => {
+                    groups[slot].kind = KIND_BUFFER;
+                    groups[slot].base = buffered_before;
+                    buffered_before += n;
+                }
+            }
+        }
+
+        // Buffered bricks (in brick order) and every brick's stored box, decoded once.
+        let per = plan.buffers.bricks_per_buffer();
+        let buffers = match plan.buffers {
+            BufferLayout::None => 0,
+            BufferLayout::F32 { buffers, .. } | BufferLayout::F16 { buffers, .. } => buffers,
+        };
+        let half_layout = matches!(plan.buffers, BufferLayout::F16 { .. });
         let background = asset.header.background;
         let mut boxes = Vec::with_capacity(bricks as usize);
         let mut payload: Vec<Vec<u32>> = vec![Vec::new(); buffers];
         let mut values = [0.0f32; BRICK_VOXELS];
+        let mut local = 0u32;
         for b in 0..bricks as u32 {
-            let out = &mut payload[(b / per) as usize];
-            if all_f16 {
-                let (_, bytes) = asset.brick_bytes(b);
+            asset.decode_brick(b, &mut values);
+            boxes.push(brick_box(&values, background));
+            let slot = PayloadFormat::ORDER
+                .iter()
+                .position(|f| *f == asset.brick_format(b).0)
+                .expect("in ORDER")
+                .min(3);
+            if slot < 3 && plan.textures[slot].is_some() {
+                continue;
+            }
+            let out = &mut payload[(local / per) as usize];
+            local += 1;
+            let (format, bytes) = asset.brick_bytes(b);
+            if format == PayloadFormat::F16 && half_layout {
                 out.extend(
                     bytes
                         .chunks_exact(4)
                         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])),
                 );
-                asset.decode_brick(b, &mut values);
+            } else if half_layout {
+                out.extend(values.chunks_exact(2).map(|p| {
+                    half::f16::from_f32(p[0]).to_bits() as u32
+                        | (half::f16::from_f32(p[1]).to_bits() as u32) << 16
+                }));
             } else {
-                asset.decode_brick(b, &mut values);
-                if half_layout {
-                    out.extend(values.chunks_exact(2).map(|p| {
-                        half::f16::from_f32(p[0]).to_bits() as u32
-                            | (half::f16::from_f32(p[1]).to_bits() as u32) << 16
-                    }));
-                } else {
-                    out.extend(values.iter().map(|v| v.to_bits()));
-                }
+                out.extend(values.iter().map(|v| v.to_bits()));
             }
-            boxes.push(brick_box(&values, background));
         }
 
         // Per-frame stored boxes (for the depth mode's range and the default framing).
@@ -240,9 +741,10 @@ impl GpuVolume {
             off_brick_ranges: off_brick_ranges as u32,
             bricks_per_binding: per,
             background,
-            payload_layout: layout.code(),
+            payload_layout: plan.buffers.code(),
             frames: asset.frame_count() as u32,
-            _pad: 0,
+            off_brick_quant: off_brick_quant as u32,
+            groups,
         };
         let storage = wgpu::BufferUsages::STORAGE;
         let info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -256,12 +758,13 @@ impl GpuVolume {
             usage: storage,
         });
         let mut gpu_bytes = topo_bytes + std::mem::size_of::<VolumeInfo>() as u64;
+        let mut buffer_bytes = 0;
         let payload_buffers: Vec<wgpu::Buffer> = (0..PAYLOAD_BINDINGS)
             .map(|i| {
                 let words = payload.get(i).filter(|w| !w.is_empty());
                 let dummy = [0u32];
                 let contents: &[u32] = words.map(|w| w.as_slice()).unwrap_or(&dummy);
-                gpu_bytes += contents.len() as u64 * 4;
+                buffer_bytes += words.map_or(0, |w| w.len() as u64 * 4);
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("vdbcook brick pool"),
                     contents: bytemuck::cast_slice(contents),
@@ -269,6 +772,16 @@ impl GpuVolume {
                 })
             })
             .collect();
+        gpu_bytes += buffer_bytes;
+
+        // Textures: one per texture-backed group, 1-texel dummies in the other bindings.
+        let dummy3 = dummy_view(device, true);
+        let dummy_array = dummy_view(device, false);
+        let mut views: Vec<Option<wgpu::TextureView>> = Vec::new();
+        for (slot, p) in plan.textures.iter().enumerate() {
+            views.push(p.map(|p| create_group_texture(device, queue, asset, &p, firsts[slot])));
+            gpu_bytes += p.map_or(0, |p| p.bytes());
+        }
 
         let bind_group_layout = volume_bind_group_layout(device);
         let mut entries = vec![
@@ -287,25 +800,30 @@ impl GpuVolume {
                 resource: b.as_entire_binding(),
             });
         }
+        // Bindings 6..11: (BC7, BC4, unorm8) × (3D, 2D array).
+        for (slot, (p, v)) in plan.textures.iter().zip(&views).enumerate() {
+            for dim3 in [true, false] {
+                let own = p.filter(|p| p.dim3 == dim3).and(v.as_ref());
+                let view = own.unwrap_or(if dim3 { &dummy3 } else { &dummy_array });
+                entries.push(wgpu::BindGroupEntry {
+                    binding: FIRST_TEXTURE_BINDING + 2 * slot as u32 + (!dim3) as u32,
+                    resource: wgpu::BindingResource::TextureView(view),
+                });
+            }
+        }
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("vdbcook volume"),
             layout: &bind_group_layout,
             entries: &entries,
         });
 
-        let bc3d = device
-            .features()
-            .contains(wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D);
-        log::info!(
-            "vdbcook: uploaded {} frames, {} bricks as {:?} ({} bytes on the GPU; bricks decoded at upload, \
-             native BC textures not used yet, BC in 3D {}available)",
-            asset.frame_count(),
-            bricks,
-            layout,
-            gpu_bytes,
-            if bc3d { "" } else { "not " }
-        );
-        Ok(GpuVolume {
+        let layout = PayloadLayout {
+            layout: plan.layout,
+            buffers: plan.buffers,
+            buffer_bytes,
+            textures: plan.textures.iter().flatten().map(|p| p.group()).collect(),
+        };
+        let volume = GpuVolume {
             bind_group_layout,
             bind_group,
             layout,
@@ -316,12 +834,75 @@ impl GpuVolume {
             bboxes,
             frame_max,
             gpu_bytes,
-        })
+        };
+        let bc = device.features() & OPTIONAL_FEATURES;
+        log::info!(
+            "vdbcook: uploaded {} frames, {} bricks: {} (device BC features: {:?})",
+            asset.frame_count(),
+            bricks,
+            volume.describe(),
+            bc
+        );
+        Ok(volume)
     }
 
     /// The payload layout chosen at upload.
-    pub fn layout(&self) -> PayloadLayout {
-        self.layout
+    pub fn layout(&self) -> &PayloadLayout {
+        &self.layout
+    }
+    /// Pipeline-overridable constants of `VOLUME_WGSL` for this volume (`VDB_PATHS`: the brick
+    /// read paths it uses). Pass them as `PipelineCompilationOptions::constants` so the unused
+    /// paths compile away; pipelines without them keep every path and work too.
+    pub fn pipeline_constants(&self) -> Vec<(&'static str, f64)> {
+        let l = &self.layout;
+        let mut paths = 0u32;
+        if l.buffers != BufferLayout::None {
+            paths |= 1;
+        }
+        for t in &l.textures {
+            let slot = match t.source {
+                PayloadFormat::Bc7 => 0,
+                PayloadFormat::Bc4 => 1,
+                _ => 2,
+            };
+            paths |= 2 << (2 * slot + (!t.dim3) as u32);
+        }
+        vec![("VDB_PATHS", paths.max(1) as f64)]
+    }
+    /// One line saying how the pool lies on the GPU (layout, textures, buffers, bytes).
+    pub fn describe(&self) -> String {
+        let l = &self.layout;
+        let mut parts = vec![if l.textures.is_empty() && l.layout != Layout::Buffers {
+            "no quantized bricks".to_string()
+        } else {
+            format!("layout {}", l.layout.name())
+        }];
+        for t in &l.textures {
+            parts.push(format!(
+                "{} bricks in a {:?} {} {}×{}×{} ({} bytes)",
+                t.source.name(),
+                t.format,
+                if t.dim3 { "3D texture" } else { "2D array" },
+                t.size[0],
+                t.size[1],
+                t.size[2],
+                t.bytes
+            ));
+        }
+        match l.buffers {
+            BufferLayout::None => {}
+            BufferLayout::F32 { buffers, .. } => parts.push(format!(
+                "buffered bricks as f32 in {buffers} storage buffer(s) ({} bytes)",
+                l.buffer_bytes
+            )),
+            BufferLayout::F16 { buffers, exact, .. } => parts.push(format!(
+                "buffered bricks as f16{} in {buffers} storage buffer(s) ({} bytes)",
+                if exact { "" } else { " (rounded)" },
+                l.buffer_bytes
+            )),
+        }
+        parts.push(format!("{} bytes on the GPU in all", self.gpu_bytes));
+        parts.join(", ")
     }
     pub fn frame_count(&self) -> usize {
         self.frames
@@ -350,13 +931,54 @@ impl GpuVolume {
     pub(crate) fn frame_max(&self, frame: usize) -> f32 {
         self.frame_max[frame]
     }
-    /// Whether the payload layout reads back every brick exactly as the CPU decoder does.
+    /// Whether the GPU reads every brick exactly as the CPU decoder does, up to f32 rounding of
+    /// the dequantization: false for rounded f16 buffers and for native BC4 textures (drivers
+    /// may interpolate BC4 in higher precision than the 8-bit reference decode).
     pub fn exact(&self) -> bool {
-        !matches!(self.layout, PayloadLayout::F16 { exact: false, .. })
+        !matches!(self.layout.buffers, BufferLayout::F16 { exact: false, .. })
+            && !self
+                .layout
+                .textures
+                .iter()
+                .any(|t| t.format == wgpu::TextureFormat::Bc4RUnorm)
     }
 }
 
-/// Group 0 of `VOLUME_WGSL`: info uniform, topology, four payload buffers.
+/// First of the six texture bindings: (BC7, BC4, unorm8) × (3D, 2D array).
+const FIRST_TEXTURE_BINDING: u32 = 2 + PAYLOAD_BINDINGS as u32;
+const TEXTURE_BINDINGS: u32 = 6;
+
+/// A 1×1×1 `R8Unorm` view for texture bindings a volume does not use.
+fn dummy_view(device: &wgpu::Device, dim3: bool) -> wgpu::TextureView {
+    let t = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("vdbcook unused brick texture"),
+        size: wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: if dim3 {
+            wgpu::TextureDimension::D3
+        } else {
+            wgpu::TextureDimension::D2
+        },
+        format: wgpu::TextureFormat::R8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    t.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(if dim3 {
+            wgpu::TextureViewDimension::D3
+        } else {
+            wgpu::TextureViewDimension::D2Array
+        }),
+        ..Default::default()
+    })
+}
+
+/// Group 0 of `VOLUME_WGSL`: info uniform, topology, four payload buffers, six brick textures.
 fn volume_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     let vis = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
     let mut entries = vec![wgpu::BindGroupLayoutEntry {
@@ -377,6 +999,22 @@ fn volume_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
                 ty: wgpu::BufferBindingType::Storage { read_only: true },
                 has_dynamic_offset: false,
                 min_binding_size: None,
+            },
+            count: None,
+        });
+    }
+    for i in 0..TEXTURE_BINDINGS {
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: FIRST_TEXTURE_BINDING + i,
+            visibility: vis,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: if i % 2 == 0 {
+                    wgpu::TextureViewDimension::D3
+                } else {
+                    wgpu::TextureViewDimension::D2Array
+                },
+                multisampled: false,
             },
             count: None,
         });

@@ -8,9 +8,18 @@ use std::collections::BTreeMap;
 
 use vdbcook_asset::*;
 
-/// A device and queue on the first adapter wgpu finds, or `None` (after printing why) when
-/// there is none and `VDBCOOK_REQUIRE_GPU` is not `1`.
+/// A device and queue on the first adapter wgpu finds (with the BC features it has), or `None`
+/// (after printing why) when there is none and `VDBCOOK_REQUIRE_GPU` is not `1`.
 pub fn gpu(test: &str) -> Option<(wgpu::Device, wgpu::Queue)> {
+    gpu_with(test, vdbcook_runtime::OPTIONAL_FEATURES, None)
+}
+
+/// As [`gpu`], enabling only `features ∩ the adapter's`, with the adapter's limits or `limits`.
+pub fn gpu_with(
+    test: &str,
+    features: wgpu::Features,
+    limits: Option<wgpu::Limits>,
+) -> Option<(wgpu::Device, wgpu::Queue)> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
     let adapter = match pollster::block_on(instance.request_adapter(&Default::default())) {
         Ok(a) => a,
@@ -27,8 +36,9 @@ pub fn gpu(test: &str) -> Option<(wgpu::Device, wgpu::Queue)> {
     };
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("vdbcook test"),
-        required_features: wgpu::Features::empty(),
-        required_limits: adapter.limits(),
+        // BC textures where the adapter has them: the default upload then uses them.
+        required_features: adapter.features() & features,
+        required_limits: limits.unwrap_or_else(|| adapter.limits()),
         ..Default::default()
     }))
     .expect("device on the adapter");
@@ -95,6 +105,32 @@ pub fn build(
     frames: &[FrameSpec],
     format: PayloadFormat,
 ) -> Asset {
+    build_mixed(
+        root_dims,
+        index_to_world,
+        background,
+        frames,
+        format,
+        0x5eed_0000 + format.rank() as u64,
+        |_| format,
+    )
+}
+
+/// A brick of `build_mixed` before the pool is grouped: format, bytes, quantization range,
+/// decoded range.
+type PoolBrick = (PayloadFormat, Vec<u8>, [f32; 2], [f32; 2]);
+
+/// Builds (and validates) an asset whose `i`-th brick (in the order the frame specs list them)
+/// is stored in `format_of(i)`; the pool is then grouped by format as the asset requires.
+pub fn build_mixed(
+    root_dims: [u32; 3],
+    index_to_world: [[f64; 4]; 4],
+    background: f32,
+    frames: &[FrameSpec],
+    format: PayloadFormat,
+    seed: u64,
+    format_of: impl Fn(usize) -> PayloadFormat,
+) -> Asset {
     let root_len = root_dims.iter().product::<u32>() as usize;
     let mut a = Asset {
         header: Header {
@@ -138,7 +174,9 @@ pub fn build(
         brick_quant: vec![],
         payloads: Default::default(),
     };
-    let mut noise = XorShift(0x5eed_0000 + format.rank() as u64);
+    let mut noise = XorShift(seed);
+    // Per brick in spec order.
+    let mut pool: Vec<PoolBrick> = Vec::new();
     let d = root_dims.map(|x| x as i64);
     for f in frames {
         let mut roots = vec![EMPTY; root_len];
@@ -180,16 +218,15 @@ pub fn build(
                     }
                     Leaf::Brick(vals) => {
                         assert_eq!(vals.len(), BRICK_VOXELS);
-                        a.l3_refs.push(a.brick_ranges.len() as u32);
+                        // The spec-order index for now; remapped once the pool is grouped.
+                        a.l3_refs.push(pool.len() as u32);
+                        let format = format_of(pool.len());
                         let (bytes, quant) = brick_bytes(format, vals, &mut noise);
                         let mut dec = [0.0f32; BRICK_VOXELS];
                         payload::decode_brick(format, &bytes, quant, &mut dec);
                         let bl = dec.iter().cloned().fold(f32::INFINITY, f32::min);
                         let bh = dec.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
-                        a.brick_ranges.push([bl, bh]);
-                        a.payloads[format.rank()].extend(bytes);
-                        a.brick_quant.push(quant);
-                        a.header.brick_counts[format.rank()] += 1;
+                        pool.push((format, bytes, quant, [bl, bh]));
                         lo = lo.min(bl);
                         hi = hi.max(bh);
                     }
@@ -211,6 +248,24 @@ pub fn build(
         }
         a.roots.extend(roots);
         a.frame_ranges.push([flo, fhi]);
+    }
+    // Group the pool by format (PayloadFormat::ORDER) and remap the brick refs.
+    let mut new_index = vec![0u32; pool.len()];
+    for f in PayloadFormat::ORDER {
+        for (i, (bf, bytes, quant, range)) in pool.iter().enumerate() {
+            if *bf == f {
+                new_index[i] = a.brick_ranges.len() as u32;
+                a.brick_ranges.push(*range);
+                a.brick_quant.push(*quant);
+                a.payloads[f.rank()].extend_from_slice(bytes);
+                a.header.brick_counts[f.rank()] += 1;
+            }
+        }
+    }
+    for r in a.l3_refs.iter_mut() {
+        if *r & TILE_BIT == 0 {
+            *r = new_index[*r as usize];
+        }
     }
     a.validate().expect("hand-built asset is valid");
     a
