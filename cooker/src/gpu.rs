@@ -48,7 +48,7 @@ mod imp {
         }
         /// How the payload was laid out (the runtime's choice for this adapter).
         pub fn layout(&self) -> String {
-            format!("{:?}", self.volume.layout())
+            self.volume.describe()
         }
     }
 
@@ -69,9 +69,8 @@ mod imp {
                      one, or use --backend cpu"
                 )
                 })?;
-            let wanted = wgpu::Features::TIMESTAMP_QUERY
-                | wgpu::Features::TEXTURE_COMPRESSION_BC
-                | wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D;
+            // BC textures when the adapter has them (the runtime picks its layout from them).
+            let wanted = wgpu::Features::TIMESTAMP_QUERY | vdbcook_runtime::OPTIONAL_FEATURES;
             let features = adapter.features() & wanted;
             let (device, queue) =
                 pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {

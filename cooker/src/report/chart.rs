@@ -141,7 +141,10 @@ pub fn scatter_chart(
             .map(|p| chart.backend_coord(&(if p.x == 0.0 { floor } else { p.x }, p.y)))
             .collect();
         let plot = chart.plotting_area().get_pixel_range();
-        let mut taken: Vec<[i32; 4]> = px.iter().map(|&(x, y)| [x - 7, y - 7, x + 7, y + 7]).collect();
+        let mut taken: Vec<[i32; 4]> = px
+            .iter()
+            .map(|&(x, y)| [x - 7, y - 7, x + 7, y + 7])
+            .collect();
         let mut placed: Vec<(String, (i32, i32), bool)> = Vec::new();
         for (p, &(x, y)) in pts.iter().zip(&px) {
             let label = if p.x == 0.0 {
@@ -166,7 +169,10 @@ pub fn scatter_chart(
                 [x0, y + dy, x0 + tw, y + dy + th]
             };
             let inside = |r: &[i32; 4]| {
-                r[0] >= plot.0.start && r[2] <= plot.0.end && r[1] >= plot.1.start && r[3] <= plot.1.end
+                r[0] >= plot.0.start
+                    && r[2] <= plot.0.end
+                    && r[1] >= plot.1.start
+                    && r[3] <= plot.1.end
             };
             let free = |r: &[i32; 4]| {
                 taken

@@ -298,6 +298,21 @@ fn machine() -> String {
     )
 }
 
+/// A round gain (1, 2 or 5 × 10ⁿ, at least 1) that maps `worst` to at most full scale.
+fn nice_gain(worst: f64) -> f64 {
+    if !(worst > 0.0) {
+        return 1.0;
+    }
+    let g = 1.0 / worst;
+    let e = g.log10().floor();
+    let base = 10f64.powf(e);
+    let m = [5.0, 2.0, 1.0]
+        .into_iter()
+        .find(|m| m * base <= g)
+        .unwrap_or(1.0);
+    (m * base).max(1.0)
+}
+
 /// Halves an RGB8 image (2×2 box) until it is at most `max_w` wide.
 fn shrink(mut rgb: Vec<u8>, mut w: u32, mut h: u32, max_w: u32) -> (Vec<u8>, u32, u32) {
     while w > max_w && w >= 2 && h >= 2 {
@@ -799,8 +814,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         &trace_pts,
     )
     .map_err(other)?;
-    // Side by side: each format and the middle tolerance, error ×10 under each.
-    let gain = 10.0;
+    // Side by side: each format and the middle tolerance, |error| under each, scaled so the
+    // largest error shown is near white (the gain is a round number, printed in the caption).
     let mut tiles = Vec::new();
     let mut fig_w = 0;
     let mut fig_h = 0;
@@ -814,12 +829,18 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             c.series == 0 || c.tolerance == tolerances.get(tolerances.len() / 2).copied()
         })
         .collect();
+    let worst = shown
+        .iter()
+        .filter(|&&i| i != 0)
+        .map(|&i| image_error(&images[i], reference).1)
+        .fold(0.0f64, f64::max);
+    let gain = nice_gain(worst);
     for &i in &shown {
         let (r, img) = (&rows[i], &images[i]);
         let (rgb, tw, th) = shrink(chart::display_rgb(&img.rgba), w, h, 420);
         let error = (i != 0).then(|| {
             shrink(
-                chart::error_rgb(&img.rgba, &reference.rgba, gain),
+                chart::error_rgb(&img.rgba, &reference.rgba, gain as f32),
                 w,
                 h,
                 420,
@@ -1030,6 +1051,18 @@ mod tests {
         let (out, w, h) = shrink(rgb, 2, 2, 1);
         assert_eq!((w, h), (1, 1));
         assert_eq!(out, vec![100, 100, 100]);
+    }
+
+    #[test]
+    fn error_gain_is_round_and_keeps_the_worst_error_in_range() {
+        assert_eq!(nice_gain(0.0), 1.0);
+        assert_eq!(nice_gain(0.3), 2.0);
+        assert_eq!(nice_gain(0.004), 200.0);
+        assert_eq!(nice_gain(3.0), 1.0);
+        for w in [1e-5, 3.3e-4, 0.07, 0.9] {
+            let g = nice_gain(w);
+            assert!(g * w <= 1.0 + 1e-12 && g * w > 0.19, "{w}: {g}");
+        }
     }
 
     #[test]
