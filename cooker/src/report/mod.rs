@@ -300,7 +300,7 @@ fn machine() -> String {
 
 /// A round gain (1, 2 or 5 × 10ⁿ, at least 1) that maps `worst` to at most full scale.
 fn nice_gain(worst: f64) -> f64 {
-    if !(worst > 0.0) {
+    if worst.is_nan() || worst <= 0.0 {
         return 1.0;
     }
     let g = 1.0 / worst;
