@@ -159,7 +159,7 @@ impl Tracer<'_> {
             weight: 1.0,
             events: MAX_EVENTS,
         };
-        walk(self.asset, self.settings.frame, &ray, t0, t1, cache, &mut v);
+        walk(&self.grid, &ray, t0, t1, cache, &mut v);
         *rng = v.rng;
         v.weight
     }

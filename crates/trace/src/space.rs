@@ -112,9 +112,13 @@ impl IndexRay {
         IndexRay { o, d, inv, per_t }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn at(&self, t: f64) -> [f64; 3] {
-        [0, 1, 2].map(|i| self.o[i] + t * self.d[i])
+        [
+            self.o[0] + t * self.d[0],
+            self.o[1] + t * self.d[1],
+            self.o[2] + t * self.d[2],
+        ]
     }
 
     /// The `t` interval (from `t ≥ 0`) inside the half-open box `[0, ext)`; `None` if empty. An

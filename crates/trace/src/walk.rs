@@ -5,7 +5,7 @@
 
 use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, L2_SPAN, TILE_BIT};
 
-use crate::dda::{walk_cells, Flow};
+use crate::dda::{floor_i64, walk_cells, Flow};
 use crate::space::IndexRay;
 
 /// What a constant-valued span belongs to (for the brick-hue mode).
@@ -41,6 +41,11 @@ pub(crate) trait Visitor {
     }
     /// One traversal step (a region, leaf slot or voxel visited).
     fn count(&mut self) {}
+    /// Whether the walk may pass over whole 4³-slot blocks of an L2 node (only for visitors that
+    /// do not count steps: the spans are the same, the step count is not).
+    fn coarse(&self) -> bool {
+        false
+    }
 }
 
 /// A visitor that samples along the ray by position (scatter, shadow, delta and ratio tracking):
@@ -59,6 +64,9 @@ impl<T: SpanSampler> Visitor for T {
     }
     fn voxels(&self) -> bool {
         false
+    }
+    fn coarse(&self) -> bool {
+        true
     }
     fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
         self.sample_span(ta, tb, v, |_| v)
@@ -109,16 +117,75 @@ pub(crate) fn extent(asset: &Asset) -> [f64; 3] {
     asset.header.root_dims.map(|d| d as f64 * L2_SPAN as f64)
 }
 
-/// Walks `frame` along `ray` for `t ∈ [t0, t1]` (already clipped to the root extent).
+/// Leaf slots per block edge: an L2 node's 16³ slots form 4³ blocks of 4³ slots (32³ voxels).
+const BLOCK_SLOTS: i64 = 4;
+
+/// One frame of an asset, with what the walk precomputes for it: per L2 node of the frame, the max
+/// over each of its 4³ blocks of the slots' maxes (background for an empty slot, the tile value,
+/// the brick's `brick_ranges` max). A visitor that does not count steps passes over a whole block
+/// by that max, so empty space inside a node costs one step per 32³ voxels instead of per 8³. The
+/// spans it reports are the same (see `walk`).
+pub(crate) struct Grid<'a> {
+    pub asset: &'a Asset,
+    pub frame: usize,
+    /// Per L2 node: an index into `block_max`, or `u32::MAX` for nodes not in this frame.
+    block_of: Vec<u32>,
+    block_max: Vec<[f32; 64]>,
+}
+
+impl<'a> Grid<'a> {
+    pub fn new(asset: &'a Asset, frame: usize) -> Grid<'a> {
+        let mut block_of = vec![u32::MAX; asset.l2_count()];
+        let mut block_max = Vec::new();
+        let background = asset.header.background;
+        for &e in asset.frame_roots(frame) {
+            if e == EMPTY || e & TILE_BIT != 0 || block_of[e as usize] != u32::MAX {
+                continue;
+            }
+            let mut m = [f32::NEG_INFINITY; 64];
+            for s in 0..4096usize {
+                let (x, y, z) = (s % 16, (s / 16) % 16, s / 256);
+                let v = match asset.l2_leaf(e, s) {
+                    LeafRef::Empty => background,
+                    LeafRef::Tile(v) => v,
+                    LeafRef::Brick(b) => asset.brick_ranges[b as usize][1],
+                };
+                let k = x / 4 + 4 * (y / 4 + 4 * (z / 4));
+                // NaN-propagating max: a block holding a NaN max is never passed over by a
+                // visitor that would not pass over the NaN slot itself.
+                if !(m[k] >= v) {
+                    m[k] = v;
+                }
+            }
+            block_of[e as usize] = block_max.len() as u32;
+            block_max.push(m);
+        }
+        Grid {
+            asset,
+            frame,
+            block_of,
+            block_max,
+        }
+    }
+}
+
+/// Walks the grid's frame along `ray` for `t ∈ [t0, t1]` (already clipped to the root extent).
+///
+/// For a visitor with `coarse()`, an L2 node is walked as a DDA over its 4³ blocks, then over the
+/// 4³ leaf slots of each block not passed over. That reports the same spans as the DDA over the
+/// node's 16³ slots: the crossing parameters are recomputed from cell indices (`dda`), and a block
+/// boundary is a leaf boundary, so both compute the same parameters; a block is passed over only
+/// when every slot in it would be (`skip` is monotone in the max).
 pub(crate) fn walk(
-    asset: &Asset,
-    frame: usize,
+    grid: &Grid,
     ray: &IndexRay,
     t0: f64,
     t1: f64,
     cache: &mut BrickCache,
     v: &mut impl Visitor,
 ) -> Flow {
+    let asset = grid.asset;
+    let frame = grid.frame;
     let dims = asset.header.root_dims.map(|d| d as i64);
     let background = asset.header.background;
     let span = L2_SPAN as i64;
@@ -135,40 +202,79 @@ pub(crate) fn walk(
         if v.skip(asset.l2_ranges[e as usize][1]) {
             return Flow::Go;
         }
+        let block = grid.block_of[e as usize];
+        if v.coarse() && block != u32::MAX {
+            let maxes = &grid.block_max[block as usize];
+            let lo = r.map(|c| c * BLOCK_SLOTS);
+            let hi = lo.map(|c| c + BLOCK_SLOTS);
+            return walk_cells(ray, 32.0, lo, hi, ta, tb, |k, ka, kb| {
+                let i = k.map(|c| (c & 3) as usize);
+                if v.skip(maxes[i[0] + 4 * (i[1] + 4 * i[2])]) {
+                    return Flow::Go;
+                }
+                let lo = k.map(|c| c * BLOCK_SLOTS);
+                walk_cells(
+                    ray,
+                    8.0,
+                    lo,
+                    lo.map(|c| c + BLOCK_SLOTS),
+                    ka,
+                    kb,
+                    |l, la, lb| leaf(asset, e, l, la, lb, ray, cache, v),
+                )
+            });
+        }
         let lo = r.map(|c| c * 16);
         walk_cells(ray, 8.0, lo, lo.map(|c| c + 16), ta, tb, |l, la, lb| {
-            v.count();
-            let origin = l.map(|c| c * 8);
-            match asset.leaf_at(frame, origin) {
-                LeafRef::Empty => uniform(v, la, lb, background, Holder::Empty),
-                LeafRef::Tile(value) => uniform(v, la, lb, value, Holder::Tile),
-                LeafRef::Brick(b) => {
-                    let max = asset.brick_ranges[b as usize][1];
-                    if v.skip(max) {
-                        return Flow::Go;
-                    }
-                    let values = cache.get(asset, b);
-                    if !v.voxels() {
-                        return v.brick(la, lb, max, origin, values);
-                    }
-                    walk_cells(
-                        ray,
-                        1.0,
-                        origin,
-                        origin.map(|c| c + 8),
-                        la,
-                        lb,
-                        |x, xa, xb| {
-                            v.count();
-                            let i = x.map(|c| (c & 7) as usize);
-                            let value = values[64 * i[0] + 8 * i[1] + i[2]];
-                            uniform(v, xa, xb, value, Holder::Brick(b))
-                        },
-                    )
-                }
-            }
+            leaf(asset, e, l, la, lb, ray, cache, v)
         })
     })
+}
+
+/// Leaf slot `l` (in leaves, asset index space) of L2 node `node`, crossed for `[la, lb]`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn leaf(
+    asset: &Asset,
+    node: u32,
+    l: [i64; 3],
+    la: f64,
+    lb: f64,
+    ray: &IndexRay,
+    cache: &mut BrickCache,
+    v: &mut impl Visitor,
+) -> Flow {
+    v.count();
+    let origin = l.map(|c| c * 8);
+    let i = l.map(|c| (c & 15) as usize);
+    match asset.l2_leaf(node, i[0] + 16 * (i[1] + 16 * i[2])) {
+        LeafRef::Empty => uniform(v, la, lb, asset.header.background, Holder::Empty),
+        LeafRef::Tile(value) => uniform(v, la, lb, value, Holder::Tile),
+        LeafRef::Brick(b) => {
+            let max = asset.brick_ranges[b as usize][1];
+            if v.skip(max) {
+                return Flow::Go;
+            }
+            let values = cache.get(asset, b);
+            if !v.voxels() {
+                return v.brick(la, lb, max, origin, values);
+            }
+            walk_cells(
+                ray,
+                1.0,
+                origin,
+                origin.map(|c| c + 8),
+                la,
+                lb,
+                |x, xa, xb| {
+                    v.count();
+                    let i = x.map(|c| (c & 7) as usize);
+                    let value = values[64 * i[0] + 8 * i[1] + i[2]];
+                    uniform(v, xa, xb, value, Holder::Brick(b))
+                },
+            )
+        }
+    }
 }
 
 #[inline]
@@ -184,6 +290,6 @@ fn uniform(v: &mut impl Visitor, ta: f64, tb: f64, value: f32, h: Holder) -> Flo
 /// rounding error outside reads its nearest voxel).
 #[inline]
 pub(crate) fn brick_value(values: &[f32; BRICK_VOXELS], origin: [i64; 3], p: [f64; 3]) -> f32 {
-    let i = [0, 1, 2].map(|a| ((p[a].floor() as i64 - origin[a]).clamp(0, 7)) as usize);
-    values[64 * i[0] + 8 * i[1] + i[2]]
+    let i = |a: usize| (floor_i64(p[a]) - origin[a]).clamp(0, 7) as usize;
+    values[64 * i(0) + 8 * i(1) + i(2)]
 }
