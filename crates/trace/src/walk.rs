@@ -122,15 +122,19 @@ const BLOCK_SLOTS: i64 = 4;
 
 /// One frame of an asset, with what the walk precomputes for it: per L2 node of the frame, the max
 /// over each of its 4³ blocks of the slots' maxes (background for an empty slot, the tile value,
-/// the brick's `brick_ranges` max). A visitor that does not count steps passes over a whole block
-/// by that max, so empty space inside a node costs one step per 32³ voxels instead of per 8³. The
-/// spans it reports are the same (see `walk`).
+/// the brick's `brick_ranges` max), and the box of the leaves (tiled or empty regions) whose max
+/// is not `≤ 0`. A visitor that does not count steps passes over a whole block by its max, so
+/// empty space inside a node costs one step per 32³ voxels instead of per 8³, and, if it passes
+/// over values `≤ 0`, walks only the part of the ray inside that box. The spans it reports are the
+/// same (see `walk`).
 pub(crate) struct Grid<'a> {
     pub asset: &'a Asset,
     pub frame: usize,
     /// Per L2 node: an index into `block_max`, or `u32::MAX` for nodes not in this frame.
     block_of: Vec<u32>,
     block_max: Vec<[f32; 64]>,
+    /// `[lo, hi)` in index units: every leaf outside holds values `≤ 0` (empty box: `lo ≥ hi`).
+    content: ([f64; 3], [f64; 3]),
 }
 
 impl<'a> Grid<'a> {
@@ -138,10 +142,29 @@ impl<'a> Grid<'a> {
         let mut block_of = vec![u32::MAX; asset.l2_count()];
         let mut block_max = Vec::new();
         let background = asset.header.background;
-        for &e in asset.frame_roots(frame) {
-            if e == EMPTY || e & TILE_BIT != 0 || block_of[e as usize] != u32::MAX {
+        let d = asset.header.root_dims.map(|d| d as usize);
+        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+        // Grows the content box by the cube of edge `size` at `o` if its max `m` is not `≤ 0`.
+        let mut grow = |o: [i64; 3], size: i64, m: f32| {
+            if !(m <= 0.0) {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(o[a]);
+                    hi[a] = hi[a].max(o[a] + size);
+                }
+            }
+        };
+        for (i, &e) in asset.frame_roots(frame).iter().enumerate() {
+            let r = [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])];
+            let o = r.map(|c| c as i64 * L2_SPAN as i64);
+            if e == EMPTY {
+                grow(o, L2_SPAN as i64, background);
                 continue;
             }
+            if e & TILE_BIT != 0 {
+                grow(o, L2_SPAN as i64, asset.tiles[(e & !TILE_BIT) as usize]);
+                continue;
+            }
+            let known = block_of[e as usize] != u32::MAX;
             let mut m = [f32::NEG_INFINITY; 64];
             for s in 0..4096usize {
                 let (x, y, z) = (s % 16, (s / 16) % 16, s / 256);
@@ -150,6 +173,15 @@ impl<'a> Grid<'a> {
                     LeafRef::Tile(v) => v,
                     LeafRef::Brick(b) => asset.brick_ranges[b as usize][1],
                 };
+                grow(
+                    [
+                        o[0] + 8 * x as i64,
+                        o[1] + 8 * y as i64,
+                        o[2] + 8 * z as i64,
+                    ],
+                    8,
+                    v,
+                );
                 let k = x / 4 + 4 * (y / 4 + 4 * (z / 4));
                 // NaN-propagating max: a block holding a NaN max is never passed over by a
                 // visitor that would not pass over the NaN slot itself.
@@ -157,14 +189,17 @@ impl<'a> Grid<'a> {
                     m[k] = v;
                 }
             }
-            block_of[e as usize] = block_max.len() as u32;
-            block_max.push(m);
+            if !known {
+                block_of[e as usize] = block_max.len() as u32;
+                block_max.push(m);
+            }
         }
         Grid {
             asset,
             frame,
             block_of,
             block_max,
+            content: (lo.map(|c| c as f64), hi.map(|c| c as f64)),
         }
     }
 }
@@ -176,6 +211,13 @@ impl<'a> Grid<'a> {
 /// node's 16³ slots: the crossing parameters are recomputed from cell indices (`dda`), and a block
 /// boundary is a leaf boundary, so both compute the same parameters; a block is passed over only
 /// when every slot in it would be (`skip` is monotone in the max).
+///
+/// Such a visitor that also passes over `0` walks only `[t0, t1]` ∩ the content box: everything
+/// outside would be passed over, and the entry into the first leaf not passed over is the box
+/// entry computed by the same formula (`(face − o)/d`) as the DDA's crossing into it, as the leaf
+/// shares that face with the box (up to the last bit where the ray enters through an edge or a
+/// corner, where the two may take a different axis's rounding: a sample must then fall within
+/// one ulp of the entry to be counted differently).
 pub(crate) fn walk(
     grid: &Grid,
     ray: &IndexRay,
@@ -184,6 +226,15 @@ pub(crate) fn walk(
     cache: &mut BrickCache,
     v: &mut impl Visitor,
 ) -> Flow {
+    let (t0, t1) = if v.coarse() && v.skip(0.0) {
+        let (lo, hi) = grid.content;
+        match ray.clip_box(lo, hi) {
+            Some((a, b)) => (t0.max(a), t1.min(b)),
+            None => return Flow::Go,
+        }
+    } else {
+        (t0, t1)
+    };
     let asset = grid.asset;
     let frame = grid.frame;
     let dims = asset.header.root_dims.map(|d| d as i64);
