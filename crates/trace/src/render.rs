@@ -39,8 +39,9 @@ pub struct Tracer<'a> {
     pub(crate) settings: RenderSettings,
     pub(crate) xf: Affine,
     pub(crate) extent: [f64; 3],
-    /// Index-space image of the unit world direction toward the light.
-    pub(crate) light_index: [f64; 3],
+    /// A ray toward the light (`d`: the index-space image of the unit world direction toward
+    /// it) from the index origin, so its `1/d` and `per_t` are computed once.
+    light_ray: IndexRay,
     /// `absorb + scatter` and `scatter / (absorb + scatter)` (0 when both are 0).
     pub(crate) extinction: f64,
     pub(crate) albedo: f64,
@@ -79,7 +80,7 @@ impl<'a> Tracer<'a> {
             settings: settings.clone(),
             xf,
             extent: ext,
-            light_index,
+            light_ray: IndexRay::new([0.0; 3], light_index, settings.unit == LengthUnit::Voxel),
             extinction,
             albedo,
             depth_range,
@@ -89,6 +90,15 @@ impl<'a> Tracer<'a> {
 
     pub(crate) fn voxel_units(&self) -> bool {
         self.settings.unit == LengthUnit::Voxel
+    }
+
+    /// The ray from index point `p` toward the light (= `IndexRay::new(p, light_index, …)`).
+    #[inline]
+    pub(crate) fn light_ray(&self, p: [f64; 3]) -> IndexRay {
+        IndexRay {
+            o: p,
+            ..self.light_ray
+        }
     }
 
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized

@@ -149,7 +149,7 @@ impl SpanSampler for Shadow<'_, '_> {
 impl Tracer<'_> {
     /// Transmittance from index point `p` toward the light (`vdb_render`'s shadow march).
     pub(crate) fn shadow_march(&self, p: [f64; 3], cache: &mut BrickCache) -> f64 {
-        let ray = IndexRay::new(p, self.light_index, self.voxel_units());
+        let ray = self.light_ray(p);
         let Some((t0, t1)) = ray.clip(self.extent) else {
             return 1.0;
         };
