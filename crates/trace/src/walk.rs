@@ -5,7 +5,7 @@
 
 use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, L2_SPAN, TILE_BIT};
 
-use crate::dda::{floor_i64, walk_cells, Flow};
+use crate::dda::{walk_cells, Flow};
 use crate::space::IndexRay;
 
 /// What a constant-valued span belongs to (for the brick-hue mode).
@@ -338,9 +338,19 @@ fn uniform(v: &mut impl Visitor, ta: f64, tb: f64, value: f32, h: Holder) -> Flo
 }
 
 /// The value of brick voxel holding index-space point `p` (clamped into the brick, so a point a
-/// rounding error outside reads its nearest voxel).
+/// rounding error outside reads its nearest voxel): `clamp(floor(p) − origin, 0, 7)` per axis,
+/// computed as `clamp(trunc(p − origin), 0, 7)`. The same: `p − origin` is exact wherever the
+/// clamp does not decide (within a few voxels of the brick, `p` and the integer `origin` share
+/// the bits it needs), `floor(x) = trunc(x)` for `x ≥ 0`, and `x < 0` (or NaN) gives 0 both ways.
 #[inline]
 pub(crate) fn brick_value(values: &[f32; BRICK_VOXELS], origin: [i64; 3], p: [f64; 3]) -> f32 {
-    let i = |a: usize| (floor_i64(p[a]) - origin[a]).clamp(0, 7) as usize;
+    let i = |a: usize| {
+        let x = p[a] - origin[a] as f64;
+        if x < 0.0 {
+            0
+        } else {
+            (x as i64).min(7) as usize
+        }
+    };
     values[64 * i(0) + 8 * i(1) + i(2)]
 }
