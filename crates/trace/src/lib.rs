@@ -85,6 +85,11 @@ mod settings;
 mod space;
 mod walk;
 
+/// The integration tests' hand-built assets, for the unit tests of the walk.
+#[cfg(test)]
+#[path = "../tests/common/mod.rs"]
+mod test_common;
+
 pub use camera::{stored_bbox, Basis, Camera};
 pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};

@@ -166,27 +166,53 @@ impl<'a> Grid<'a> {
             }
             let known = block_of[e as usize] != u32::MAX;
             let mut m = [f32::NEG_INFINITY; 64];
-            for s in 0..4096usize {
-                let (x, y, z) = (s % 16, (s / 16) % 16, s / 256);
-                let v = match asset.l2_leaf(e, s) {
-                    LeafRef::Empty => background,
-                    LeafRef::Tile(v) => v,
-                    LeafRef::Brick(b) => asset.brick_ranges[b as usize][1],
-                };
-                grow(
+            // Max with NaN kept: a block holding a NaN slot is never passed over by a visitor
+            // that would not pass over that slot.
+            let put = |m: &mut f32, v: f32| {
+                if !(*m >= v) && !m.is_nan() {
+                    *m = v;
+                }
+            };
+            // Mask word `w` holds slots `x + 16·(y + 16·z)` with `z = w / 4`, `y / 4 = w % 4`, bit
+            // `x + 16·(y % 4)`; its refs follow in slot order from `l2_base + l2_prefix[w]`.
+            let node = e as usize;
+            let mut k = asset.l2_base[node] as usize;
+            for (w, &word) in asset.l2_mask(node).iter().enumerate() {
+                let (z, yb) = (w / 4, w % 4);
+                for bx in 0..4 {
+                    let full = 0x000F_000F_000F_000Fu64 << (4 * bx);
+                    if word & full != full {
+                        put(&mut m[bx + 4 * (yb + 4 * (z / 4))], background);
+                    }
+                }
+                let leaf_origin = |bit: usize| {
+                    let (x, y) = (bit % 16, 4 * yb + bit / 16);
                     [
                         o[0] + 8 * x as i64,
                         o[1] + 8 * y as i64,
                         o[2] + 8 * z as i64,
-                    ],
-                    8,
-                    v,
-                );
-                let k = x / 4 + 4 * (y / 4 + 4 * (z / 4));
-                // NaN-propagating max: a block holding a NaN max is never passed over by a
-                // visitor that would not pass over the NaN slot itself.
-                if !(m[k] >= v) {
-                    m[k] = v;
+                    ]
+                };
+                if !(background <= 0.0) {
+                    let mut empty = !word;
+                    while empty != 0 {
+                        grow(leaf_origin(empty.trailing_zeros() as usize), 8, background);
+                        empty &= empty - 1;
+                    }
+                }
+                let mut bits = word;
+                while bits != 0 {
+                    let bit = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let r = asset.l3_refs[k];
+                    k += 1;
+                    let v = if r & TILE_BIT != 0 {
+                        asset.tiles[(r & !TILE_BIT) as usize]
+                    } else {
+                        asset.brick_ranges[r as usize][1]
+                    };
+                    grow(leaf_origin(bit), 8, v);
+                    put(&mut m[bit % 16 / 4 + 4 * (yb + 4 * (z / 4))], v);
                 }
             }
             if !known {
@@ -353,4 +379,174 @@ pub(crate) fn brick_value(values: &[f32; BRICK_VOXELS], origin: [i64; 3], p: [f6
         }
     };
     values[64 * i(0) + 8 * i(1) + i(2)]
+}
+
+#[cfg(test)]
+mod tests {
+    //! The coarse walk (blocks, content box) against the fine one on random content: the same
+    //! spans, bit for bit; and `Grid`'s precomputation against a per-slot reference.
+    use super::*;
+    use crate::space::normalize;
+    use crate::test_common::*;
+    use vdbcook_asset::PayloadFormat;
+
+    /// Records every span and brick handed over, as bits; passes over what single scatter
+    /// passes over (its cutoff is positive, so `max ≥ cutoff` implies `max > 0`).
+    struct Rec {
+        coarse: bool,
+        spans: Vec<(u64, u64, u32, [i64; 3])>,
+    }
+
+    impl Visitor for Rec {
+        fn skip(&self, max: f32) -> bool {
+            !(max >= 0.005)
+        }
+        fn voxels(&self) -> bool {
+            false
+        }
+        fn coarse(&self) -> bool {
+            self.coarse
+        }
+        fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
+            self.spans
+                .push((ta.to_bits(), tb.to_bits(), v.to_bits(), [-1; 3]));
+            Flow::Go
+        }
+        fn brick(
+            &mut self,
+            ta: f64,
+            tb: f64,
+            max: f32,
+            origin: [i64; 3],
+            _: &[f32; BRICK_VOXELS],
+        ) -> Flow {
+            self.spans
+                .push((ta.to_bits(), tb.to_bits(), max.to_bits(), origin));
+            Flow::Go
+        }
+    }
+
+    fn asset(seed: u64, background: f32) -> Asset {
+        let mut rng = XorShift(seed);
+        let f = random_frame(&mut rng);
+        build(
+            [2, 2, 1],
+            uniform_scale(1.0, [0.0; 3]),
+            background,
+            &[f],
+            PayloadFormat::F32,
+        )
+    }
+
+    fn spans(
+        grid: &Grid,
+        o: [f64; 3],
+        d: [f64; 3],
+        coarse: bool,
+    ) -> Vec<(u64, u64, u32, [i64; 3])> {
+        let ray = IndexRay::new(o, normalize(d), true);
+        let mut v = Rec {
+            coarse,
+            spans: Vec::new(),
+        };
+        if let Some((t0, t1)) = ray.clip(extent(grid.asset)) {
+            walk(grid, &ray, t0, t1, &mut BrickCache::default(), &mut v);
+        }
+        v.spans
+    }
+
+    #[test]
+    fn coarse_walk_reports_the_same_spans_as_the_fine_walk() {
+        for (seed, background) in [(3u64, 0.0f32), (4, 0.0), (5, 0.3), (6, -0.2)] {
+            let a = asset(seed, background);
+            let grid = Grid::new(&a, 0);
+            let mut rng = XorShift(seed * 31);
+            let ext = extent(&a);
+            let mut nonempty = 0;
+            for i in 0..4000 {
+                let (o, d) = if i % 4 == 0 {
+                    // Axis-parallel, on leaf, block and region boundaries and between them.
+                    let c = [0.0, 8.0, 32.0, 64.0, 96.0, 127.5, 128.0, 160.0, 200.25];
+                    let axis = (rng.next_u64() % 3) as usize;
+                    let mut o = [0, 1, 2].map(|_| c[(rng.next_u64() % c.len() as u64) as usize]);
+                    let mut d = [0.0; 3];
+                    d[axis] = if rng.f() < 0.5 { 1.0 } else { -1.0 };
+                    o[axis] = if d[axis] > 0.0 { -3.0 } else { ext[axis] + 3.0 };
+                    (o, d)
+                } else {
+                    // From anywhere near the extent (inside it too) toward a random point in it.
+                    let o = [0, 1, 2].map(|k| rng.range(-40.0, ext[k] + 40.0));
+                    let p = [0, 1, 2].map(|k| rng.range(0.0, ext[k]));
+                    (o, [0, 1, 2].map(|k| p[k] - o[k]))
+                };
+                if d == [0.0; 3] {
+                    continue;
+                }
+                let fine = spans(&grid, o, d, false);
+                let coarse = spans(&grid, o, d, true);
+                assert_eq!(coarse, fine, "seed {seed} ray {o:?} {d:?}");
+                nonempty += !fine.is_empty() as u32;
+            }
+            assert!(
+                nonempty > 1000,
+                "seed {seed}: only {nonempty} rays met content"
+            );
+        }
+    }
+
+    #[test]
+    fn grid_matches_a_per_slot_reference() {
+        for (seed, background) in [(7u64, 0.0f32), (8, 0.4), (9, -1.0)] {
+            let a = asset(seed, background);
+            let grid = Grid::new(&a, 0);
+            let d = a.header.root_dims.map(|d| d as usize);
+            let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+            for (i, &e) in a.frame_roots(0).iter().enumerate() {
+                let o = [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])].map(|c| c as i64 * 128);
+                let region =
+                    |m: f32, lo: &mut [i64; 3], hi: &mut [i64; 3], size: i64, o: [i64; 3]| {
+                        if !(m <= 0.0) {
+                            for k in 0..3 {
+                                lo[k] = lo[k].min(o[k]);
+                                hi[k] = hi[k].max(o[k] + size);
+                            }
+                        }
+                    };
+                if e == EMPTY || e & TILE_BIT != 0 {
+                    let m = if e == EMPTY {
+                        background
+                    } else {
+                        a.tiles[(e & !TILE_BIT) as usize]
+                    };
+                    region(m, &mut lo, &mut hi, 128, o);
+                    continue;
+                }
+                let mut want = [f32::NEG_INFINITY; 64];
+                for s in 0..4096usize {
+                    let l = [s % 16, (s / 16) % 16, s / 256];
+                    let v = match a.l2_leaf(e, s) {
+                        LeafRef::Empty => background,
+                        LeafRef::Tile(v) => v,
+                        LeafRef::Brick(b) => a.brick_ranges[b as usize][1],
+                    };
+                    let k = l[0] / 4 + 4 * (l[1] / 4 + 4 * (l[2] / 4));
+                    want[k] = want[k].max(v);
+                    region(
+                        v,
+                        &mut lo,
+                        &mut hi,
+                        8,
+                        [0, 1, 2].map(|k| o[k] + 8 * l[k] as i64),
+                    );
+                }
+                let got = grid.block_max[grid.block_of[e as usize] as usize];
+                assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "seed {seed}");
+            }
+            assert_eq!(
+                grid.content,
+                (lo.map(|c| c as f64), hi.map(|c| c as f64)),
+                "seed {seed}"
+            );
+        }
+    }
 }
