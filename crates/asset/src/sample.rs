@@ -32,6 +32,7 @@ impl Asset {
         Some(self.l3_refs[idx])
     }
 
+    #[inline]
     fn decode_ref(&self, r: u32) -> LeafRef {
         if r & TILE_BIT != 0 {
             LeafRef::Tile(self.tiles[(r & !TILE_BIT) as usize])
@@ -64,7 +65,14 @@ impl Asset {
             return LeafRef::Tile(self.tiles[(e & !TILE_BIT) as usize]);
         }
         let l = [0, 1, 2].map(|i| ((a[i] & 127) >> 3) as usize);
-        match self.slot_ref(e as usize, l[0] + 16 * (l[1] + 16 * l[2])) {
+        self.l2_leaf(e, l[0] + 16 * (l[1] + 16 * l[2]))
+    }
+
+    /// What slot `s = x + 16·(y + 16·z)` of L2 node `node` holds (for walks that already hold
+    /// the node: no descent from the root).
+    #[inline]
+    pub fn l2_leaf(&self, node: u32, s: usize) -> LeafRef {
+        match self.slot_ref(node as usize, s) {
             None => LeafRef::Empty,
             Some(r) => self.decode_ref(r),
         }

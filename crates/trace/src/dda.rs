@@ -22,8 +22,34 @@ pub enum Flow {
     Stop,
 }
 
-/// Calls `f(cell, ta, tb)` for each cell of edge `size` in `[lo, hi)` (cell coordinates) that
-/// the ray crosses for `t ∈ [t0, t1]`, in ray order, with `ta < tb`.
+/// `x.floor() as i64`, without the libm call `floor` is on baseline x86-64 (same result for every
+/// `x`, NaN and infinities included: `as` truncates toward zero and saturates).
+#[inline(always)]
+pub(crate) fn floor_i64(x: f64) -> i64 {
+    let i = x as i64;
+    if (i as f64) > x {
+        i.saturating_sub(1)
+    } else {
+        i
+    }
+}
+
+/// `x.ceil()`, inlined: exact through `i64` below 2⁵² in magnitude (beyond it every float is an
+/// integer already); only the sign of a zero result may differ, which no caller observes.
+#[inline(always)]
+pub(crate) fn ceil_f64(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let i = x as i64;
+        (i + ((i as f64) < x) as i64) as f64
+    } else {
+        x.ceil()
+    }
+}
+
+/// Calls `f(cell, ta, tb)` for each cell of edge `size` (a power of two) in `[lo, hi)` (cell
+/// coordinates) that the ray crosses for `t ∈ [t0, t1]`, in ray order, with `ta < tb`. Inlined
+/// into each level of the walk, so `size` and the box are constants there.
+#[inline(always)]
 pub(crate) fn walk_cells(
     ray: &IndexRay,
     size: f64,
@@ -37,17 +63,19 @@ pub(crate) fn walk_cells(
     if !(t1 > t0) {
         return Flow::Go;
     }
+    debug_assert!(size > 0.0 && (size.to_bits() & ((1u64 << 52) - 1)) == 0);
+    // Exact: `size` is a power of two.
+    let inv_size = 1.0 / size;
     let p = ray.at(t0);
     let mut cell = [0i64; 3];
     let mut step = [0i64; 3];
     let mut next = [f64::INFINITY; 3];
     for i in 0..3 {
-        let c = (p[i] / size).floor();
-        // `as` saturates and maps NaN to 0; the clamp keeps the cell in the box.
-        cell[i] = (c as i64).clamp(lo[i], hi[i] - 1);
+        // Saturates and maps NaN to 0 (as `floor() as i64`); the clamp keeps the cell in the box.
+        cell[i] = floor_i64(p[i] * inv_size).clamp(lo[i], hi[i] - 1);
         next[i] = crossing(ray, size, cell[i], i, &mut step[i]);
     }
-    let budget: i64 = (0..3).map(|i| hi[i] - lo[i]).sum::<i64>() + 3;
+    let budget: i64 = (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]) + 3;
     let mut tm = t0;
     for _ in 0..budget {
         let a = if next[0] <= next[1] && next[0] <= next[2] {
@@ -58,7 +86,10 @@ pub(crate) fn walk_cells(
             2
         };
         let tn = next[a];
-        let te = tn.min(t1).max(tm);
+        // `tn.min(t1).max(tm)` without the NaN handling (`t1` and `tm` are never NaN here, and a
+        // NaN `tn` gives `t1` either way).
+        let te = if tn < t1 { tn } else { t1 };
+        let te = if te > tm { te } else { tm };
         if te > tm && f(cell, tm, te) == Flow::Stop {
             return Flow::Stop;
         }
@@ -76,7 +107,7 @@ pub(crate) fn walk_cells(
 }
 
 /// The parameter where the ray leaves `cell` along `axis` (and the step direction).
-#[inline]
+#[inline(always)]
 fn crossing(ray: &IndexRay, size: f64, cell: i64, axis: usize, step: &mut i64) -> f64 {
     let d = ray.d[axis];
     if d > 0.0 {

@@ -148,7 +148,7 @@ impl SpanSampler for Ratio<'_, '_> {
 impl Tracer<'_> {
     /// Ratio-tracking estimate of the transmittance from index point `p` toward the light.
     fn ratio_shadow(&self, p: [f64; 3], rng: &mut Rng, cache: &mut BrickCache) -> f64 {
-        let ray = IndexRay::new(p, self.light_index, self.voxel_units());
+        let ray = self.light_ray(p);
         let Some((t0, t1)) = ray.clip(self.extent) else {
             return 1.0;
         };
@@ -159,7 +159,7 @@ impl Tracer<'_> {
             weight: 1.0,
             events: MAX_EVENTS,
         };
-        walk(self.asset, self.settings.frame, &ray, t0, t1, cache, &mut v);
+        walk(&self.grid, &ray, t0, t1, cache, &mut v);
         *rng = v.rng;
         v.weight
     }

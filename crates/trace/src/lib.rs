@@ -28,6 +28,12 @@
 //! density/steps/delta `m ≤ 0`; first-hit modes `m ≤ cutoff`; single scatter `m < cutoff` or
 //! `m ≤ 0`. Steps: one per region, leaf slot and voxel visited.
 //!
+//! Modes that sample by position (single scatter, delta tracking and their shadow rays) count no
+//! steps, so their walk may go coarser without changing the spans it reports: inside an L2 node
+//! it first passes over 4³-slot blocks by their max, and since they pass over values `≤ 0` they
+//! walk only the part of the ray inside the frame's content box (the leaves whose max is not
+//! `≤ 0`). The crossing parameters are the same formulas, so the images are the same (`walk`).
+//!
 //! # Modes (`Sample::rgba` display colour, `Sample::value` raw quantity)
 //! - **Density**: `τ = Σ max(v, 0)·ℓ` over the voxels crossed (`ℓ` = segment length in the
 //!   unit) — exact, no step error — stopping once `absorb·τ ≥ 20`; `T = exp(−absorb·τ)`;
@@ -78,6 +84,11 @@ mod scatter;
 mod settings;
 mod space;
 mod walk;
+
+/// The integration tests' hand-built assets, for the unit tests of the walk.
+#[cfg(test)]
+#[path = "../tests/common/mod.rs"]
+mod test_common;
 
 pub use camera::{stored_bbox, Basis, Camera};
 pub use color::{brick_color, heat, STEPS_FULL_SCALE};

@@ -11,7 +11,7 @@ use crate::exact::{Density, FirstHit};
 use crate::rng::Rng;
 use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
 use crate::space::{depth_range, normalize, Affine, IndexRay};
-use crate::walk::{extent, walk, BrickCache, Holder};
+use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::{Image, LengthUnit, Mode, RenderSettings, TraceError};
 
 /// What one primary ray produced.
@@ -34,12 +34,14 @@ pub struct Scratch {
 
 /// Everything fixed for one render of one asset frame from one camera.
 pub struct Tracer<'a> {
-    pub(crate) asset: &'a Asset,
+    /// The frame to walk, with its per-block maxima.
+    pub(crate) grid: Grid<'a>,
     pub(crate) settings: RenderSettings,
     pub(crate) xf: Affine,
     pub(crate) extent: [f64; 3],
-    /// Index-space image of the unit world direction toward the light.
-    pub(crate) light_index: [f64; 3],
+    /// A ray toward the light (`d`: the index-space image of the unit world direction toward
+    /// it) from the index origin, so its `1/d` and `per_t` are computed once.
+    light_ray: IndexRay,
     /// `absorb + scatter` and `scatter / (absorb + scatter)` (0 when both are 0).
     pub(crate) extinction: f64,
     pub(crate) albedo: f64,
@@ -74,11 +76,11 @@ impl<'a> Tracer<'a> {
         let depth_range = depth_range(&xf, bbox, camera.eye);
         let value_max = asset.frame_ranges[settings.frame][1];
         Ok(Tracer {
-            asset,
+            grid: Grid::new(asset, settings.frame),
             settings: settings.clone(),
             xf,
             extent: ext,
-            light_index,
+            light_ray: IndexRay::new([0.0; 3], light_index, settings.unit == LengthUnit::Voxel),
             extinction,
             albedo,
             depth_range,
@@ -88,6 +90,15 @@ impl<'a> Tracer<'a> {
 
     pub(crate) fn voxel_units(&self) -> bool {
         self.settings.unit == LengthUnit::Voxel
+    }
+
+    /// The ray from index point `p` toward the light (= `IndexRay::new(p, light_index, …)`).
+    #[inline]
+    pub(crate) fn light_ray(&self, p: [f64; 3]) -> IndexRay {
+        IndexRay {
+            o: p,
+            ..self.light_ray
+        }
     }
 
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
@@ -100,7 +111,6 @@ impl<'a> Tracer<'a> {
             self.voxel_units(),
         );
         let clip = ray.clip(self.extent);
-        let frame = s.frame;
         let miss = |value: f32, alpha: f32| Sample {
             rgba: [0.0, 0.0, 0.0, alpha],
             value,
@@ -115,15 +125,7 @@ impl<'a> Tracer<'a> {
                     steps: 0,
                 };
                 if let Some((t0, t1)) = clip {
-                    walk(
-                        self.asset,
-                        frame,
-                        &ray,
-                        t0,
-                        t1,
-                        &mut scratch.primary,
-                        &mut v,
-                    );
+                    walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 }
                 let t = (-(s.absorb as f64) * v.tau).exp() as f32;
                 if s.mode == Mode::Density {
@@ -148,15 +150,7 @@ impl<'a> Tracer<'a> {
                     hit: None,
                 };
                 if let Some((t0, t1)) = clip {
-                    walk(
-                        self.asset,
-                        frame,
-                        &ray,
-                        t0,
-                        t1,
-                        &mut scratch.primary,
-                        &mut v,
-                    );
+                    walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 }
                 let Some((t, value, holder)) = v.hit else {
                     return miss(-1.0, 0.0);
@@ -194,15 +188,7 @@ impl<'a> Tracer<'a> {
                     lum: 0.0,
                     budget: MAX_MARCH_SAMPLES,
                 };
-                walk(
-                    self.asset,
-                    frame,
-                    &ray,
-                    t0,
-                    t1,
-                    &mut scratch.primary,
-                    &mut v,
-                );
+                walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 let (lum, trans) = (v.lum, v.trans);
                 let c = s.light_color.map(|c| (c as f64 * lum) as f32);
                 Sample {
@@ -227,15 +213,7 @@ impl<'a> Tracer<'a> {
                         lum: 0.0,
                         events: MAX_EVENTS,
                     };
-                    walk(
-                        self.asset,
-                        frame,
-                        &ray,
-                        t0,
-                        t1,
-                        &mut scratch.primary,
-                        &mut v,
-                    );
+                    walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                     lum += v.lum;
                     escaped += v.escaped as u32;
                 }

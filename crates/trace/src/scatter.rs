@@ -3,7 +3,7 @@
 //! one directional light with the `gain` falloff, and the cutoffs that end rays early. Spans
 //! whose max is below the cutoff are skipped whole (their samples would be ignored anyway).
 
-use crate::dda::Flow;
+use crate::dda::{ceil_f64, Flow};
 use crate::space::IndexRay;
 use crate::walk::{walk, BrickCache, SpanSampler};
 use crate::Tracer;
@@ -24,7 +24,7 @@ fn samples(
     mut f: impl FnMut(f64, [f64; 3]) -> Flow,
 ) -> Flow {
     let (sa, sb) = (ta * ray.per_t, tb * ray.per_t);
-    let mut k = (sa / step).ceil().max(k_min);
+    let mut k = ceil_f64(sa / step).max(k_min);
     while k * step < sb {
         if *budget == 0 {
             return Flow::Stop;
@@ -149,7 +149,7 @@ impl SpanSampler for Shadow<'_, '_> {
 impl Tracer<'_> {
     /// Transmittance from index point `p` toward the light (`vdb_render`'s shadow march).
     pub(crate) fn shadow_march(&self, p: [f64; 3], cache: &mut BrickCache) -> f64 {
-        let ray = IndexRay::new(p, self.light_index, self.voxel_units());
+        let ray = self.light_ray(p);
         let Some((t0, t1)) = ray.clip(self.extent) else {
             return 1.0;
         };
@@ -159,7 +159,7 @@ impl Tracer<'_> {
             trans: 1.0,
             budget: MAX_MARCH_SAMPLES,
         };
-        walk(self.asset, self.settings.frame, &ray, t0, t1, cache, &mut v);
+        walk(&self.grid, &ray, t0, t1, cache, &mut v);
         v.trans
     }
 }

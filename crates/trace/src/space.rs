@@ -112,23 +112,33 @@ impl IndexRay {
         IndexRay { o, d, inv, per_t }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn at(&self, t: f64) -> [f64; 3] {
-        [0, 1, 2].map(|i| self.o[i] + t * self.d[i])
+        [
+            self.o[0] + t * self.d[0],
+            self.o[1] + t * self.d[1],
+            self.o[2] + t * self.d[2],
+        ]
     }
 
     /// The `t` interval (from `t ≥ 0`) inside the half-open box `[0, ext)`; `None` if empty. An
     /// axis the ray does not move along must hold the origin inside `[0, ext)`.
     pub fn clip(&self, ext: [f64; 3]) -> Option<(f64, f64)> {
+        self.clip_box([0.0; 3], ext)
+    }
+
+    /// The `t` interval (from `t ≥ 0`) inside the half-open box `[lo, hi)`; `None` if empty. An
+    /// axis the ray does not move along must hold the origin inside `[lo, hi)`.
+    pub fn clip_box(&self, lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-        for (i, &e) in ext.iter().enumerate() {
+        for i in 0..3 {
             if self.d[i] == 0.0 {
-                if !(self.o[i] >= 0.0 && self.o[i] < e) {
+                if !(self.o[i] >= lo[i] && self.o[i] < hi[i]) {
                     return None;
                 }
             } else {
-                let a = (0.0 - self.o[i]) * self.inv[i];
-                let b = (e - self.o[i]) * self.inv[i];
+                let a = (lo[i] - self.o[i]) * self.inv[i];
+                let b = (hi[i] - self.o[i]) * self.inv[i];
                 t0 = t0.max(a.min(b));
                 t1 = t1.min(a.max(b));
             }
