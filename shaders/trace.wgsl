@@ -33,6 +33,10 @@ struct Params {
     light_index: vec4<f32>,
     // xyz: the light colour.
     light_color: vec4<f32>,
+    // xyz: the frame's content box [lo, hi) in index space (empty: lo > hi); every leaf outside
+    // holds values <= 0, which the sampling modes pass over, so they clip their rays to it.
+    content_lo: vec4<f32>,
+    content_hi: vec4<f32>,
     width: u32,
     height: u32,
     mode: u32,
@@ -316,6 +320,14 @@ fn wk_value(sp: WkSpan, p: vec3<f32>) -> f32 {
     return vdb_brick_voxel(sp.brick, c);
 }
 
+// `ray`'s t range inside both the root extent and the frame's content box (the CPU tracer's
+// coarse walk for visitors that pass over values <= 0).
+fn media_clip(ray: VdbRay) -> vec2<f32> {
+    let a = vdb_clip(ray, params.extent.xyz);
+    let b = vdb_clip_box(ray, params.content_lo.xyz, params.content_hi.xyz);
+    return vec2<f32>(max(a.x, b.x), min(a.y, b.y));
+}
+
 fn light_ray(p: vec3<f32>) -> VdbRay {
     var r: VdbRay;
     r.o = p;
@@ -327,7 +339,7 @@ fn light_ray(p: vec3<f32>) -> VdbRay {
 // `vdb_render`'s shadow march from index point `p` toward the light: transmittance.
 fn shadow_march(p: vec3<f32>) -> f32 {
     let ray = light_ray(p);
-    let clip = vdb_clip(ray, params.extent.xyz);
+    let clip = media_clip(ray);
     if (!(clip.y > clip.x)) {
         return 1.0;
     }
@@ -438,7 +450,7 @@ fn rng_uniform(state: ptr<function, u32>) -> f32 {
 // Ratio tracking from index point `p` toward the light: the shadow weight.
 fn ratio_shadow(p: vec3<f32>, rng: ptr<function, u32>) -> f32 {
     let ray = light_ray(p);
-    let clip = vdb_clip(ray, params.extent.xyz);
+    let clip = media_clip(ray);
     if (!(clip.y > clip.x)) {
         return 1.0;
     }
@@ -608,11 +620,12 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var rgba = vec4<f32>(0.0);
     var value = 0.0;
     if (media) {
-        // (luminance, transmittance); a ray missing the root box: (0, 1).
+        // (luminance, transmittance); a ray missing the root box or the content: (0, 1).
         var lt = vec2<f32>(0.0, 1.0);
-        if (clip.y > clip.x) {
+        let mclip = media_clip(ray);
+        if (mclip.y > mclip.x) {
             if (params.mode == MODE_SCATTER) {
-                lt = scatter_primary(ray, clip.x, clip.y);
+                lt = scatter_primary(ray, mclip.x, mclip.y);
             } else {
                 let pixel = gid.y * w + gid.x;
                 var lum = 0.0;
@@ -620,7 +633,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 for (var k = 0u; k < params.spp; k++) {
                     let si = params.first_sample + k;
                     var rng = pcg_hash(params.seed ^ pcg_hash(pixel ^ pcg_hash(si)));
-                    let r = delta_path(ray, clip.x, clip.y, &rng);
+                    let r = delta_path(ray, mclip.x, mclip.y, &rng);
                     lum += r.x;
                     escaped += r.y;
                 }

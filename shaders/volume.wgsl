@@ -259,16 +259,21 @@ struct VdbRay {
 
 // The t interval (from t = 0) of the ray inside the half-open box [0, ext); x > y when empty.
 fn vdb_clip(ray: VdbRay, ext: vec3<f32>) -> vec2<f32> {
+    return vdb_clip_box(ray, vec3<f32>(0.0), ext);
+}
+
+// The ray's t range inside the box [lo, hi) (t >= 0), or (1, 0) when it misses.
+fn vdb_clip_box(ray: VdbRay, lo: vec3<f32>, hi: vec3<f32>) -> vec2<f32> {
     var t0 = 0.0;
     var t1 = VDB_BIG;
     for (var i = 0; i < 3; i++) {
         if (ray.d[i] == 0.0) {
-            if (!(ray.o[i] >= 0.0 && ray.o[i] < ext[i])) {
+            if (!(ray.o[i] >= lo[i] && ray.o[i] < hi[i])) {
                 return vec2<f32>(1.0, 0.0);
             }
         } else {
-            let a = (0.0 - ray.o[i]) / ray.d[i];
-            let b = (ext[i] - ray.o[i]) / ray.d[i];
+            let a = (lo[i] - ray.o[i]) / ray.d[i];
+            let b = (hi[i] - ray.o[i]) / ray.d[i];
             t0 = max(t0, min(a, b));
             t1 = min(t1, max(a, b));
         }

@@ -27,6 +27,10 @@ struct Params {
     light_index: [f32; 4],
     /// xyz: the light colour.
     light_color: [f32; 4],
+    /// xyz: the frame's content box `[lo, hi)` in index space (empty: lo > hi), which the
+    /// sampling modes clip their rays to.
+    content_lo: [f32; 4],
+    content_hi: [f32; 4],
     width: u32,
     height: u32,
     mode: u32,
@@ -126,6 +130,7 @@ pub struct Renderer {
     root_len: usize,
     extent: [f64; 3],
     bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
+    content: Vec<Option<([f64; 3], [f64; 3])>>,
     frame_max: Vec<f32>,
 }
 
@@ -270,6 +275,9 @@ impl Renderer {
             extent: volume.root_extent(),
             bboxes: (0..volume.frame_count())
                 .map(|f| volume.frame_bbox(f))
+                .collect(),
+            content: (0..volume.frame_count())
+                .map(|f| volume.content_box(f))
                 .collect(),
             frame_max: (0..volume.frame_count())
                 .map(|f| volume.frame_max(f))
@@ -492,6 +500,8 @@ impl Renderer {
             extent: v4(self.extent),
             light_index: v4(light_index),
             light_color: [c[0], c[1], c[2], 0.0],
+            content_lo: self.content[frame].map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
+            content_hi: self.content[frame].map_or([0.0; 4], |b| v4(b.1)),
             width,
             height,
             mode,

@@ -59,7 +59,7 @@ pub enum Layout {
 }
 
 impl Layout {
-    /// Every layout, in the order the automatic choice tries them.
+    /// Every layout, in the order the automatic choice tries them on a hardware adapter.
     pub const ALL: [Layout; 5] = [
         Layout::Bc3d,
         Layout::Bc2dArray,
@@ -67,6 +67,25 @@ impl Layout {
         Layout::Decoded2dArray,
         Layout::Buffers,
     ];
+    /// The automatic order on a software adapter (`DeviceType::Cpu`: lavapipe, WARP,
+    /// SwiftShader): there a BC texel fetch decodes its block in software on every read (native
+    /// BC7 measured 4–5× slower than decoded on lavapipe, `docs/rendering.md`) and the "GPU"
+    /// memory is host memory anyway, so decoded 8-bit textures come first.
+    pub const SOFTWARE_ORDER: [Layout; 5] = [
+        Layout::Decoded3d,
+        Layout::Decoded2dArray,
+        Layout::Bc3d,
+        Layout::Bc2dArray,
+        Layout::Buffers,
+    ];
+    /// The order the automatic choice tries on `device`.
+    pub fn automatic_order(device: &wgpu::Device) -> [Layout; 5] {
+        if device.adapter_info().device_type == wgpu::DeviceType::Cpu {
+            Layout::SOFTWARE_ORDER
+        } else {
+            Layout::ALL
+        }
+    }
     pub fn name(self) -> &'static str {
         match self {
             Layout::Bc3d => "bc-3d",
@@ -212,6 +231,8 @@ pub struct GpuVolume {
     index_to_world: [[f64; 4]; 4],
     /// Per frame, the index-space box `[lo, hi)` of what it stores (`vdbcook_trace::stored_bbox`).
     bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
+    /// Per frame: `vdbcook_trace::content_box` (the sampling modes clip their rays to it).
+    content: Vec<Option<([f64; 3], [f64; 3])>>,
     frame_max: Vec<f32>,
     gpu_bytes: u64,
 }
@@ -626,7 +647,7 @@ impl GpuVolume {
             None => {
                 let mut refusals = Vec::new();
                 let mut chosen = None;
-                for layout in Layout::ALL {
+                for layout in Layout::automatic_order(device) {
                     match plan_layout(device, asset, layout, max_binding) {
                         Ok(p) => {
                             chosen = Some(p);
@@ -728,6 +749,9 @@ impl GpuVolume {
             .map(|f| frame_box(asset, f, &boxes))
             .collect();
         let frame_max = asset.frame_ranges.iter().map(|r| r[1]).collect();
+        let content = (0..asset.frame_count())
+            .map(|f| vdbcook_trace::content_box(asset, f))
+            .collect();
 
         let info = VolumeInfo {
             root_dims: asset.header.root_dims,
@@ -832,6 +856,7 @@ impl GpuVolume {
             root_dims: asset.header.root_dims,
             index_to_world: asset.header.index_to_world,
             bboxes,
+            content,
             frame_max,
             gpu_bytes,
         };
@@ -927,6 +952,10 @@ impl GpuVolume {
     }
     pub(crate) fn root_extent(&self) -> [f64; 3] {
         self.root_dims.map(|d| d as f64 * 128.0)
+    }
+    /// The box the sampling modes clip their rays to (`vdbcook_trace::content_box`).
+    pub(crate) fn content_box(&self, frame: usize) -> Option<([f64; 3], [f64; 3])> {
+        self.content.get(frame).copied().flatten()
     }
     pub(crate) fn frame_max(&self, frame: usize) -> f32 {
         self.frame_max[frame]

@@ -929,6 +929,32 @@ fn every_mode_matches_the_cpu_tracer_in_every_layout() {
 const BC4_IMAGE_SLACK: f32 = 0.01;
 
 #[test]
+fn the_automatic_layout_prefers_decoded_textures_on_software_adapters_only() {
+    let test = "the_automatic_layout_prefers_decoded_textures_on_software_adapters_only";
+    let Some((device, queue)) = gpu_with(test, OPTIONAL_FEATURES, None) else {
+        return;
+    };
+    let software = device.adapter_info().device_type == wgpu::DeviceType::Cpu;
+    let bc = device.features().contains(OPTIONAL_FEATURES);
+    let want = match (software, bc) {
+        (true, _) | (false, false) => Layout::Decoded3d,
+        (false, true) => Layout::Bc3d,
+    };
+    assert_eq!(
+        Layout::automatic_order(&device)[0],
+        if software {
+            Layout::Decoded3d
+        } else {
+            Layout::Bc3d
+        }
+    );
+    for format in [PayloadFormat::Bc4, PayloadFormat::Bc7] {
+        let vol = GpuVolume::upload(&device, &queue, &blob_asset(format)).unwrap();
+        assert_eq!(vol.layout().layout, want, "{}", vol.describe());
+    }
+}
+
+#[test]
 fn an_adapter_without_bc_decodes_at_upload_and_forced_bc_is_refused() {
     let Some((device, queue)) = gpu_with(
         "an_adapter_without_bc_decodes_at_upload_and_forced_bc_is_refused",

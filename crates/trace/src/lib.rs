@@ -100,4 +100,4 @@ pub use rng::{pcg_hash, Rng};
 pub use scatter::MAX_MARCH_SAMPLES;
 pub use settings::{LengthUnit, Mode, RenderSettings, TraceError, MAX_SIDE, MAX_SPP, MIN_STEP};
 pub use space::{depth_range, Affine};
-pub use walk::Holder;
+pub use walk::{content_box, Holder};

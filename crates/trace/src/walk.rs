@@ -230,6 +230,14 @@ impl<'a> Grid<'a> {
     }
 }
 
+/// The box `[lo, hi)` (index units) outside which every leaf of `frame` holds values `≤ 0`, or
+/// `None` when there is no such leaf: what the sampling modes (scatter, delta tracking and their
+/// shadow rays) clip their rays to. The GPU tracer clips to the same box.
+pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> {
+    let (lo, hi) = Grid::new(asset, frame).content;
+    (0..3).all(|a| lo[a] < hi[a]).then_some((lo, hi))
+}
+
 /// Walks the grid's frame along `ray` for `t ∈ [t0, t1]` (already clipped to the root extent).
 ///
 /// For a visitor with `coarse()`, an L2 node is walked as a DDA over its 4³ blocks, then over the
