@@ -131,47 +131,10 @@ pub fn nanovdb(
     })
 }
 
-/// `vdb_render`'s arguments for single scatter with `camera` and `s` spelled out. Its `-fov` is
-/// horizontal (the focal length comes from the horizontal 41.2 mm aperture); ours is vertical.
+/// `vdb_render`'s arguments for the report's camera and settings (`vdbcook_trace::vdb_render`),
+/// naming the grid when its name is one `-name` can take.
 pub fn vdb_render_args(camera: &Camera, s: &RenderSettings, grid: &str) -> Vec<String> {
-    let aspect = s.width as f64 / s.height as f64;
-    let hfov = 2.0 * ((camera.fov_y_deg.to_radians() * 0.5).tan() * aspect).atan();
-    let v3 = |v: [f64; 3]| format!("{},{},{}", v[0], v[1], v[2]);
-    let g = |v: f32| format!("{v},{v},{v}");
-    let (l, c) = (s.light_dir, s.light_color);
-    let mut a: Vec<String> = vec![
-        "-res".into(),
-        format!("{}x{}", s.width, s.height),
-        "-translate".into(),
-        v3(camera.eye),
-        "-lookat".into(),
-        v3(camera.look_at),
-        "-up".into(),
-        v3(camera.up),
-        "-fov".into(),
-        format!("{}", hfov.to_degrees()),
-        "-absorb".into(),
-        g(s.absorb),
-        "-scatter".into(),
-        g(s.scatter),
-        "-light".into(),
-        format!("{},{},{},{},{},{}", l[0], l[1], l[2], c[0], c[1], c[2]),
-        "-step".into(),
-        format!("{}", s.step),
-        "-shadowstep".into(),
-        format!("{}", s.shadow_step),
-        "-cutoff".into(),
-        format!("{}", s.cutoff),
-        "-gain".into(),
-        format!("{}", s.gain),
-        "-cpus".into(),
-        "0".into(),
-        "-v".into(),
-    ];
-    if let Some(g) = plain(grid) {
-        a.extend(["-name".into(), g.to_string()]);
-    }
-    a
+    vdbcook_trace::vdb_render::args(camera, s, plain(grid))
 }
 
 /// `vdb_render`'s run: its own render times (ms, from `-v`) and its last image (RGB8).
@@ -191,63 +154,23 @@ pub fn vdb_render(
     let mut ms = Vec::new();
     for _ in 0..runs.max(1) {
         let text = run(Command::new("vdb_render").arg(src).arg(&out).args(args))?;
-        // "…: ray-tracing …" then "…: ...completed in 1.13 sec".
-        let t = text
-            .lines()
-            .skip_while(|l| !l.contains("ray-tracing"))
-            .find_map(|l| {
-                let rest = l.split("completed in ").nth(1)?;
-                rest.trim_end_matches(" sec").trim().parse::<f64>().ok()
-            })
+        let t = vdbcook_trace::vdb_render::render_seconds(&text)
             .ok_or("vdb_render -v printed no render time")?;
         ms.push(t * 1e3);
     }
-    let bytes = std::fs::read(&out).map_err(|e| e.to_string())?;
-    let rgb = read_ppm(&bytes).ok_or("vdb_render wrote no readable PPM")?;
+    // Some `vdb_render` builds drop the `.ppm` extension when they save.
+    let bare = out.with_extension("");
+    let bytes = std::fs::read(&out)
+        .or_else(|_| std::fs::read(&bare))
+        .map_err(|e| e.to_string())?;
+    let (_, _, rgb) =
+        vdbcook_trace::vdb_render::read_ppm(&bytes).ok_or("vdb_render wrote no readable PPM")?;
     Ok(VdbRender { ms, rgb })
-}
-
-/// A binary PPM's (P6, maxval 255) RGB bytes.
-fn read_ppm(bytes: &[u8]) -> Option<Vec<u8>> {
-    let mut fields = Vec::new();
-    let mut i = 0;
-    while fields.len() < 4 {
-        while bytes.get(i)?.is_ascii_whitespace() {
-            i += 1;
-        }
-        if bytes[i] == b'#' {
-            while *bytes.get(i)? != b'\n' {
-                i += 1;
-            }
-            continue;
-        }
-        let start = i;
-        while !bytes.get(i)?.is_ascii_whitespace() {
-            i += 1;
-        }
-        fields.push(String::from_utf8_lossy(&bytes[start..i]).into_owned());
-    }
-    if fields[0] != "P6" || fields[3] != "255" {
-        return None;
-    }
-    let (w, h): (usize, usize) = (fields[1].parse().ok()?, fields[2].parse().ok()?);
-    let data = bytes.get(i + 1..)?;
-    (data.len() == w * h * 3).then(|| data.to_vec())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ppm_reader_takes_comments_and_refuses_short_data() {
-        let mut p = b"P6\n# c\n2 1\n255\n".to_vec();
-        p.extend([1, 2, 3, 4, 5, 6]);
-        assert_eq!(read_ppm(&p), Some(vec![1, 2, 3, 4, 5, 6]));
-        p.pop();
-        assert_eq!(read_ppm(&p), None);
-        assert_eq!(read_ppm(b"P6 2"), None);
-    }
 
     #[test]
     fn only_plain_grid_names_are_passed_on() {

@@ -24,7 +24,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use vdbcook_asset::Asset;
-use vdbcook_trace::{render, Camera, Image, Mode, RenderSettings};
+use vdbcook_trace::{render, vdb_render, Camera, Image, Mode, RenderSettings};
 
 const RUNS: usize = 3;
 const SIZES: [(u32, u32); 2] = [(640, 360), (1920, 1080)];
@@ -64,53 +64,6 @@ fn cook(vdbcook: &Path, src: &Path, out: &Path, flags: &[&str]) -> Asset {
     Asset::load(out).expect("a valid asset")
 }
 
-fn f3(v: [f64; 3]) -> String {
-    format!("{},{},{}", v[0], v[1], v[2])
-}
-
-/// `vdb_render`'s arguments for single scatter with `camera` and `s` spelled out. Its `-fov` is
-/// horizontal (the focal length is derived with the horizontal 41.2 mm aperture); the tracer's
-/// is vertical.
-fn vdb_render_args(camera: &Camera, s: &RenderSettings) -> Vec<String> {
-    let aspect = s.width as f64 / s.height as f64;
-    let hfov = 2.0 * ((camera.fov_y_deg.to_radians() * 0.5).tan() * aspect).atan();
-    let g = |v: f32| format!("{v},{v},{v}");
-    let l = s.light_dir;
-    let c = s.light_color;
-    // No `-name`: `vdb_render` takes the first float grid, which is the grid the cooker takes
-    // (`density`, else the only float grid) for both default sources.
-    [
-        "-res".into(),
-        format!("{}x{}", s.width, s.height),
-        "-translate".into(),
-        f3(camera.eye),
-        "-lookat".into(),
-        f3(camera.look_at),
-        "-up".into(),
-        f3(camera.up),
-        "-fov".into(),
-        format!("{}", hfov.to_degrees()),
-        "-absorb".into(),
-        g(s.absorb),
-        "-scatter".into(),
-        g(s.scatter),
-        "-light".into(),
-        format!("{},{},{},{},{},{}", l[0], l[1], l[2], c[0], c[1], c[2]),
-        "-step".into(),
-        format!("{}", s.step),
-        "-shadowstep".into(),
-        format!("{}", s.shadow_step),
-        "-cutoff".into(),
-        format!("{}", s.cutoff),
-        "-gain".into(),
-        format!("{}", s.gain),
-        "-cpus".into(),
-        "0".into(),
-        "-v".into(),
-    ]
-    .into()
-}
-
 /// Runs `vdb_render` once: (render-only seconds from its `-v` output, whole-process seconds).
 fn run_vdb_render(src: &Path, out: &Path, args: &[String]) -> (f64, f64) {
     let t = Instant::now();
@@ -127,45 +80,14 @@ fn run_vdb_render(src: &Path, out: &Path, args: &[String]) -> (f64, f64) {
         "vdb_render failed: {text}{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    // "…: ray-tracing density..." then "…: ...completed in 1.13 sec".
-    let render = text
-        .lines()
-        .skip_while(|l| !l.contains("ray-tracing"))
-        .find_map(|l| {
-            let rest = l.split("completed in ").nth(1)?;
-            rest.trim_end_matches(" sec").trim().parse::<f64>().ok()
-        })
-        .expect("vdb_render -v prints the render time");
+    let render = vdb_render::render_seconds(&text).expect("vdb_render -v prints the render time");
     (render, wall)
 }
 
 /// A binary PPM (P6, maxval 255) as RGB bytes.
 fn read_ppm(path: &Path) -> (u32, u32, Vec<u8>) {
     let bytes = std::fs::read(path).expect("read the PPM");
-    let mut fields = Vec::new();
-    let mut i = 0;
-    while fields.len() < 4 {
-        while bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        if bytes[i] == b'#' {
-            while bytes[i] != b'\n' {
-                i += 1;
-            }
-            continue;
-        }
-        let start = i;
-        while !bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        fields.push(String::from_utf8_lossy(&bytes[start..i]).into_owned());
-    }
-    assert_eq!(fields[0], "P6", "binary PPM");
-    assert_eq!(fields[3], "255", "8-bit PPM");
-    let (w, h): (u32, u32) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
-    let data = bytes[i + 1..].to_vec();
-    assert_eq!(data.len(), (w * h * 3) as usize);
-    (w, h, data)
+    vdb_render::read_ppm(&bytes).expect("a binary 8-bit PPM")
 }
 
 /// RMSE and max |Δ| of two equal-length sequences.
@@ -279,7 +201,7 @@ fn main() {
             let (t_density, _) = timed(&f32_asset, &camera, &base);
             // (1) vdb_render with the same camera and settings.
             let (vr, vr_wall, vs_rmse) = if have_vdb_render {
-                let args = vdb_render_args(&camera, &scatter);
+                let args = vdb_render::args(&camera, &scatter, None);
                 if w == SIZES[0].0 {
                     println!("{label} {w}x{h}: vdb_render SRC OUT.ppm {}", args.join(" "));
                 }

@@ -83,6 +83,7 @@ mod rng;
 mod scatter;
 mod settings;
 mod space;
+pub mod vdb_render;
 mod walk;
 
 /// The integration tests' hand-built assets, for the unit tests of the walk.
