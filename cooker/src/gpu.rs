@@ -23,7 +23,7 @@ pub struct GpuRender {
 mod imp {
     use std::time::Instant;
 
-    use vdbcook_runtime::{GpuVolume, Renderer};
+    use vdbcook_runtime::{GpuTimer, GpuVolume, Renderer};
 
     use super::*;
 
@@ -121,44 +121,18 @@ mod imp {
                 .renderer
                 .buffer_target(&self.device, w, h)
                 .map_err(|e| format!("GPU target: {e}"))?;
-            let queries = self.timestamps.then(|| {
-                let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
-                    label: Some("vdbcook timestamps"),
-                    ty: wgpu::QueryType::Timestamp,
-                    count: 2,
-                });
-                let buffer = |usage| {
-                    self.device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("vdbcook timestamps"),
-                        size: 16,
-                        usage,
-                        mapped_at_creation: false,
-                    })
-                };
-                let resolve =
-                    buffer(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC);
-                let read = buffer(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-                (set, resolve, read)
-            });
-            let period = self.queue.get_timestamp_period() as f64;
+            let timer = if self.timestamps {
+                GpuTimer::new(&self.device, &self.queue)
+            } else {
+                None
+            };
             let (mut gpu_ms, mut wall_ms) = (Vec::new(), Vec::new());
             for run in 0..=runs {
                 let start = Instant::now();
                 let mut encoder = self.device.create_command_encoder(&Default::default());
-                // Empty passes that only write a timestamp bracket the runtime's own pass.
-                let stamp = |encoder: &mut wgpu::CommandEncoder, begin: bool| {
-                    if let Some((set, _, _)) = &queries {
-                        let _ = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                            label: Some("timestamp"),
-                            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                                query_set: set,
-                                beginning_of_pass_write_index: begin.then_some(0),
-                                end_of_pass_write_index: (!begin).then_some(1),
-                            }),
-                        });
-                    }
-                };
-                stamp(&mut encoder, true);
+                if let Some(t) = &timer {
+                    t.begin(&mut encoder);
+                }
                 up.renderer
                     .render_to_buffer(
                         &self.queue,
@@ -169,32 +143,18 @@ mod imp {
                         settings,
                     )
                     .map_err(|e| e.to_string())?;
-                stamp(&mut encoder, false);
-                if let Some((set, resolve, read)) = &queries {
-                    encoder.resolve_query_set(set, 0..2, resolve, 0);
-                    encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16);
+                if let Some(t) = &timer {
+                    t.end(&mut encoder);
                 }
                 self.queue.submit([encoder.finish()]);
-                if let Some((_, _, read)) = &queries {
-                    read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-                }
                 self.device
                     .poll(wgpu::PollType::wait_indefinitely())
                     .map_err(|e| format!("GPU: {e}"))?;
                 let wall = start.elapsed().as_secs_f64() * 1e3;
-                if let Some((_, _, read)) = &queries {
-                    let ticks: Option<[u64; 2]> = read.slice(..).get_mapped_range().ok().map(|d| {
-                        [0, 1].map(|i| {
-                            u64::from_le_bytes(d[8 * i..8 * i + 8].try_into().expect("8 bytes"))
-                        })
-                    });
-                    read.unmap();
-                    if let (Some(t), true) = (ticks, run > 0) {
-                        gpu_ms.push(t[1].wrapping_sub(t[0]) as f64 * period * 1e-6);
-                    }
-                }
+                let gpu = timer.as_ref().and_then(|t| t.read_ms(&self.device));
                 if run > 0 {
-                    wall_ms.push(wall);
+                    wall_ms.extend([wall]);
+                    gpu_ms.extend(gpu);
                 }
             }
             let r = target.read(&self.device, &self.queue);

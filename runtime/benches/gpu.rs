@@ -1,7 +1,8 @@
-//! GPU time of one density render from the default view at 640×360 and 1920×1080, measured with
-//! timestamp queries (`wgpu::Features::TIMESTAMP_QUERY`) around the runtime's compute pass:
-//! median of RUNS (after one warm-up), plus the CPU wall time of submit-and-wait. Without the
-//! feature only the wall time is printed. The results: `docs/rendering.md`.
+//! GPU time of one render per mode (`VDBCOOK_BENCH_MODES`, default `density,scatter`; any of
+//! the tracer's mode names) from the default view at 640×360 and 1920×1080, measured with
+//! timestamp queries (`vdbcook_runtime::GpuTimer`) around the runtime's compute pass: median of
+//! RUNS (after one warm-up), plus the CPU wall time of submit-and-wait. Without
+//! `TIMESTAMP_QUERY` only the wall time is printed. The results: `docs/rendering.md`.
 //!
 //! `cargo bench -p vdbcook-runtime --bench gpu [-- ASSET.vdbc ...]`; by default the f32 assets
 //! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`. Each asset is
@@ -12,7 +13,9 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use vdbcook_runtime::{Asset, Camera, GpuVolume, Layout, Mode, Renderer, Settings, UploadOptions};
+use vdbcook_runtime::{
+    Asset, Camera, GpuTimer, GpuVolume, Layout, Mode, Renderer, Settings, UploadOptions,
+};
 
 const RUNS: usize = 5;
 const SIZES: [(u32, u32); 2] = [(640, 360), (1920, 1080)];
@@ -74,7 +77,6 @@ fn main() {
         ..Default::default()
     }))
     .expect("device");
-    let period = queue.get_timestamp_period() as f64;
     println!(
         "adapter: {} ({:?}); timestamp queries: {timestamps}; median of {RUNS}",
         adapter.get_info().name,
@@ -86,26 +88,12 @@ fn main() {
     println!("|---|---|---:|---|---|---:|---:|");
     let all_layouts = std::env::var("VDBCOOK_BENCH_LAYOUTS").as_deref() == Ok("all");
 
-    let queries = timestamps.then(|| {
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some("gpu bench"),
-            ty: wgpu::QueryType::Timestamp,
-            count: 2,
-        });
-        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("gpu bench resolve"),
-            size: 16,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("gpu bench read"),
-            size: 16,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        (set, resolve, read)
-    });
+    let timer = GpuTimer::new(&device, &queue);
+    let modes: Vec<Mode> = std::env::var("VDBCOOK_BENCH_MODES")
+        .unwrap_or_else(|_| "density,scatter".into())
+        .split(',')
+        .map(|m| Mode::parse(m.trim()).unwrap_or_else(|| panic!("unknown mode {m}")))
+        .collect();
 
     let runs: Vec<(PathBuf, Option<Layout>)> = assets
         .iter()
@@ -168,70 +156,46 @@ fn main() {
             let bbox = volume.frame_bbox(0).expect("frame 0 stores something");
             let camera = Camera::framing_box(volume.index_to_world(), bbox, w as f64 / h as f64)
                 .expect("camera");
-            let settings = Settings {
-                mode: Mode::Density,
-                ..Default::default()
-            };
-            let (mut gpu, mut wall) = (Vec::new(), Vec::new());
-            for run in 0..=RUNS {
-                let start = Instant::now();
-                let mut encoder = device.create_command_encoder(&Default::default());
-                // Empty passes that only write the timestamps bracket the runtime's pass (it
-                // records its own pass, so it cannot take `timestamp_writes`).
-                let stamp = |encoder: &mut wgpu::CommandEncoder, begin: bool| {
-                    if let Some((set, _, _)) = &queries {
-                        let _ = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                            label: Some("timestamp"),
-                            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                                query_set: set,
-                                beginning_of_pass_write_index: begin.then_some(0),
-                                end_of_pass_write_index: (!begin).then_some(1),
-                            }),
-                        });
-                    }
+            for &mode in &modes {
+                let settings = Settings {
+                    mode,
+                    ..Default::default()
                 };
-                stamp(&mut encoder, true);
-                renderer
-                    .render(&queue, &mut encoder, &target, 0, &camera, &settings)
-                    .expect("render");
-                stamp(&mut encoder, false);
-                if let Some((set, resolve, read)) = &queries {
-                    encoder.resolve_query_set(set, 0..2, resolve, 0);
-                    encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16);
-                }
-                queue.submit([encoder.finish()]);
-                if let Some((_, _, read)) = &queries {
-                    read.slice(..)
-                        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-                }
-                device
-                    .poll(wgpu::PollType::wait_indefinitely())
-                    .expect("poll");
-                let elapsed = start.elapsed().as_secs_f64();
-                if let Some((_, _, read)) = &queries {
-                    let ticks: [u64; 2] = {
-                        let data = read.slice(..).get_mapped_range().expect("mapped");
-                        [0, 1]
-                            .map(|i| u64::from_le_bytes(data[8 * i..8 * i + 8].try_into().unwrap()))
-                    };
-                    read.unmap();
+                let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+                for run in 0..=RUNS {
+                    let start = Instant::now();
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    if let Some(t) = &timer {
+                        t.begin(&mut encoder);
+                    }
+                    renderer
+                        .render(&queue, &mut encoder, &target, 0, &camera, &settings)
+                        .expect("render");
+                    if let Some(t) = &timer {
+                        t.end(&mut encoder);
+                    }
+                    queue.submit([encoder.finish()]);
+                    device
+                        .poll(wgpu::PollType::wait_indefinitely())
+                        .expect("poll");
+                    let elapsed = start.elapsed().as_secs_f64() * 1e3;
+                    let ms = timer.as_ref().and_then(|t| t.read_ms(&device));
                     if run > 0 {
-                        gpu.push(ticks[1].wrapping_sub(ticks[0]) as f64 * period * 1e-9);
+                        wall.push(elapsed);
+                        gpu.extend(ms);
                     }
                 }
-                if run > 0 {
-                    wall.push(elapsed);
-                }
+                let g = if gpu.is_empty() {
+                    "–".to_string()
+                } else {
+                    format!("{:.1}", median(gpu))
+                };
+                println!(
+                    "| {name} | {layout_name} | {payload_bytes} | {w}×{h} | {} | {g} | {:.1} |",
+                    mode.name(),
+                    median(wall)
+                );
             }
-            let g = if gpu.is_empty() {
-                "–".to_string()
-            } else {
-                format!("{:.1}", median(gpu) * 1e3)
-            };
-            println!(
-                "| {name} | {layout_name} | {payload_bytes} | {w}×{h} | density | {g} | {:.1} |",
-                median(wall) * 1e3
-            );
         }
     }
 }

@@ -39,11 +39,13 @@
 mod camera;
 mod error;
 mod render;
+mod timer;
 mod upload;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
+pub use timer::GpuTimer;
 pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };

@@ -29,7 +29,7 @@ mod common;
 use common::*;
 use vdbcook_asset::{Asset, PayloadFormat};
 use vdbcook_runtime::{
-    GpuVolume, Layout, Readback, Renderer, RuntimeError, UploadOptions, GPU_MODES,
+    GpuTimer, GpuVolume, Layout, Readback, Renderer, RuntimeError, UploadOptions, GPU_MODES,
     OPTIONAL_FEATURES,
 };
 use vdbcook_trace::{Image, Mode, RenderSettings};
@@ -927,6 +927,38 @@ fn every_mode_matches_the_cpu_tracer_in_every_layout() {
 /// Native BC4 images: absolute slack on every tolerance (one code of a brick range of ≤ 2.5 is
 /// ≤ 0.01 in a first-hit value; transmittance and scatter move far less).
 const BC4_IMAGE_SLACK: f32 = 0.01;
+
+#[test]
+fn gpu_timer_brackets_a_render() {
+    let test = "gpu_timer_brackets_a_render";
+    let Some((device, queue)) = gpu_with(test, wgpu::Features::TIMESTAMP_QUERY, None) else {
+        return;
+    };
+    let Some(timer) = GpuTimer::new(&device, &queue) else {
+        assert!(!device.features().contains(wgpu::Features::TIMESTAMP_QUERY));
+        eprintln!("{test}: skipped, the adapter has no timestamp queries");
+        return;
+    };
+    let gpu = Gpu { device, queue };
+    let asset = blob_asset(PayloadFormat::F32);
+    let (_, r) = gpu.setup(&asset);
+    let target = r.buffer_target(&gpu.device, W, H).unwrap();
+    let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let s = small(Mode::SingleScatter, 0);
+    for _ in 0..2 {
+        let start = std::time::Instant::now();
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        timer.begin(&mut enc);
+        r.render_to_buffer(&gpu.queue, &mut enc, &target, 0, &cam, &s)
+            .unwrap();
+        timer.end(&mut enc);
+        gpu.queue.submit([enc.finish()]);
+        let ms = timer.read_ms(&gpu.device).expect("timestamps read back");
+        let wall = start.elapsed().as_secs_f64() * 1e3;
+        // Positive, and within the wall time of submit-to-read (plus clock granularity).
+        assert!(ms > 0.0 && ms <= wall + 1.0, "GPU {ms} ms, wall {wall} ms");
+    }
+}
 
 #[test]
 fn the_automatic_layout_prefers_decoded_textures_on_software_adapters_only() {
