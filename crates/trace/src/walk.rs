@@ -122,8 +122,8 @@ const BLOCK_SLOTS: i64 = 4;
 
 /// One frame of an asset, with what the walk precomputes for it: per L2 node of the frame, the max
 /// over each of its 4³ blocks of the slots' maxes (background for an empty slot, the tile value,
-/// the brick's `brick_ranges` max), and the box of the leaves (tiled or empty regions) whose max
-/// is not `≤ 0`. A visitor that does not count steps passes over a whole block by its max, so
+/// the brick's `brick_ranges` max; a NaN max counts as +∞), and the box of the leaves (tiled or
+/// empty regions) whose max is not `≤ 0`. A visitor that does not count steps passes over a whole block by its max, so
 /// empty space inside a node costs one step per 32³ voxels instead of per 8³, and, if it passes
 /// over values `≤ 0`, walks only the part of the ray inside that box. The spans it reports are the
 /// same (see `walk`).
@@ -166,10 +166,11 @@ impl<'a> Grid<'a> {
             }
             let known = block_of[e as usize] != u32::MAX;
             let mut m = [f32::NEG_INFINITY; 64];
-            // Max with NaN kept: a block holding a NaN slot is never passed over by a visitor
-            // that would not pass over that slot.
+            // A NaN slot max counts as +∞: skip rules pass over NaN (`!(NaN >= c)`), so a NaN
+            // block max would pass over the block's other slots too, which the fine walk visits.
             let put = |m: &mut f32, v: f32| {
-                if !(*m >= v) && !m.is_nan() {
+                let v = if v.is_nan() { f32::INFINITY } else { v };
+                if v > *m {
                     *m = v;
                 }
             };
@@ -466,10 +467,26 @@ mod tests {
     #[test]
     fn coarse_walk_reports_the_same_spans_as_the_fine_walk() {
         for (seed, background) in [(3u64, 0.0f32), (4, 0.0), (5, 0.3), (6, -0.2)] {
-            let a = asset(seed, background);
-            let grid = Grid::new(&a, 0);
+            coarse_equals_fine(&asset(seed, background), seed);
+        }
+    }
+
+    #[test]
+    fn a_nan_brick_max_does_not_make_the_coarse_walk_pass_over_its_block() {
+        // A NaN max is passed over at its own slot (`!(NaN >= c)`), but its block's other slots
+        // must still be walked: the block max treats NaN as unbounded.
+        let mut a = asset(3, 0.0);
+        for b in (0..a.brick_ranges.len()).step_by(5) {
+            a.brick_ranges[b][1] = f32::NAN;
+        }
+        coarse_equals_fine(&a, 3);
+    }
+
+    fn coarse_equals_fine(a: &Asset, seed: u64) {
+        {
+            let grid = Grid::new(a, 0);
             let mut rng = XorShift(seed * 31);
-            let ext = extent(&a);
+            let ext = extent(a);
             let mut nonempty = 0;
             for i in 0..4000 {
                 let (o, d) = if i % 4 == 0 {
