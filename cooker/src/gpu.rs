@@ -32,7 +32,6 @@ mod imp {
         device: wgpu::Device,
         queue: wgpu::Queue,
         info: wgpu::AdapterInfo,
-        timestamps: bool,
     }
 
     /// An asset on the device, ready to render.
@@ -84,7 +83,6 @@ mod imp {
                 device,
                 queue,
                 info: adapter.get_info(),
-                timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             })
         }
 
@@ -121,11 +119,8 @@ mod imp {
                 .renderer
                 .buffer_target(&self.device, w, h)
                 .map_err(|e| format!("GPU target: {e}"))?;
-            let timer = if self.timestamps {
-                GpuTimer::new(&self.device, &self.queue)
-            } else {
-                None
-            };
+            // `None` when the device has no timestamp queries: wall time only.
+            let timer = GpuTimer::new(&self.device, &self.queue);
             let (mut gpu_ms, mut wall_ms) = (Vec::new(), Vec::new());
             for run in 0..=runs {
                 let start = Instant::now();

@@ -120,9 +120,12 @@ pub fn looks_like_vdb(input: &Path) -> bool {
     {
         return true;
     }
-    // OpenVDB's magic number, 0x56444220 little-endian.
-    std::fs::read(input)
-        .map(|b| b.starts_with(&[0x20, 0x42, 0x44, 0x56]))
+    // OpenVDB's magic number, 0x56444220 little-endian: only the first four bytes are read (an
+    // asset is read once, by the loader).
+    let mut magic = [0u8; 4];
+    std::fs::File::open(input)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+        .map(|_| magic == [0x20, 0x42, 0x44, 0x56])
         .unwrap_or(false)
 }
 

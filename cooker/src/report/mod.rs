@@ -819,20 +819,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let mut tiles = Vec::new();
     let mut fig_w = 0;
     let mut fig_h = 0;
-    let shown: Vec<usize> = configs
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| c.series == 0 || (c.series == 2 && c.clusters.is_none()))
-        .map(|(i, _)| i)
+    // Each format, and the middle tolerance without clustering.
+    let middle = tolerances.get(tolerances.len() / 2).copied();
+    let shown: Vec<usize> = (0..configs.len())
         .filter(|&i| {
             let c = &configs[i];
-            c.series == 0 || c.tolerance == tolerances.get(tolerances.len() / 2).copied()
+            c.series == 0
+                || (c.clusters.is_none() && c.tolerance.is_some() && c.tolerance == middle)
         })
         .collect();
+    // The f32 reference (row 0) has no error image; the rows already hold each image's max |Δ|.
     let worst = shown
         .iter()
         .filter(|&&i| i != 0)
-        .map(|&i| image_error(&images[i], reference).1)
+        .map(|&i| rows[i].image_max_abs)
         .fold(0.0f64, f64::max);
     let gain = nice_gain(worst);
     for &i in &shown {
