@@ -17,13 +17,13 @@
 //          buffer layout: width·height RGBA (f32 × 4) then width·height raw values.
 
 struct Params {
-    // Ray origin (the eye) in asset index space.
+    // Ray origin (the eye) in cell space (asset index + 1/2: voxel a is the cell [a, a + 1)).
     eye_index: vec4<f32>,
     // Camera basis in world space; right and up scaled by the image-plane half extents.
     forward: vec4<f32>,
     right: vec4<f32>,
     up: vec4<f32>,
-    // Rows of the inverse linear part of index_to_world (world direction → index direction).
+    // Rows of the inverse linear part of index_to_world (world direction → cell direction).
     inv_a0: vec4<f32>,
     inv_a1: vec4<f32>,
     inv_a2: vec4<f32>,

@@ -249,8 +249,16 @@ fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
     return vdb_brick_voxel(r, a);
 }
 
-// A ray in asset index space, p(t) = o + t·d, t in world units (d is the index-space image of a
-// unit world direction); `per_t` converts t to the length unit (|d| for voxels, else 1).
+// The value nearest to the continuous asset index point `p`, by OpenVDB's convention: voxel `a`
+// sits at index `a` and covers [a - 1/2, a + 1/2) (OpenVDB's point sampler rounds). A world point
+// maps to `p` by the inverse of the asset's `index_to_world` (`GpuVolume::index_to_world`).
+fn vdb_value_nearest(frame_root: u32, p: vec3<f32>) -> f32 {
+    return vdb_value(frame_root, vec3<i32>(floor(p + vec3<f32>(0.5))));
+}
+
+// A ray in cell space (asset index + 1/2, so voxel `a` is the cell [a, a + 1) and `floor` finds
+// it: `vdbcook_trace::Affine::cells`), p(t) = o + t·d, t in world units (d is the cell-space image
+// of a unit world direction); `per_t` converts t to the length unit (|d| for voxels, else 1).
 struct VdbRay {
     o: vec3<f32>,
     d: vec3<f32>,

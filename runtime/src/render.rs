@@ -157,7 +157,7 @@ impl Renderer {
                 "format {format:?} (storage formats: Rgba8Unorm, Rgba16Float, Rgba32Float)"
             )));
         };
-        let xf = Affine::from_matrix(volume.index_to_world())?;
+        let xf = Affine::cells(volume.index_to_world())?;
         let source = format!(
             "{VOLUME_WGSL}\n{}",
             TRACE_WGSL.replace("{{TARGET_FORMAT}}", fmt)

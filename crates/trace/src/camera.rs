@@ -106,7 +106,7 @@ impl Camera {
         bbox: ([f64; 3], [f64; 3]),
         aspect: f64,
     ) -> Result<Camera, TraceError> {
-        let xf = Affine::from_matrix(index_to_world)?;
+        let xf = Affine::cells(index_to_world)?;
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for c in 0..8 {
             let p = [0, 1, 2].map(|a| {

@@ -5,12 +5,18 @@
 //! validation, the affine transform, the depth range): one definition for both.
 //!
 //! # Spaces
-//! - **World → index**: the asset's `index_to_world` (row-major, column vectors) must be affine;
-//!   rays are carried into asset index space by its inverse. A ray is `p(t) = o + t·d` with `d`
-//!   the index-space image of a *unit world* direction, so `t` is world distance from the eye.
-//! - **Voxels**: the value of voxel `i` (asset index) is constant over the half-open cell
-//!   `[i, i+1)³` (nearest, no interpolation). The root extent is `[0, 128·root_dims)`; outside it
-//!   the density is 0, inside it unstored space holds `header.background`.
+//! - **Voxel positions follow OpenVDB**: the value of voxel `i` (asset index; the asset's
+//!   `index_to_world`, row-major for column vectors, folds in the cook's index offset) sits at
+//!   world `index_to_world · i`, and nearest lookup gives it the index-space box `[i − ½, i + ½)³`
+//!   (OpenVDB's point sampler rounds to the nearest index; Houdini, Blender and `vdb_render` agree).
+//! - **Cell space** (what the walk sees): index + ½, so voxel `i` is the unit cell `[i, i+1)³`
+//!   and `floor` finds it. World → cell is the inverse of [`Affine::cells`], which must be
+//!   affine; it is the only place the half voxel appears. A ray is `p(t) = o + t·d` with `d` the
+//!   cell-space image of a *unit world* direction, so `t` is world distance from the eye. The
+//!   root extent is `[0, 128·root_dims)` in cell space; outside it the density is 0, inside it
+//!   unstored space holds `header.background`. Boxes in this crate's API (`stored_bbox`,
+//!   `content_box`, [`Camera::framing_box`]) are in cell space: `[lo, hi)` covers voxels
+//!   `lo ..= hi − 1`.
 //! - **Length unit** (`RenderSettings::unit`): `Voxel` (default, as `vdb_render`): a length `Δt`
 //!   counts `Δt·|d|` (index-space length); `World`: `Δt`. `absorb`, `scatter`, `step`,
 //!   `shadow_step` and `gain` are per that unit.

@@ -60,7 +60,7 @@ impl<'a> Tracer<'a> {
     ) -> Result<Tracer<'a>, TraceError> {
         settings.validate(asset.frame_count())?;
         camera.basis(settings.width, settings.height)?;
-        let xf = Affine::from_matrix(&asset.header.index_to_world)?;
+        let xf = Affine::cells(&asset.header.index_to_world)?;
         let l = settings.light_dir.map(|c| c as f64);
         let light_index = xf.dir_to_index(normalize(l));
         let extinction = settings.absorb as f64 + settings.scatter as f64;

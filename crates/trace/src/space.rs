@@ -1,5 +1,7 @@
-//! From world space to the asset's index space: the inverse of `index_to_world`, rays carried
-//! into index space (keeping the world-distance parameter), and the clip to the root extent.
+//! From world space to the tracer's cell space: the inverse of `index_to_world` shifted by half a
+//! voxel (OpenVDB centres voxel `i` on index `i`; the walk wants voxel `i` to be the unit cell
+//! `[i, i+1)`), rays carried into that space (keeping the world-distance parameter), and the clip
+//! to the root extent.
 
 use crate::TraceError;
 
@@ -55,6 +57,19 @@ impl Affine {
         Ok(Affine { a, b, inv_a })
     }
 
+    /// The map from the tracer's **cell space** to world for an asset whose `index_to_world` is
+    /// `m`. OpenVDB puts the value of voxel `i` at `m · i` (its nearest-point sampler rounds, so
+    /// the voxel covers `[i − ½, i + ½)` of index space); the walk wants voxel `i` to be the cell
+    /// `[i, i + 1)`, so cell point `c` is index point `c − ½`: `world = m · (c − ½)`. Every ray
+    /// the tracers (CPU and GPU) carry from world space goes through this map; nothing else in
+    /// them knows about the half voxel.
+    pub fn cells(m: &[[f64; 4]; 4]) -> Result<Affine, TraceError> {
+        let mut xf = Affine::from_matrix(m)?;
+        let h = mul3(&xf.a, [0.5; 3]);
+        xf.b = [0, 1, 2].map(|i| xf.b[i] - h[i]);
+        Ok(xf)
+    }
+
     pub fn world_of(&self, p: [f64; 3]) -> [f64; 3] {
         let v = mul3(&self.a, p);
         [0, 1, 2].map(|i| v[i] + self.b[i])
@@ -92,8 +107,9 @@ pub fn depth_range(xf: &Affine, bbox: ([f64; 3], [f64; 3]), eye: [f64; 3]) -> [f
     [near, far]
 }
 
-/// A ray in index space, `p(t) = o + t·d`, where `t` is the distance travelled in *world* units
-/// (the world direction was unit length); `per_t` converts `t` to the chosen length unit.
+/// A ray in cell space (index + ½, see [`Affine::cells`]), `p(t) = o + t·d`, where `t` is the
+/// distance travelled in *world* units (the world direction was unit length); `per_t` converts
+/// `t` to the chosen length unit.
 #[derive(Debug, Clone, Copy)]
 pub struct IndexRay {
     pub o: [f64; 3],
@@ -105,7 +121,7 @@ pub struct IndexRay {
 }
 
 impl IndexRay {
-    /// `o` in index space, `d` the index-space image of a unit world direction.
+    /// `o` in cell space, `d` the cell-space image of a unit world direction.
     pub fn new(o: [f64; 3], d: [f64; 3], voxel_units: bool) -> IndexRay {
         let inv = d.map(|c| if c == 0.0 { f64::INFINITY } else { 1.0 / c });
         let per_t = if voxel_units { length(d) } else { 1.0 };

@@ -42,9 +42,11 @@ fn any_camera() -> Camera {
     }
 }
 
-/// Index point → world under the uniform transform.
+/// Cell point → world under the uniform transform. OpenVDB centres voxel `i` on index `i`, so
+/// the voxels `LO ..= HI − 1` cover the index box `[LO − ½, HI − ½)`: in cells (index + ½) that
+/// is `[LO, HI)`, and a cell point `p` is the index point `p − ½`.
 fn w(p: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|a| p[a] * S + T[a])
+    [0, 1, 2].map(|a| (p[a] - 0.5) * S + T[a])
 }
 
 /// The box in world space (axis-aligned under the uniform transform).
@@ -268,11 +270,12 @@ fn rotated_anisotropic_transform_in_world_units() {
             let eye = [0, 1, 2].map(|k| target[k] - 60.0 * d[k]);
             // The world direction is unit length: the index parameter is world distance.
             let di = dir_to_index(d);
+            // Voxels LO ..= HI − 1 cover [LO − ½, HI − ½) of index space (OpenVDB's centres).
             let l_world = slab_length(
                 to_index(eye),
                 di,
-                LO.map(|v| v as f64),
-                HI.map(|v| v as f64),
+                LO.map(|v| v as f64 - 0.5),
+                HI.map(|v| v as f64 - 0.5),
             );
             let l = match unit {
                 LengthUnit::World => l_world,

@@ -1,5 +1,6 @@
 //! The voxel DDA against brute force on random content: density-mode optical depth equals a
-//! fine fixed-step march of `Asset::value` (nearest voxel at each step's midpoint) within the
+//! fine fixed-step march of `Asset::value` (nearest voxel at each step's midpoint, by OpenVDB's
+//! rule: the index rounded, so voxel `i` covers `[i − ½, i + ½)`) within the
 //! march's own error bound (step × max density per voxel boundary crossed), under a rotated,
 //! anisotropic transform; and the hierarchical walk takes far fewer steps than the voxels a
 //! naive march visits.
@@ -44,7 +45,8 @@ fn brute(a: &Asset, eye: [f64; 3], d: [f64; 3], h: f64) -> Brute {
         crossings: 0,
         voxels: 0,
     };
-    let Some((t0, t1)) = slab_interval(o, di, [0.0; 3], EXTENT) else {
+    // The root extent's voxels 0 ..= EXTENT − 1 cover [−½, EXTENT − ½) of index space.
+    let Some((t0, t1)) = slab_interval(o, di, [-0.5; 3], EXTENT.map(|e| e - 0.5)) else {
         return out;
     };
     let n = ((t1 - t0) / h).ceil() as u64;
@@ -53,7 +55,7 @@ fn brute(a: &Asset, eye: [f64; 3], d: [f64; 3], h: f64) -> Brute {
         let ta = t0 + k as f64 * h;
         let tb = (ta + h).min(t1);
         let tm = 0.5 * (ta + tb);
-        let cell = [0, 1, 2].map(|i| (o[i] + tm * di[i]).floor() as i64);
+        let cell = [0, 1, 2].map(|i| (o[i] + tm * di[i] + 0.5).floor() as i64);
         if last != Some(cell) {
             out.voxels += 1;
             if last.is_some() {
@@ -144,8 +146,9 @@ fn axis_parallel_rays_on_boundaries_match_brute_force() {
     );
     let tracer = density(&a, Mode::Density);
     let mut scratch = Scratch::default();
-    for y in [0.0f64, 8.0, 64.0, 127.0, 128.0, 200.5] {
-        for z in [0.0f64, 16.0, 40.5, 127.99] {
+    // Voxel boundaries (k − ½ in index space: node, leaf and region faces) and a few centres.
+    for y in [-0.5f64, 7.5, 63.5, 126.5, 127.5, 200.0] {
+        for z in [-0.5f64, 15.5, 40.0, 127.49] {
             for (eye, d) in [
                 ([-5.0, y, z], [1.0, 0.0, 0.0]),
                 ([300.0, y, z], [-1.0, 0.0, 0.0]),
@@ -156,11 +159,7 @@ fn axis_parallel_rays_on_boundaries_match_brute_force() {
                 let axis = d.iter().position(|c| *c != 0.0).unwrap();
                 let mut want = 0.0f64;
                 for k in 0..EXTENT[axis] as i64 {
-                    let mut cell = [
-                        eye[0].floor() as i64,
-                        eye[1].floor() as i64,
-                        eye[2].floor() as i64,
-                    ];
+                    let mut cell = eye.map(|c| (c + 0.5).floor() as i64);
                     cell[axis] = k;
                     want += (a.value(0, cell) as f64).max(0.0);
                 }

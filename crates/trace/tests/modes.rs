@@ -106,7 +106,9 @@ fn bad_frame_and_bad_settings_are_errors() {
 #[test]
 fn first_hit_modes_report_the_analytic_entry() {
     let a = two_frames();
-    let to_world = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] * 0.5 + [1.0, 2.0, 3.0][k]);
+    // Cell point (index + ½: OpenVDB centres voxel i on index i, so voxels LO ..= HI − 1 are the
+    // cells [LO, HI)) → world.
+    let to_world = |p: [f64; 3]| [0, 1, 2].map(|k| (p[k] - 0.5) * 0.5 + [1.0, 2.0, 3.0][k]);
     let (lo, hi) = (
         to_world(LO.map(|c| c as f64)),
         to_world(HI.map(|c| c as f64)),
@@ -137,7 +139,7 @@ fn first_hit_modes_report_the_analytic_entry() {
         assert_eq!(trace(Mode::FirstHitDensity).value, SIGMA);
         // Brick hue: the leaf just inside the entry point, per the sampler.
         let q = [0, 1, 2].map(|k| ((eye[k] + (t0 + 1e-6) * d[k]) - [1.0, 2.0, 3.0][k]) / 0.5);
-        let leaf = a.leaf_at(0, q.map(|c| c.floor() as i64));
+        let leaf = a.leaf_at(0, q.map(|c| (c + 0.5).floor() as i64));
         let hue = trace(Mode::BrickHue);
         match leaf {
             LeafRef::Brick(b) => {
