@@ -168,6 +168,8 @@ fn prepare(f: &Frame, grid: Option<&str>, nf: NonFinite) -> Prepared {
 struct FrameErr {
     sum_sq: f64,
     max_abs: f64,
+    /// Bound on any conformant GPU's read: per brick, its error plus its native-read slack.
+    gpu_bound: f64,
 }
 
 /// Wall-clock seconds per stage.
@@ -236,7 +238,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         .format
         .as_deref()
         .map(|f| PayloadFormat::parse(f).expect("clap checked"));
-    let eopts = encode::EncodeOptions {
+    let mut eopts = encode::EncodeOptions {
         format: format.unwrap_or(if a.max_error.is_some() {
             PayloadFormat::Bc7
         } else {
@@ -244,6 +246,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         }),
         format_given: format.is_some(),
         max_error: a.max_error,
+        lossy_tiles: a.max_error.is_some(),
         range: if a.range == "global" {
             RangeMode::Global
         } else {
@@ -381,6 +384,20 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         .extent()
         .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
 
+    // Every lossy cook has an error budget: --max-error, or the default share of the value range
+    // (the background included), so neither BC7 outliers nor clustering go unchecked.
+    let lossy = format != PayloadFormat::F32 || a.clusters.is_some();
+    let budget_source = match (a.max_error, lossy) {
+        (Some(_), _) => Some("given"),
+        (None, true) => {
+            let r = [value_range[0].min(bg), value_range[1].max(bg)];
+            eopts.max_error = Some(encode::default_budget(r));
+            Some("default")
+        }
+        (None, false) => None,
+    };
+    let budget = eopts.max_error;
+
     // Cluster (optional): members of a cluster are re-pointed to its centroid brick.
     let tc = Instant::now();
     let n_pool = pool.brick_count();
@@ -396,11 +413,12 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         };
         let r = cluster::cluster(&pool.bricks, &copts);
         let n_centroids = r.centroids.len() / BRICK_VOXELS;
-        // The guard: with --max-error, a brick joins its cluster only if the *decoded* centroid
-        // is within E of each of its voxels.
+        // The guard (always on: every lossy cook has a budget): a brick joins its cluster only if
+        // the *decoded* centroid, plus what a GPU's native read may add, is within E of each of
+        // its voxels.
         let mut rejected_by_error = 0usize;
         let mut member_of = r.member_of.clone();
-        if let Some(e) = a.max_error {
+        if let Some(e) = budget {
             let ce = encode::encode(&r.centroids, &eopts)
                 .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
             for (b, m) in member_of.iter_mut().enumerate() {
@@ -408,10 +426,11 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                     let dec =
                         &ce.decoded[c as usize * BRICK_VOXELS..(c as usize + 1) * BRICK_VOXELS];
                     let src = &pool.bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
+                    let slack = ce.slack[c as usize] as f64;
                     if dec
                         .iter()
                         .zip(src)
-                        .any(|(d, s)| ((*d as f64) - (*s as f64)).abs() > e as f64)
+                        .any(|(d, s)| ((*d as f64) - (*s as f64)).abs() + slack > e as f64)
                     {
                         *m = None;
                         rejected_by_error += 1;
@@ -543,6 +562,9 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                 for b in uses {
                     let o = &bricks[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
                     let d = &decoded[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
+                    let slack = enc.slack[input_of[*b as usize] as usize] as f64;
+                    let before = fe.max_abs;
+                    fe.max_abs = 0.0;
                     // Inactive voxels hold the background in the pool: a lossy payload that
                     // moves them off it is an error too (a tracer samples them), counted as
                     // `eval` counts it. The RMSE divides by the active voxel count.
@@ -551,6 +573,8 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                         fe.sum_sq += e * e;
                         fe.max_abs = fe.max_abs.max(e);
                     }
+                    fe.gpu_bound = fe.gpu_bound.max(fe.max_abs + slack);
+                    fe.max_abs = fe.max_abs.max(before);
                 }
                 fe
             })
@@ -560,6 +584,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     };
     let sum_sq: f64 = per_frame.iter().map(|f| f.sum_sq).sum();
     let max_abs = per_frame.iter().fold(0.0f64, |m, f| m.max(f.max_abs));
+    let gpu_bound = per_frame.iter().fold(0.0f64, |m, f| m.max(f.gpu_bound));
     // The f32 pool is no longer needed: free it before serializing.
     let unique_bricks = pool.brick_count();
     pool.bricks = Vec::new();
@@ -576,7 +601,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             tool: format!("vdbcook {}", env!("CARGO_PKG_VERSION")),
             options: CookOptions {
                 format,
-                max_error: a.max_error,
+                max_error: budget,
                 range: eopts.range,
                 bc7_quality: eopts.bc7_quality.name().to_string(),
                 grid: a.grid.clone(),
@@ -646,7 +671,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         "bits_per_active_voxel": bpv(bytes.len() as u64),
         "bits_per_active_voxel_gpu": bpv(topology + atlas),
         "topology_bits_per_active_voxel": bpv(topology),
-        "error": {"rmse": rmse, "psnr_db": psnr, "max_abs": max_abs, "exact": max_abs == 0.0},
+        "error": {"rmse": rmse, "psnr_db": psnr, "max_abs": max_abs, "exact": max_abs == 0.0, "max_abs_any_gpu": gpu_bound},
         "frame_errors": per_frame.iter().zip(&asset.header.frames).enumerate().map(|(i, (e, f))| {
             let rmse = if f.active_voxels > 0 { (e.sum_sq / f.active_voxels as f64).sqrt() } else { 0.0 };
             json!({"frame": i, "number": f.number, "rmse": rmse, "psnr_db": (rmse > 0.0 && peak > 0.0).then(|| 20.0 * (peak / rmse).log10()), "max_abs": e.max_abs})
@@ -657,7 +682,8 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             "bc7": enc.representation.per_format[0], "bc4": enc.representation.per_format[1],
             "unorm8": enc.representation.per_format[2], "f16": enc.representation.per_format[3], "f32": enc.representation.per_format[4],
         },
-        "max_error": a.max_error,
+        "max_error": budget,
+        "max_error_source": budget_source,
         "bc7_quality": eopts.bc7_quality.name(),
         "range": match eopts.range { RangeMode::Brick => "brick", RangeMode::Global => "global" },
         "peak_memory_bytes": peak_memory_bytes(),

@@ -3,10 +3,15 @@
 //! representation in the candidate list whose decoded voxels are all within E of the source —
 //! a (lossy) tile value, then BC7, BC4, unorm8, f16, f32 — starting at `--format` when one is
 //! given ("this format where it meets E, fall back where it does not"). Every check decodes
-//! with the same CPU decoders `eval` and the runtime's reference use.
+//! with the same CPU decoders `eval` and the runtime's reference use, and adds what a conformant
+//! GPU's native read may differ from that decode (`payload::native_read_slack`: BC4 8.5 codes of
+//! the brick's range, BC7 1), so E holds on any GPU, not only on the CPU. A lossy cook without
+//! `--max-error` gets a default budget (`default_budget`) that only guards: bricks over it fall
+//! back along the same list, and no brick becomes a lossy tile, so no lossy cook is unguarded
+//! and none is coarser than its format.
 
 use rayon::prelude::*;
-use vdbcook_asset::payload::{self, vox_index};
+use vdbcook_asset::payload::{self, native_read_slack, vox_index};
 use vdbcook_asset::{PayloadFormat, RangeMode, BRICK_VOXELS, TILE_BIT};
 
 use crate::bcenc::{encode_bc4, encode_bc7, Bc7Quality};
@@ -17,6 +22,10 @@ pub struct EncodeOptions {
     /// `--format` was given explicitly (matters only with `max_error`).
     pub format_given: bool,
     pub max_error: Option<f32>,
+    /// Whether bricks within `max_error` of one value become (lossy) tiles: yes for a given
+    /// `--max-error`; a default budget only guards the chosen format (it never makes a cook
+    /// coarser than its format).
+    pub lossy_tiles: bool,
     pub range: RangeMode,
     pub bc7_quality: Bc7Quality,
 }
@@ -43,7 +52,26 @@ pub struct Encoded {
     pub decoded: Vec<f32>,
     /// Tile values created from bricks (to append to the pool's tiles).
     pub new_tiles: Vec<f32>,
+    /// Per *input* brick: how far a conformant GPU's native read of its representation may be
+    /// from `decoded` ([`payload::native_read_slack`]; 0 for tiles and exact formats).
+    pub slack: Vec<f32>,
     pub representation: Representation,
+}
+
+/// The default `--max-error` of a lossy cook, as a fraction of the sequence's value range
+/// (`max − min` over every stored value and the background): why this value, `docs/accuracy.md`.
+pub const DEFAULT_BUDGET_OF_RANGE: f32 = 0.1;
+
+/// The budget a lossy cook without `--max-error` gets: [`DEFAULT_BUDGET_OF_RANGE`] of the value
+/// range `[lo, hi]` (a constant volume's range is 0: then any positive budget keeps it exact).
+pub fn default_budget(range: [f32; 2]) -> f32 {
+    let r = (range[1] as f64 - range[0] as f64).max(0.0);
+    let e = (DEFAULT_BUDGET_OF_RANGE as f64 * r) as f32;
+    if e > 0.0 && e.is_finite() {
+        e
+    } else {
+        f32::MIN_POSITIVE
+    }
 }
 
 impl Encoded {
@@ -265,6 +293,9 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
             brick_ranges,
             decoded,
             new_tiles: Vec::new(),
+            slack: (0..n)
+                .map(|b| native_read_slack(f, quant_of(f, b)))
+                .collect(),
             representation,
         });
     }
@@ -286,7 +317,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
     }
     let mut choice = vec![Choice::Pending; n];
     // A brick whose values all lie within E of their midpoint becomes a tile.
-    for b in 0..n {
+    for b in (0..n).filter(|_| opts.lossy_tiles) {
         let [lo, hi] = ranges[b];
         let mid = lo + (hi - lo) * 0.5;
         if brick(b).iter().all(|&v| ((v - mid) as f64).abs() <= e) {
@@ -333,6 +364,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
                     quant_of(f, b),
                     out.try_into().expect("512"),
                 );
+                // What any conformant GPU may read: the CPU decode's error plus the native slack.
                 out.iter()
                     .zip(brick(b))
                     .map(|(a, s)| (*a as f64 - *s as f64).abs())
@@ -340,6 +372,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
                         0.0f64,
                         |m, x| if x.is_nan() { f64::INFINITY } else { m.max(x) },
                     )
+                    + native_read_slack(f, quant_of(f, b)) as f64
             })
             .collect();
         let batch = batches.len();
@@ -368,6 +401,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
     let mut brick_quant = Vec::new();
     let mut brick_ranges = Vec::new();
     let mut new_tiles = Vec::new();
+    let mut slack = vec![0f32; n];
     let mut representation = Representation::default();
     let mut next = 0u32;
     for f in PayloadFormat::ORDER {
@@ -380,6 +414,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
                     payloads[f.rank()].extend_from_slice(&batches[batch][k * per..(k + 1) * per]);
                     brick_counts[f.rank()] += 1;
                     brick_quant.push(quant_of(f, b));
+                    slack[b] = native_read_slack(f, quant_of(f, b));
                     brick_ranges.push(range_of(&decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]));
                 }
             }
@@ -401,6 +436,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
         brick_ranges,
         decoded,
         new_tiles,
+        slack,
         representation,
     })
 }
@@ -419,6 +455,7 @@ mod tests {
             format,
             format_given: true,
             max_error,
+            lossy_tiles: true,
             range,
             bc7_quality: Bc7Quality::Fast,
         }
@@ -527,9 +564,11 @@ mod tests {
         let mut fell_back = 0;
         for (b, &s) in kinds.iter().enumerate() {
             let in_bc7 = guarded.remap[b] & TILE_BIT == 0 && guarded.remap[b] < n_bc7;
+            // Within E as a GPU may read it: the CPU decode's error plus BC7's native slack.
+            let q = range_of(&pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
             assert_eq!(
                 in_bc7,
-                unguarded[b] <= e,
+                unguarded[b] + native_read_slack(PayloadFormat::Bc7, q) <= e,
                 "brick {b} (spiky: {s}, BC7 error {})",
                 unguarded[b]
             );
@@ -537,6 +576,38 @@ mod tests {
             fell_back += !in_bc7 as usize;
         }
         assert!(fell_back > 0);
+    }
+
+    #[test]
+    fn bc4_must_fit_as_any_gpu_reads_it_not_only_as_the_cpu_decodes_it() {
+        // A smooth ramp over 0.2: BC4's CPU decode is close, but a conformant GPU may read up to
+        // 8.5 codes of the brick's range (0.0067) off it. A budget the CPU decode meets but the
+        // GPU's may not must move the brick out of BC4; a budget over both keeps it.
+        let ramp = brick(|x, y, z| 0.2 * (x * 64 + y * 8 + z) as f32 / 511.0);
+        let plain = encode(&ramp, &opts(PayloadFormat::Bc4, None, RangeMode::Brick)).unwrap();
+        let cpu = errors(&ramp, &plain)[0];
+        let slack = native_read_slack(PayloadFormat::Bc4, [0.0, 0.2]);
+        assert!(cpu > 0.0 && slack > 0.006, "cpu {cpu}, slack {slack}");
+        let tight = cpu + 0.5 * slack;
+        let g = encode(
+            &ramp,
+            &opts(PayloadFormat::Bc4, Some(tight), RangeMode::Brick),
+        )
+        .unwrap();
+        assert_eq!(
+            g.brick_counts[PayloadFormat::Bc4.rank()],
+            0,
+            "the CPU decode ({cpu}) meets {tight}, a GPU's read may not: not BC4"
+        );
+        assert!(errors(&ramp, &g)[0] + g.slack[0] <= tight);
+        let roomy = cpu + 1.01 * slack;
+        let k = encode(
+            &ramp,
+            &opts(PayloadFormat::Bc4, Some(roomy), RangeMode::Brick),
+        )
+        .unwrap();
+        assert_eq!(k.brick_counts[PayloadFormat::Bc4.rank()], 1);
+        assert!((k.slack[0] - slack).abs() < 1e-9);
     }
 
     #[test]

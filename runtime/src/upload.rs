@@ -960,16 +960,19 @@ impl GpuVolume {
     pub(crate) fn frame_max(&self, frame: usize) -> f32 {
         self.frame_max[frame]
     }
-    /// Whether the GPU reads every brick exactly as the CPU decoder does, up to f32 rounding of
-    /// the dequantization: false for rounded f16 buffers and for native BC4 textures (drivers
-    /// may interpolate BC4 in higher precision than the 8-bit reference decode).
+    /// Whether the specs guarantee that the GPU reads every brick exactly as the CPU decoder
+    /// does, up to f32 rounding of the dequantization: false for rounded f16 buffers and for
+    /// native BC4 and BC7 textures, which a conformant driver may read up to
+    /// `vdbcook_asset::payload::native_read_codes` codes of the brick range off (BC4 8.5, BC7 1;
+    /// the cooker's `--max-error` counts that slack, so the budget holds either way).
     pub fn exact(&self) -> bool {
         !matches!(self.layout.buffers, BufferLayout::F16 { exact: false, .. })
-            && !self
-                .layout
-                .textures
-                .iter()
-                .any(|t| t.format == wgpu::TextureFormat::Bc4RUnorm)
+            && !self.layout.textures.iter().any(|t| {
+                matches!(
+                    t.format,
+                    wgpu::TextureFormat::Bc4RUnorm | wgpu::TextureFormat::Bc7RgbaUnorm
+                )
+            })
     }
 }
 

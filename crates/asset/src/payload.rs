@@ -59,6 +59,38 @@ pub fn check_representable(format: PayloadFormat, values: &[f32]) -> Option<f32>
     }
 }
 
+/// How far a conformant GPU's *native* read of a texel in `format` may be from this crate's CPU
+/// decode, in 8-bit codes of the brick's quantization range (`(hi − lo)/255` each). The cooker adds
+/// it to every brick's measured error before checking `--max-error`, the runtime's tests take
+/// their tolerance from it, and `GpuVolume::exact()` is false wherever it is not 0. Where it comes
+/// from (`docs/payloads.md`, "What a GPU may read"):
+/// - **BC4**: the APIs fix the formula but not its precision. D3D11.3 §19.5.2 allows
+///   `1/65535 + 0.03·|red_0 − red_1|/255` off the float formula (≤ 7.65 codes); Vulkan's
+///   conformance tests accept 8/255 for every BC1–5 format; OpenGL's RGTC states no bound. The
+///   CPU reference (`bcdec`) rounds the formula to 8 bits (≤ ½ code). 8 + ½ codes. Measured:
+///   lavapipe 2 codes, an NVIDIA H100 3.2.
+/// - **BC7**: D3D11 requires bit-exact BC7 decoding; Vulkan's conformance tests accept 1/255.
+///   1 code (both GPUs measured read it exactly).
+/// - **unorm8**: `c/255` is an exact conversion on every API (and decoded-BC textures hold the
+///   CPU decode's codes): 0. f16 and f32 are buffers read as written: 0.
+pub fn native_read_codes(format: PayloadFormat) -> f32 {
+    match format {
+        PayloadFormat::Bc4 => BC4_NATIVE_CODES,
+        PayloadFormat::Bc7 => BC7_NATIVE_CODES,
+        PayloadFormat::Unorm8 | PayloadFormat::F16 | PayloadFormat::F32 => 0.0,
+    }
+}
+
+/// BC4's [`native_read_codes`].
+pub const BC4_NATIVE_CODES: f32 = 8.5;
+/// BC7's [`native_read_codes`].
+pub const BC7_NATIVE_CODES: f32 = 1.0;
+
+/// [`native_read_codes`] in value units for a brick quantized over `[lo, hi]`.
+pub fn native_read_slack(format: PayloadFormat, quant: [f32; 2]) -> f32 {
+    native_read_codes(format) * (quant[1] - quant[0]).max(0.0) / 255.0
+}
+
 /// `v` quantized to 8 bits over `[lo, hi]` (round to nearest, clamped).
 #[inline]
 pub fn quantize(v: f32, lo: f32, hi: f32) -> u8 {
