@@ -814,6 +814,16 @@ fn print_summary(d: &Value) {
             .map(|p| format!("{p:.1} dB"))
             .unwrap_or_else(|| "exact".into())
     );
+    if let Some(budget) = d["max_error"].as_f64() {
+        let how = match d["max_error_source"].as_str() {
+            Some("default") => " (default: 10% of the value range; set --max-error for a target)",
+            _ => " (--max-error)",
+        };
+        println!(
+            "  budget         every voxel within {budget:.3e}{how}; any conformant GPU reads within {:.3e}",
+            e["max_abs_any_gpu"].as_f64().unwrap_or(0.0)
+        );
+    }
     let s = &d["seconds"];
     let f = |k: &str| s[k].as_f64().unwrap_or(0.0);
     println!("  seconds        total {:.2} (read {:.2}, build {:.2}, dedup {:.2}, encode {:.2}, write {:.2})", f("total"), f("read"), f("build"), f("dedup"), f("encode"), f("write"));

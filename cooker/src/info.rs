@@ -85,7 +85,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "tool": h.tool,
         "format_version": vdbcook_asset::FORMAT_VERSION,
         "content_hash": format!("{:016x}", h.content_hash),
-        "options": {"format": h.options.format.name(), "grid": h.options.grid, "replace_non_finite": h.options.replace_non_finite, "allow_gaps": h.options.allow_gaps},
+        "options": {"format": h.options.format.name(), "max_error": h.options.max_error, "grid": h.options.grid, "replace_non_finite": h.options.replace_non_finite, "allow_gaps": h.options.allow_gaps},
         "grid": h.grid_name,
         "frame_count": asset.frame_count(),
         "active_voxels": active,
@@ -128,6 +128,17 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         asset.l2_count(),
         asset.l3_refs.len()
     );
+    match h.options.max_error {
+        Some(e) => println!(
+            "  error budget: every voxel within {e:e} of its source, as any conformant GPU reads it"
+        ),
+        None if asset.brick_count() as u64
+            == h.brick_counts[vdbcook_asset::PayloadFormat::F32.rank()] =>
+        {
+            println!("  error budget: none (f32 payload, lossless)")
+        }
+        None => println!("  error budget: none recorded (a lossy cook by an older vdbcook)"),
+    }
     println!(
         "  extent {:?} voxels from source index {:?}; {} map, voxel size {:?}",
         h.root_dims.map(|d| d * 128),

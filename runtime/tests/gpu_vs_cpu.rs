@@ -631,11 +631,11 @@ fn dense_media_match() {
 
 // ---- Payload layouts: every layout forced on the same adapter, against the CPU decode. ----
 
-/// Native BC textures read up to `payload::native_read_codes` (BC4 8.5, BC7 1) codes of the
-/// brick's `(hi − lo)/255` from the asset's decode: the bound the API specs and Vulkan's
-/// conformance tests allow, not what one driver does. Measured: lavapipe BC4 ≤ 2 codes (27% of
-/// the voxels of these seeded random blocks 1 code off, 0.17% 2 codes), an NVIDIA H100 ≤ 3.2;
-/// BC7 exact on both (`docs/payloads.md`).
+// Native BC textures read up to `payload::native_read_codes` (BC4 8.5, BC7 1) codes of the
+// brick's `(hi − lo)/255` from the asset's decode: the bound the API specs and Vulkan's
+// conformance tests allow, not what one driver does. Measured: lavapipe BC4 ≤ 2 codes (27% of
+// the voxels of these seeded random blocks 1 code off, 0.17% 2 codes), an NVIDIA H100 ≤ 3.2;
+// BC7 exact on both (`docs/payloads.md`).
 
 /// An asset with bricks in all five formats (cycled per brick), the blob frames.
 fn mixed_asset() -> Asset {
