@@ -76,6 +76,10 @@ fn check_surface(width: u32, height: u32, len: usize, channels: usize) {
 }
 
 /// Runs `compress(strip_texels, strip_height, strip_output)` over strips of whole block rows.
+/// Called with (blocks announced, blocks done) as strips are compressed, when set (the CLI's
+/// progress display).
+pub static PROGRESS_HOOK: std::sync::OnceLock<fn(u64, u64)> = std::sync::OnceLock::new();
+
 fn encode_strips(
     width: u32,
     height: u32,
@@ -91,6 +95,9 @@ fn encode_strips(
     if out.is_empty() {
         return out;
     }
+    if let Some(hook) = PROGRESS_HOOK.get() {
+        hook((blocks_x * blocks_y) as u64, 0);
+    }
     let strip_rows = (strip_blocks / blocks_x).max(1);
     let row_texel_bytes = 4 * width as usize * channels;
     out.par_chunks_mut(strip_rows * blocks_x * block_bytes)
@@ -100,6 +107,9 @@ fn encode_strips(
             let start = strip * strip_rows * row_texel_bytes;
             let src = &texels[start..start + rows * row_texel_bytes];
             compress(src, 4 * rows as u32, dst);
+            if let Some(hook) = PROGRESS_HOOK.get() {
+                hook(0, (rows * blocks_x) as u64);
+            }
         });
     out
 }

@@ -42,6 +42,8 @@ pub struct BuiltFrame {
 #[derive(Clone, Copy)]
 pub struct NonFinite {
     pub replace_with: Option<f32>,
+    /// Whether the error may suggest `--replace-non-finite` (the command accepts it).
+    pub hint: bool,
 }
 
 pub fn region_of(c: [i32; 3]) -> [i32; 3] {
@@ -116,8 +118,13 @@ pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String>
     }
     if non_finite > 0 && nf.replace_with.is_none() {
         return Err(format!(
-            "{non_finite} active voxel(s) are NaN or infinite (first at index {:?}); fix the source or pass --replace-non-finite VALUE",
-            first_bad.unwrap_or_default()
+            "{non_finite} active voxel(s) are NaN or infinite (first at index {:?}); fix the source{}",
+            first_bad.unwrap_or_default(),
+            if nf.hint {
+                " or pass --replace-non-finite VALUE"
+            } else {
+                ""
+            }
         ));
     }
     let fix = |v: f32| {

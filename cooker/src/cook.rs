@@ -1,9 +1,8 @@
 //! `vdbcook cook`: read → build → dedup → encode → write, each stage timed. Frames stream
 //! through in chunks (read and built in parallel, added to the pool in sequence order), so memory
 //! holds the pool and a chunk of frames, never the whole sequence; the output is byte-identical at
-//! any thread count. The asset is written to a temporary file and renamed into place.
+//! any thread count. The asset is written by `output::write` (temporary file, renamed into place).
 
-use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -11,7 +10,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 use vdbcook_asset::*;
 use vdbcook_vdb::sequence::{self, Frame};
-use vdbcook_vdb::{ErrorKind, Transform, VdbError};
+use vdbcook_vdb::{ErrorKind, Transform, VdbError, VdbFile};
 
 use crate::bcenc::Bc7Quality;
 use crate::build::{build_frame, BuiltFrame, NonFinite};
@@ -19,6 +18,7 @@ use crate::cluster;
 use crate::encode;
 use crate::errors::CliError;
 use crate::pool::{ranges, Pool};
+use crate::progress::Progress;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -35,7 +35,7 @@ pub struct Args {
     /// Every voxel of every frame decodes within E of its source value: each brick takes the
     /// cheapest representation that meets E (tile, bc7, bc4, unorm8, f16, f32), starting at
     /// --format when one is given.
-    #[arg(long, value_name = "E")]
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub max_error: Option<f32>,
     /// Quantization range of unorm8/bc4/bc7 bricks: each brick's own min/max, or one global range.
     #[arg(long, default_value = "brick", value_parser = ["brick", "global"])]
@@ -55,18 +55,26 @@ pub struct Args {
     /// Cluster the low-variance bricks into K centroid bricks (k-means, L1 distance); lossy.
     #[arg(long, value_name = "K")]
     pub clusters: Option<usize>,
-    /// k-means iterations (with --clusters).
-    #[arg(long, default_value_t = 5, value_name = "N")]
-    pub iterations: usize,
-    /// Bricks whose normalized variance (variance / |mean|) exceeds T keep their own data.
-    #[arg(long, default_value_t = 0.1, value_name = "T")]
-    pub variance_threshold: f32,
+    /// k-means iterations, 1 to 1000 (with --clusters; default 5).
+    #[arg(long, value_name = "N")]
+    pub iterations: Option<usize>,
+    /// Bricks whose normalized variance (variance / |mean|) exceeds T keep their own data
+    /// (with --clusters; finite, >= 0; default 0.1).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub variance_threshold: Option<f32>,
+    /// A frame without the sequence's grid is cooked as an empty frame (by default an error
+    /// naming the frame).
+    #[arg(long)]
+    pub allow_missing_grid: bool,
     /// Replace NaN and ±Inf active values with VALUE (by default they are an error).
     #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
     pub replace_non_finite: Option<f32>,
     /// No progress line (set by commands that cook in memory and report progress themselves).
     #[arg(skip)]
     pub quiet: bool,
+    /// The calling command has no `--replace-non-finite` (so errors do not suggest it).
+    #[arg(skip)]
+    pub no_non_finite_flag: bool,
 }
 
 impl Args {
@@ -84,11 +92,69 @@ impl Args {
             json: false,
             allow_gaps: false,
             clusters: None,
-            iterations: 5,
-            variance_threshold: 0.1,
+            iterations: None,
+            variance_threshold: None,
+            allow_missing_grid: false,
             replace_non_finite: None,
             quiet: true,
+            no_non_finite_flag: false,
         }
+    }
+}
+
+/// Largest `--clusters` (centroid indices stay far inside the asset's 31-bit brick references).
+pub const MAX_CLUSTERS: usize = 1 << 24;
+/// Largest `--iterations`.
+pub const MAX_ITERATIONS: usize = 1000;
+
+impl Args {
+    /// Checks every option's range and combination before any work; each message names the
+    /// flag and its range.
+    pub fn validate(&self) -> Result<(), CliError> {
+        let bad = |m: String| Err(CliError::Usage(m));
+        if let Some(k) = self.clusters {
+            if !(1..=MAX_CLUSTERS).contains(&k) {
+                return bad(format!(
+                    "--clusters {k} is out of range: K must be 1 to {MAX_CLUSTERS} (and is capped at the number of candidate bricks)"
+                ));
+            }
+        } else {
+            if self.iterations.is_some() {
+                return bad("--iterations only applies with --clusters K".into());
+            }
+            if self.variance_threshold.is_some() {
+                return bad("--variance-threshold only applies with --clusters K".into());
+            }
+        }
+        if let Some(n) = self.iterations {
+            if !(1..=MAX_ITERATIONS).contains(&n) {
+                return bad(format!(
+                    "--iterations {n} is out of range: N must be 1 to {MAX_ITERATIONS}"
+                ));
+            }
+        }
+        if let Some(t) = self.variance_threshold {
+            if !(t.is_finite() && t >= 0.0) {
+                return bad(format!(
+                    "--variance-threshold {t} is out of range: T must be a finite number >= 0"
+                ));
+            }
+        }
+        if let Some(e) = self.max_error {
+            if !(e.is_finite() && e > 0.0) {
+                return bad(format!(
+                    "--max-error {e} is out of range: E must be a finite number > 0 (for a lossless asset use --format f32)"
+                ));
+            }
+        }
+        if let Some(v) = self.replace_non_finite {
+            if !v.is_finite() {
+                return bad(format!(
+                    "--replace-non-finite {v}: VALUE must be a finite number"
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -114,15 +180,103 @@ struct Prepared {
 struct PreparedFrame {
     frame: Frame,
     label: String,
-    transform: Transform,
+    /// `None` for a frame without the sequence's grid, cooked empty (`--allow-missing-grid`).
+    transform: Option<Transform>,
     background: f32,
     built: BuiltFrame,
 }
 
-fn prepare(f: &Frame, grid: Option<&str>, nf: NonFinite) -> Prepared {
+/// The grid the whole sequence is cooked from, chosen once: `--grid` as given (an index `#N` is
+/// resolved to its label in the first frame), else the first frame's `density`, else its only
+/// float grid. Returns the label and how it was chosen (for error messages).
+pub fn choose_grid(frames: &[Frame], grid: Option<&str>) -> Result<(String, String), CliError> {
+    match grid {
+        Some(g) if !g.starts_with('#') => Ok((g.to_string(), "given by --grid".into())),
+        _ => {
+            let f0 = &frames[0].path;
+            let file = VdbFile::open(f0)?;
+            let i = file.select(grid)?;
+            let how = match grid {
+                Some(g) => format!("--grid {g} in the first frame {}", f0.display()),
+                None => format!(
+                    "chosen from the first frame {} ('density', else its only float grid)",
+                    f0.display()
+                ),
+            };
+            Ok((file.grids[i].label.clone(), how))
+        }
+    }
+}
+
+/// Reads grid `name` of one frame. A frame without it is `Ok(None)` under `allow_missing`,
+/// else an error naming the frame (`hint`: mention `--allow-missing-grid`).
+pub fn read_named(
+    f: &Frame,
+    name: &str,
+    how: &str,
+    allow_missing: bool,
+    hint: bool,
+) -> Result<Option<sequence::LoadedFrame>, VdbError> {
+    let file = VdbFile::open(&f.path)?;
+    let present = file
+        .grids
+        .iter()
+        .any(|g| g.label == name || g.name == name || g.unique_name == name);
+    if !present {
+        if allow_missing {
+            return Ok(None);
+        }
+        let floats = file.float_grid_labels();
+        return Err(VdbError::new(
+            ErrorKind::GridSelection,
+            &f.path,
+            format!(
+                "this frame has no grid '{name}' ({how}; every frame must have it); float grids here: {}{}",
+                if floats.is_empty() { "none".into() } else { floats.join(", ") },
+                if hint { "; pass --allow-missing-grid to cook such frames as empty frames" } else { "" }
+            ),
+        ));
+    }
+    let idx = file.select(Some(name))?;
+    let grid = file.read_float_grid(idx)?;
+    Ok(Some(sequence::LoadedFrame {
+        frame: f.clone(),
+        grid_label: file.grids[idx].label.clone(),
+        grid,
+    }))
+}
+
+/// What `prepare` is told about the grid.
+#[derive(Clone, Copy)]
+struct GridChoice<'a> {
+    name: &'a str,
+    how: &'a str,
+    allow_missing: bool,
+    hint: bool,
+}
+
+fn prepare(f: &Frame, g: GridChoice, nf: NonFinite) -> Prepared {
     let t = Instant::now();
-    let loaded = match sequence::read_frame(f, grid) {
-        Ok(l) => l,
+    let loaded = match read_named(f, g.name, g.how, g.allow_missing, g.hint) {
+        Ok(Some(l)) => l,
+        Ok(None) => {
+            return Prepared {
+                result: Ok(PreparedFrame {
+                    frame: f.clone(),
+                    label: g.name.to_string(),
+                    transform: None,
+                    background: 0.0,
+                    built: BuiltFrame {
+                        bricks: Vec::new(),
+                        regions: Default::default(),
+                        active_voxels: 0,
+                        value_range: None,
+                    },
+                }),
+                read_s: t.elapsed().as_secs_f64(),
+                build_s: 0.0,
+            }
+        }
         Err(e) => {
             return Prepared {
                 result: Err(e.into()),
@@ -145,7 +299,7 @@ fn prepare(f: &Frame, grid: Option<&str>, nf: NonFinite) -> Prepared {
         .map(|built| PreparedFrame {
             frame: frame.clone(),
             label: label.clone(),
-            transform,
+            transform: Some(transform),
             background,
             built,
         })
@@ -183,44 +337,17 @@ struct Stages {
     write: f64,
 }
 
-/// Progress on a terminal only (never under --json or CI).
-struct Progress {
-    on: bool,
-    start: Instant,
-    total: usize,
-}
-
-impl Progress {
-    fn new(json: bool, total: usize) -> Self {
-        let on = !json && std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
-        Progress {
-            on,
-            start: Instant::now(),
-            total,
-        }
-    }
-    fn tick(&self, done: usize) {
-        if self.on {
-            let rate = done as f64 / self.start.elapsed().as_secs_f64().max(1e-9);
-            eprint!(
-                "\r  cooking: {done}/{} frames ({rate:.1} frames/s)   ",
-                self.total
-            );
-            let _ = std::io::stderr().flush();
-        }
-    }
-    fn done(&self) {
-        if self.on {
-            eprintln!();
-        }
-    }
-}
-
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
+    a.validate()?;
+    // Refuse an output that is (or would join) one of the inputs before any work.
+    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    crate::output::refuse_inputs(&a.output, &frames, &a.inputs, "asset")?;
     let Cooked { bytes, mut doc, .. } = cook(a)?;
     let t = Instant::now();
-    write_atomically(&a.output, &bytes)?;
+    let stage = Progress::new(a.json || a.quiet).stage("write", "bytes");
+    crate::output::write(&a.output, &bytes, "asset")?;
+    stage.finish();
     doc["seconds"]["write"] = json!(t.elapsed().as_secs_f64());
     doc["seconds"]["total"] = json!(t0.elapsed().as_secs_f64());
     if a.json {
@@ -276,6 +403,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
     let nf = NonFinite {
         replace_with: a.replace_non_finite,
+        hint: !a.no_non_finite_flag,
     };
     if let Some(v) = a.replace_non_finite {
         if !v.is_finite() {
@@ -291,15 +419,25 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     let mut pool =
         Pool::new(format != PayloadFormat::F32 || a.max_error.is_some() || a.clusters.is_some());
     let mut first: Option<(Frame, Transform, f32, String)> = None;
+    let (grid_name, grid_how) = choose_grid(&frames, a.grid.as_deref())?;
+    let choice = GridChoice {
+        name: &grid_name,
+        how: &grid_how,
+        allow_missing: a.allow_missing_grid,
+        hint: !a.quiet,
+    };
+    // Frames without the grid, cooked empty (`--allow-missing-grid`).
+    let mut missing: Vec<String> = Vec::new();
     let mut infos = Vec::with_capacity(frames.len());
     let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
-    let progress = Progress::new(a.json || a.quiet, frames.len());
+    let progress = Progress::new(a.json || a.quiet);
+    let stage = progress.stage("read, build, dedup", "frames");
+    crate::progress::add_total(frames.len() as u64);
     let threads = rayon::current_num_threads().max(1);
     let chunk = (threads * 2).max(2);
     // Pipeline: while the frames of chunk k are read and built in parallel, chunk k-1 is added to
     // the pool (in sequence order, so the output does not depend on scheduling).
     let mut pending: Vec<Prepared> = Vec::new();
-    let mut done = 0usize;
     let mut read_cpu = 0.0f64;
     let mut build_cpu = 0.0f64;
     let groups: Vec<&[Frame]> = frames.chunks(chunk).collect();
@@ -309,7 +447,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             || {
                 groups.get(gi).map(|g| {
                     g.par_iter()
-                        .map(|f| prepare(f, a.grid.as_deref(), nf))
+                        .map(|f| prepare(f, choice, nf))
                         .collect::<Vec<_>>()
                 })
             },
@@ -323,6 +461,21 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                         background,
                         built,
                     } = p.result?;
+                    let Some(transform) = transform else {
+                        missing.push(frame.path.display().to_string());
+                        infos.push(FrameInfo {
+                            number: frame.number,
+                            source: frame
+                                .path
+                                .file_name()
+                                .map(|n| n.to_string_lossy().into_owned())
+                                .unwrap_or_default(),
+                            active_voxels: 0,
+                        });
+                        pool.add_frame(built);
+                        crate::progress::advance(1);
+                        continue;
+                    };
                     match &first {
                         None => {
                             if !transform.kind.is_linear() {
@@ -359,13 +512,12 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                         active_voxels: built.active_voxels,
                     });
                     pool.add_frame(built);
-                    done += 1;
+                    crate::progress::advance(1);
                 }
                 Ok(t.elapsed().as_secs_f64())
             },
         );
         st.dedup += added?;
-        progress.tick(done);
         if let Some(p) = prepared {
             for x in &p {
                 read_cpu += x.read_s;
@@ -378,8 +530,21 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     // worker time, in wall-clock seconds.
     st.read = read_cpu / threads as f64;
     st.build = build_cpu / threads as f64;
-    progress.done();
-    let (f0, transform, bg, label) = first.expect("at least one frame");
+    stage.finish();
+    let Some((f0, transform, bg, label)) = first else {
+        return Err(err(
+            &frames[0].path,
+            ErrorKind::GridSelection,
+            format!("no frame has the grid '{grid_name}' ({grid_how})"),
+        ));
+    };
+    if !missing.is_empty() && !a.quiet {
+        eprintln!(
+            "note: {} frame(s) have no grid '{grid_name}' and are cooked as empty frames (--allow-missing-grid): {}",
+            missing.len(),
+            missing.join(", ")
+        );
+    }
     let (offset, root_dims) = pool
         .extent()
         .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
@@ -400,6 +565,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
 
     // Cluster (optional): members of a cluster are re-pointed to its centroid brick.
     let tc = Instant::now();
+    let stage = a.clusters.map(|_| progress.stage("cluster", "bricks"));
     let n_pool = pool.brick_count();
     let mut input_of: Vec<u32> = (0..n_pool as u32).collect();
     let mut enc_input: Option<Vec<f32>> = None;
@@ -407,8 +573,8 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     if let Some(k) = a.clusters {
         let copts = cluster::ClusterOptions {
             clusters: k,
-            iterations: a.iterations,
-            variance_threshold: a.variance_threshold,
+            iterations: a.iterations.unwrap_or(5),
+            variance_threshold: a.variance_threshold.unwrap_or(0.1),
             seed: 1,
         };
         let r = cluster::cluster(&pool.bricks, &copts);
@@ -461,24 +627,48 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                 input_of[b] = used[c as usize];
             }
         }
+        let clusters_used = used.iter().filter(|&&u| u != u32::MAX).count();
+        // What clustering did, said on stderr whenever it is less than what was asked.
+        if !a.quiet {
+            if r.candidates == 0 {
+                eprintln!(
+                    "note: --clusters {k}: no brick has normalized variance <= {} (0 of {n_pool} candidates); nothing was clustered",
+                    copts.variance_threshold
+                );
+            } else if k > r.candidates {
+                eprintln!(
+                    "note: --clusters {k} exceeds the {} candidate bricks; k is capped at {}",
+                    r.candidates, r.candidates
+                );
+            }
+            if r.candidates > 0 && clusters_used == 0 {
+                eprintln!(
+                    "note: --clusters {k}: every candidate was rejected by the error guard ({rejected_by_error} bricks; budget {}); nothing was clustered",
+                    budget.unwrap_or(0.0)
+                );
+            }
+        }
         cstats = Some(json!({
             "candidates": r.candidates,
-            "clusters": used.iter().filter(|&&u| u != u32::MAX).count(),
+            "clusters_requested": k,
+            "clusters": clusters_used,
             "iterations": r.iterations_run,
             "rejected_by_variance": r.rejected_by_variance,
             "rejected_by_error": rejected_by_error,
-            "variance_threshold": a.variance_threshold,
+            "variance_threshold": copts.variance_threshold,
             "seconds": tc.elapsed().as_secs_f64(),
         }));
         enc_input = Some(input);
     }
     st.cluster = tc.elapsed().as_secs_f64();
+    drop(stage);
     let after_clustering = enc_input
         .as_ref()
         .map(|v| v.len() / BRICK_VOXELS)
         .unwrap_or(n_pool);
     // Encode.
     let t = Instant::now();
+    let stage = progress.stage("encode", "blocks");
     let enc = encode::encode(enc_input.as_deref().unwrap_or(&pool.bricks), &eopts)
         .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
     // Decoded values of what each pool brick now points at (for the error figures).
@@ -641,6 +831,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         .to_bytes()
         .map_err(|e| CliError::Other(e.to_string()))?;
     st.encode += t.elapsed().as_secs_f64();
+    stage.finish();
 
     let active: u64 = asset.header.frames.iter().map(|f| f.active_voxels).sum();
     let sizes = section_sizes(&asset);
@@ -663,6 +854,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         "output": a.output.display().to_string(),
         "format": format.name(),
         "grid": asset.header.grid_name,
+        "missing_grid_frames": missing,
         "frames": asset.frame_count(),
         "active_voxels": active,
         "bricks": {"source": pool.source_bricks, "unique": unique_bricks, "after_clustering": after_clustering, "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
@@ -752,33 +944,6 @@ pub fn topology_and_atlas(sizes: &[(&'static str, u64)]) -> (u64, u64) {
     (t, a)
 }
 
-/// Writes `bytes` to a temporary file beside `out`, syncs it, and renames it over `out`: a
-/// failure or a kill never leaves a partial asset at `out`.
-fn write_atomically(out: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    let dir = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = out
-        .file_name()
-        .ok_or_else(|| err(out, ErrorKind::Io, "output path has no file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.partial-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, out)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        err(out, ErrorKind::Io, format!("cannot write the asset: {e}"))
-    })
-}
-
 fn print_summary(d: &Value) {
     println!(
         "cooked {} frame(s) of '{}' into {} ({})",
@@ -822,6 +987,13 @@ fn print_summary(d: &Value) {
         println!(
             "  budget         every voxel within {budget:.3e}{how}; any conformant GPU reads within {:.3e}",
             e["max_abs_any_gpu"].as_f64().unwrap_or(0.0)
+        );
+    }
+    let c = &d["clustering"];
+    if !c.is_null() {
+        println!(
+            "  clustering     {} of {} requested clusters from {} candidate bricks ({} rejected by variance, {} by the error guard)",
+            c["clusters"], c["clusters_requested"], c["candidates"], c["rejected_by_variance"], c["rejected_by_error"]
         );
     }
     let s = &d["seconds"];

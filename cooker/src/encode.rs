@@ -682,7 +682,16 @@ mod tests {
         };
         for f in PayloadFormat::ORDER {
             let mut pool = Pool::new(true);
-            pool.add_frame(build_frame(grid(), NonFinite { replace_with: None }).unwrap());
+            pool.add_frame(
+                build_frame(
+                    grid(),
+                    NonFinite {
+                        replace_with: None,
+                        hint: true,
+                    },
+                )
+                .unwrap(),
+            );
             // One real brick (the ramp); the constant leaf and the tile are tile values.
             assert_eq!(pool.brick_count(), 1, "{}", f.name());
             assert_eq!(pool.tiles.len(), 2);

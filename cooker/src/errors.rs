@@ -1,5 +1,6 @@
 //! How the CLI reports failure: one line on stderr naming the file, and under `--json` one JSON
-//! document `{"error": {...}}` on stdout, then a non-zero exit code (1 for bad input).
+//! document `{"error": {...}}` on stdout, then a non-zero exit code (1 for bad input, 2 for a
+//! flag out of range or a combination of flags that cannot do what it says).
 
 use vdbcook_vdb::{ErrorKind, VdbError};
 
@@ -9,6 +10,9 @@ pub enum CliError {
     Vdb(VdbError),
     /// A failure that is not about one input file (e.g. an internal check).
     Other(String),
+    /// A flag out of its range, or flags that contradict each other (kind `usage`, exit 2, as
+    /// the argument parser's own usage errors).
+    Usage(String),
 }
 
 impl From<VdbError> for CliError {
@@ -21,7 +25,7 @@ impl std::fmt::Display for CliError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             CliError::Vdb(e) => e.fmt(f),
-            CliError::Other(m) => f.write_str(m),
+            CliError::Other(m) | CliError::Usage(m) => f.write_str(m),
         }
     }
 }
@@ -42,9 +46,14 @@ pub fn fail(json: bool, e: &CliError) -> ! {
                 v.offset,
             ),
             CliError::Other(_) => ("other", None, None),
+            CliError::Usage(_) => ("usage", None, None),
         };
         let doc = serde_json::json!({"error": {"message": e.to_string(), "kind": kind, "file": file, "offset": offset}});
         println!("{doc}");
     }
-    std::process::exit(1);
+    std::process::exit(if matches!(e, CliError::Usage(_)) {
+        2
+    } else {
+        1
+    });
 }

@@ -29,6 +29,79 @@ pub struct Args {
     /// Accept gaps in the frame numbering.
     #[arg(long)]
     allow_gaps: bool,
+    /// Compare even when the sources do not describe the asset's grid (different grid name,
+    /// transform, active voxel count or bounds); by default that is an error.
+    #[arg(long)]
+    force: bool,
+}
+
+/// The asset frame's stored bounds in source index space, at leaf (or region) granularity.
+fn stored_bbox(asset: &Asset, frame: usize) -> Option<([i64; 3], [i64; 3])> {
+    let off = asset.header.index_offset;
+    let mut lo = [i64::MAX; 3];
+    let mut hi = [i64::MIN; 3];
+    asset.for_each_leaf(frame, |o, _, region| {
+        let span = if region { 128 } else { 8 };
+        for i in 0..3 {
+            lo[i] = lo[i].min(o[i] + off[i] as i64);
+            hi[i] = hi[i].max(o[i] + off[i] as i64 + span - 1);
+        }
+    });
+    (lo[0] != i64::MAX).then_some((lo, hi))
+}
+
+/// Why a source frame does not describe the asset's frame, if it does not: its transform
+/// (index→world, to 1e-6 relative), its active voxel count, or active bounds disjoint from
+/// what the asset stores.
+fn mismatch(asset: &Asset, frame: usize, grid: &FloatGrid) -> Option<String> {
+    let h = &asset.header;
+    let t = &grid.transform.index_to_world;
+    let mut m = *t;
+    for (r, row) in m.iter_mut().enumerate().take(3) {
+        row[3] = t[r][3]
+            + (0..3)
+                .map(|c| t[r][c] * h.index_offset[c] as f64)
+                .sum::<f64>();
+    }
+    let scale = h
+        .index_to_world
+        .iter()
+        .flatten()
+        .fold(0f64, |a, v| a.max(v.abs()))
+        .max(1e-30);
+    let diff = m
+        .iter()
+        .flatten()
+        .zip(h.index_to_world.iter().flatten())
+        .fold(0f64, |a, (x, y)| a.max((x - y).abs()));
+    if diff.is_nan() || diff > 1e-6 * scale {
+        return Some(format!(
+            "its transform (voxel size {:?}) is not the asset's (voxel size {:?})",
+            grid.transform.voxel_size(),
+            h.voxel_size
+        ));
+    }
+    let st = grid.stats();
+    let want = h.frames[frame].active_voxels;
+    if st.active_voxels != want {
+        return Some(format!(
+            "it has {} active voxels, the asset's frame {frame} has {want}",
+            st.active_voxels
+        ));
+    }
+    // Bounds: the asset drops bricks whose values are all the background, so its stored box
+    // may be smaller than the source's active box; the two must overlap, though.
+    if let Some((lo, hi)) = st.bbox {
+        let overlap = stored_bbox(asset, frame).is_some_and(|(alo, ahi)| {
+            (0..3).all(|i| (lo[i] as i64) <= ahi[i] && (hi[i] as i64) >= alo[i])
+        });
+        if !overlap && want > 0 {
+            return Some(format!(
+                "its active bounds {lo:?}..{hi:?} do not overlap what the asset's frame {frame} stores"
+            ));
+        }
+    }
+    None
 }
 
 /// Error accumulator.
@@ -230,23 +303,64 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             ),
         )));
     }
-    let grid = a.grid.clone().or_else(|| asset.header.options.grid.clone());
+    // The grid the asset was cooked from, in every frame (or --grid, which must name it).
+    let cooked = asset.header.grid_name.clone();
+    let grid = a.grid.clone().unwrap_or_else(|| cooked.clone());
+    let refuse = |path: &std::path::Path, m: String| {
+        CliError::Vdb(VdbError::new(
+            ErrorKind::Sequence,
+            path,
+            format!(
+                "{m}; these sources do not describe the asset (pass --force to compare anyway)"
+            ),
+        ))
+    };
+    if grid != cooked && !a.force {
+        return Err(refuse(
+            &a.asset,
+            format!("--grid {grid} is not the asset's grid '{cooked}'"),
+        ));
+    }
+    let how = format!(
+        "the asset's grid; {} was cooked from '{cooked}'",
+        a.asset.display()
+    );
     let mut per_frame = Vec::with_capacity(frames.len());
     let mut total = ErrStats::new();
+    let mut forced = Vec::new();
     let chunk = (rayon::current_num_threads() * 2).max(2);
     for (ci, group) in frames.chunks(chunk).enumerate() {
-        let res: Vec<Result<ErrStats, VdbError>> = group
+        let res: Vec<Result<(ErrStats, Option<String>), VdbError>> = group
             .par_iter()
             .enumerate()
             .map(|(k, f)| {
-                let l = sequence::read_frame(f, grid.as_deref())?;
-                Ok(compare_frame(&asset, ci * chunk + k, &l.grid))
+                let fi = ci * chunk + k;
+                // A frame cooked empty for want of the grid (--allow-missing-grid) compares
+                // as empty.
+                let empty = asset.header.frames[fi].active_voxels == 0;
+                match crate::cook::read_named(f, &grid, &how, empty, false)? {
+                    None => Ok((ErrStats::new(), None)),
+                    Some(l) => Ok((
+                        compare_frame(&asset, fi, &l.grid),
+                        mismatch(&asset, fi, &l.grid),
+                    )),
+                }
             })
             .collect();
         for (k, r) in res.into_iter().enumerate() {
-            let s = r?;
-            total.merge(&s);
+            let (s, bad) = r?;
             let f = &group[k];
+            if let Some(m) = bad {
+                if !a.force {
+                    return Err(refuse(&f.path, m));
+                }
+                eprintln!(
+                    "warning: {}: {m} (compared anyway: --force)",
+                    f.path.display()
+                );
+                forced.push(f.path.display().to_string());
+            }
+            total.merge(&s);
             let mut j = s.to_json();
             j["frame"] = json!(ci * chunk + k);
             j["number"] = json!(f.number);
@@ -272,6 +386,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     doc["bits_per_active_voxel"] = json!(bpv(file_bytes));
     doc["bits_per_active_voxel_gpu"] = json!(bpv(gpu));
     doc["frames"] = json!(per_frame);
+    doc["grid"] = json!(grid);
+    doc["mismatched_frames"] = json!(forced);
     if a.json {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {

@@ -209,3 +209,27 @@ mod imp {
 }
 
 pub use imp::Gpu;
+
+/// Containers usually run without `XDG_RUNTIME_DIR`; the Vulkan loader's window-system probes
+/// then print "error: XDG_RUNTIME_DIR is invalid or not set" on stderr although nothing failed.
+/// When it is unset, point it at a private folder (`$TMPDIR/vdbcook-runtime-UID`, mode 0700,
+/// ours). Called at start-up, before any thread, by the commands that may open the GPU.
+pub fn private_runtime_dir() {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+        if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+            return;
+        }
+        // SAFETY: getuid has no preconditions.
+        let uid = unsafe { libc::getuid() };
+        let dir = std::env::temp_dir().join(format!("vdbcook-runtime-{uid}"));
+        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+        let ours = std::fs::symlink_metadata(&dir)
+            .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
+        if ours {
+            // Single-threaded here (start-up), so changing the environment is sound.
+            std::env::set_var("XDG_RUNTIME_DIR", &dir);
+        }
+    }
+}

@@ -12,11 +12,16 @@ mod eval;
 mod gpu;
 mod info;
 mod inspect;
+mod output;
 mod pool;
+mod progress;
 mod render;
 mod report;
 
 use clap::{Parser, Subcommand};
+
+/// Largest `--threads`.
+const MAX_THREADS: usize = 1024;
 
 #[derive(Parser)]
 #[command(
@@ -26,7 +31,7 @@ use clap::{Parser, Subcommand};
     after_help = "Examples:\n  vdbcook inspect smoke.vdb\n  vdbcook inspect 'cache/smoke.####.vdb' --json\n  vdbcook inspect cache/ --allow-gaps"
 )]
 struct Cli {
-    /// Worker threads (default: all cores).
+    /// Worker threads, 1 to 1024 (default: all cores).
     #[arg(long, global = true)]
     threads: Option<usize>,
     #[command(subcommand)]
@@ -84,22 +89,47 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    output::install_signal_handlers();
+    progress::hook_block_compressor();
     let cli = Cli::parse();
+    let json = match &cli.command {
+        Command::Inspect(a) => a.json,
+        Command::Cook(a) => a.json,
+        Command::Info(a) => a.json,
+        Command::Eval(a) => a.json,
+        Command::Render(a) => a.json,
+        Command::Report(a) => a.json,
+    };
+    if matches!(cli.command, Command::Render(_) | Command::Report(_)) {
+        gpu::private_runtime_dir();
+    }
     if let Some(n) = cli.threads {
+        // Thousands of threads exhaust memory maps and hang the pool's start-up: refuse them.
+        if !(1..=MAX_THREADS).contains(&n) {
+            errors::fail(
+                json,
+                &errors::CliError::Usage(format!(
+                    "--threads {n} is out of range: N must be 1 to {MAX_THREADS}"
+                )),
+            );
+        }
         if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n)
             .build_global()
         {
-            eprintln!("warning: cannot set {n} threads: {e}");
+            errors::fail(
+                json,
+                &errors::CliError::Other(format!("cannot start {n} worker threads: {e}")),
+            );
         }
     }
-    let (json, result) = match &cli.command {
-        Command::Inspect(a) => (a.json, inspect::run(a)),
-        Command::Cook(a) => (a.json, cook::run(a)),
-        Command::Info(a) => (a.json, info::run(a)),
-        Command::Eval(a) => (a.json, eval::run(a)),
-        Command::Render(a) => (a.json, render::run(a)),
-        Command::Report(a) => (a.json, report::run(a)),
+    let result = match &cli.command {
+        Command::Inspect(a) => inspect::run(a),
+        Command::Cook(a) => cook::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Eval(a) => eval::run(a),
+        Command::Render(a) => render::run(a),
+        Command::Report(a) => report::run(a),
     };
     if let Err(e) = result {
         errors::fail(json, &e);

@@ -3,7 +3,6 @@
 //! the GPU runtime (`vdbcook-runtime`, the code engines link). `--json` reports the settings,
 //! camera, backend and timing.
 
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -21,7 +20,7 @@ pub struct Args {
     /// are cooked in memory (f32, lossless) first.
     #[arg(value_name = "ASSET|VDB")]
     input: PathBuf,
-    /// Output PNG (8-bit RGBA).
+    /// Output PNG (8-bit RGBA): the name must end in .png (or be a device or FIFO).
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
     /// Frame index (0-based).
@@ -41,6 +40,10 @@ pub struct Args {
     /// Accept gaps in the frame numbering (VDB input).
     #[arg(long)]
     allow_gaps: bool,
+    /// Replace NaN and ±Inf active values with VALUE when cooking VDB input (by default they
+    /// are an error).
+    #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
+    replace_non_finite: Option<f32>,
     #[arg(long, default_value_t = 640)]
     width: u32,
     #[arg(long, default_value_t = 360)]
@@ -190,20 +193,55 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
     })
 }
 
-pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<(), CliError> {
-    let fail =
-        |e: &dyn std::fmt::Display| other(format!("{}: cannot write PNG: {e}", path.display()));
-    let file = std::fs::File::create(path).map_err(|e| fail(&e))?;
-    let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
+/// The PNG bytes of an 8-bit RGBA image.
+pub fn encode_png(width: u32, height: u32, rgba: &[u8]) -> Result<Vec<u8>, CliError> {
+    let fail = |e: &dyn std::fmt::Display| other(format!("cannot encode PNG: {e}"));
+    let mut bytes = Vec::new();
+    let mut enc = png::Encoder::new(&mut bytes, width, height);
     enc.set_color(png::ColorType::Rgba);
     enc.set_depth(png::BitDepth::Eight);
     let mut w = enc.write_header().map_err(|e| fail(&e))?;
     w.write_image_data(rgba).map_err(|e| fail(&e))?;
-    w.finish().map_err(|e| fail(&e))
+    w.finish().map_err(|e| fail(&e))?;
+    Ok(bytes)
+}
+
+/// Writes an 8-bit RGBA PNG through `output::write` (atomic, never over an input).
+pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<(), CliError> {
+    crate::output::write(path, &encode_png(width, height, rgba)?, "PNG")
+}
+
+/// `render` writes PNG only: the output name must say so (or be a device or FIFO, written
+/// as PNG bytes).
+fn check_output_format(out: &Path) -> Result<(), CliError> {
+    let png = out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if png || crate::output::is_special(out) {
+        Ok(())
+    } else {
+        Err(CliError::Usage(format!(
+            "{}: render writes PNG only; give an output name ending in .png",
+            out.display()
+        )))
+    }
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
+    check_output_format(&a.output)?;
+    // The output must not replace the input (an asset, or a VDB file or frame set).
+    let input_str = a.input.to_string_lossy().into_owned();
+    let in_frames = if looks_like_vdb(&a.input) {
+        vdbcook_vdb::sequence::resolve_inputs(std::slice::from_ref(&input_str), a.allow_gaps)
+            .unwrap_or_default()
+    } else {
+        vec![vdbcook_vdb::sequence::Frame {
+            path: a.input.clone(),
+            number: None,
+        }]
+    };
+    crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], "PNG")?;
     let s = settings(a)?;
     // Open the GPU first: a missing adapter is reported before any cooking.
     let gpu = match a.backend.as_str() {
@@ -218,6 +256,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         );
         c.grid = a.grid.clone();
         c.allow_gaps = a.allow_gaps;
+        c.replace_non_finite = a.replace_non_finite;
         let t = Instant::now();
         (cook::cook(&c)?.asset, Some(t.elapsed().as_secs_f64()))
     } else {
@@ -280,7 +319,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "units": a.units,
             },
         });
-        println!("{doc}");
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {
         let on = adapter.map(|d| format!(" on {d}")).unwrap_or_default();
         println!(

@@ -395,15 +395,9 @@ fn to_csv(rows: &[Row]) -> String {
     s
 }
 
+/// One file of the report, through `output::write` (atomic, removed on failure or a signal).
 fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), CliError> {
-    let p = dir.join(name);
-    let tmp = dir.join(format!(".{name}.tmp"));
-    std::fs::write(&tmp, bytes)
-        .and_then(|_| std::fs::rename(&tmp, &p))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            other(format!("{}: cannot write: {e}", p.display()))
-        })
+    crate::output::write(&dir.join(name), bytes, name)
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
@@ -510,10 +504,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let mut ca = cook::Args::defaults(a.inputs.clone(), a.output.join("x.vdbc"));
         ca.grid = a.grid.clone();
         ca.allow_gaps = a.allow_gaps;
+        ca.no_non_finite_flag = true;
         ca.format = c.format.map(str::to_string);
         if let Some((k, t)) = c.clusters {
             ca.clusters = Some(k);
-            ca.variance_threshold = t;
+            ca.variance_threshold = Some(t);
         }
         let max_error = c.tolerance.map(|t| t * value_range);
         ca.max_error = max_error.map(|e| e as f32);
