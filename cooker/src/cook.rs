@@ -19,6 +19,7 @@ use crate::encode;
 use crate::errors::CliError;
 use crate::pool::{ranges, Pool};
 use crate::progress::Progress;
+use crate::size_budget;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -37,6 +38,11 @@ pub struct Args {
     /// --format when one is given.
     #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub max_error: Option<f32>,
+    /// Size budget instead of an error budget: the smallest error bound whose asset's GPU bytes
+    /// (topology + atlas, as `info` reports them) fit in SIZE: bytes, or K/M/G (10³…) or
+    /// KiB/MiB/GiB (2¹⁰…), e.g. 32MiB. Reports the bound it reached.
+    #[arg(long, value_name = "SIZE", value_parser = crate::size_budget::parse_size)]
+    pub max_bytes: Option<u64>,
     /// Quantization range of unorm8/bc4/bc7 bricks: each brick's own min/max, or one global range.
     #[arg(long, default_value = "brick", value_parser = ["brick", "global"])]
     pub range: String,
@@ -86,6 +92,7 @@ impl Args {
             output,
             format: None,
             max_error: None,
+            max_bytes: None,
             range: "brick".into(),
             bc7_quality: "fast".into(),
             grid: None,
@@ -145,6 +152,23 @@ impl Args {
                 return bad(format!(
                     "--max-error {e} is out of range: E must be a finite number > 0 (for a lossless asset use --format f32)"
                 ));
+            }
+        }
+        if let Some(n) = self.max_bytes {
+            if n == 0 {
+                return bad("--max-bytes 0 is out of range: SIZE must be > 0".into());
+            }
+            if self.max_error.is_some() {
+                return bad(
+                    "--max-bytes and --max-error each set the error bound: give one of them".into(),
+                );
+            }
+            if self.clusters.is_some() {
+                return bad(
+                    "--max-bytes with --clusters is not supported yet: the size search varies \
+                     the error bound per brick format only; cluster with --max-error instead"
+                        .into(),
+                );
             }
         }
         if let Some(v) = self.replace_non_finite {
@@ -366,14 +390,14 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         .as_deref()
         .map(|f| PayloadFormat::parse(f).expect("clap checked"));
     let mut eopts = encode::EncodeOptions {
-        format: format.unwrap_or(if a.max_error.is_some() {
+        format: format.unwrap_or(if a.max_error.is_some() || a.max_bytes.is_some() {
             PayloadFormat::Bc7
         } else {
             PayloadFormat::F32
         }),
         format_given: format.is_some(),
         max_error: a.max_error,
-        lossy_tiles: a.max_error.is_some(),
+        lossy_tiles: a.max_error.is_some() || a.max_bytes.is_some(),
         range: if a.range == "global" {
             RangeMode::Global
         } else {
@@ -418,6 +442,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     // Lossless payloads need no per-voxel use counts: their error is checked to be zero below.
     let mut pool =
         Pool::new(format != PayloadFormat::F32 || a.max_error.is_some() || a.clusters.is_some());
+    // (--max-bytes starts the format list at BC7, so `format` is lossy there too.)
     let mut first: Option<(Frame, Transform, f32, String)> = None;
     let (grid_name, grid_how) = choose_grid(&frames, a.grid.as_deref())?;
     let choice = GridChoice {
@@ -552,7 +577,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     // Every lossy cook has an error budget: --max-error, or the default share of the value range
     // (the background included), so neither BC7 outliers nor clustering go unchecked.
     let lossy = format != PayloadFormat::F32 || a.clusters.is_some();
-    let budget_source = match (a.max_error, lossy) {
+    let mut budget_source = match (a.max_error, lossy) {
         (Some(_), _) => Some("given"),
         (None, true) => {
             let r = [value_range[0].min(bg), value_range[1].max(bg)];
@@ -561,6 +586,55 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         }
         (None, false) => None,
     };
+    // --max-bytes: the smallest bound whose GPU bytes fit (lossless f32 if it fits).
+    let mut size_doc = Value::Null;
+    if let Some(max_bytes) = a.max_bytes {
+        let root_len = root_dims.iter().map(|&d| d as u64).product::<u64>();
+        let n_l2 = pool.l2_refs.len() as u64;
+        let refs: u64 = pool.l2_refs.iter().map(|r| r.len() as u64).sum();
+        // roots, frame ranges, L2 masks, bases, prefixes and ranges, leaf refs (section_sizes).
+        let fixed_topology = frames.len() as u64 * (root_len * 4 + 8)
+            + pool.l2_masks.len() as u64 * 8
+            + n_l2 * (4 + L2_WORDS as u64 * 2 + 8)
+            + refs * 4;
+        let r = [value_range[0].min(bg), value_range[1].max(bg)];
+        let search_stage = progress.stage("size search", "encodes");
+        let mut steps = Vec::new();
+        let found = size_budget::search(
+            &pool.bricks,
+            &eopts,
+            fixed_topology,
+            pool.tiles.len(),
+            r[1] - r[0],
+            max_bytes,
+            |e, b| steps.push(json!({"max_error": e, "gpu_bytes": b})),
+        )
+        .map_err(CliError::Usage)?;
+        search_stage.finish();
+        match found.max_error {
+            None => {
+                eopts.format = PayloadFormat::F32;
+                eopts.format_given = true;
+                eopts.max_error = None;
+                eopts.lossy_tiles = false;
+                budget_source = None;
+            }
+            Some(e) => {
+                eopts.max_error = Some(e);
+                budget_source = Some("max_bytes");
+                let default = encode::default_budget(r);
+                if e > default && !a.quiet {
+                    eprintln!(
+                        "warning: --max-bytes {max_bytes} needs an error bound of {e:e}, over the \
+                         default artefact guard ({default:e}, 10% of the value range): expect \
+                         visible artefacts"
+                    );
+                }
+            }
+        }
+        size_doc = json!({"limit": max_bytes, "predicted_gpu_bytes": found.gpu_bytes, "trials": found.trials, "steps": steps});
+    }
+    let format = eopts.format;
     let budget = eopts.max_error;
 
     // Cluster (optional): members of a cluster are re-pointed to its centroid brick.
@@ -836,6 +910,16 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     let active: u64 = asset.header.frames.iter().map(|f| f.active_voxels).sum();
     let sizes = section_sizes(&asset);
     let (topology, atlas) = topology_and_atlas(&sizes);
+    if let Some(max_bytes) = a.max_bytes {
+        // The search counted these bytes without building the asset: hold it to that.
+        let predicted = size_doc["predicted_gpu_bytes"].as_u64().unwrap_or(0);
+        if topology + atlas != predicted || topology + atlas > max_bytes {
+            return Err(CliError::Other(format!(
+                "internal: --max-bytes {max_bytes} predicted {predicted} GPU bytes, the asset has {}",
+                topology + atlas
+            )));
+        }
+    }
     let rmse = if active > 0 {
         (sum_sq / active as f64).sqrt()
     } else {
@@ -876,6 +960,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         },
         "max_error": budget,
         "max_error_source": budget_source,
+        "max_bytes": size_doc,
         "bc7_quality": eopts.bc7_quality.name(),
         "range": match eopts.range { RangeMode::Brick => "brick", RangeMode::Global => "global" },
         "peak_memory_bytes": peak_memory_bytes(),

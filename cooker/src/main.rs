@@ -17,6 +17,7 @@ mod pool;
 mod progress;
 mod render;
 mod report;
+mod size_budget;
 
 use clap::{Parser, Subcommand};
 

@@ -645,3 +645,115 @@ fn a_lossy_cook_without_max_error_has_a_default_budget_that_holds() {
         "{c}"
     );
 }
+
+/// GPU bytes (topology + atlas) of a `cook --json` document.
+fn gpu_bytes(c: &serde_json::Value) -> u64 {
+    c["bytes"]["topology"].as_u64().unwrap() + c["bytes"]["atlas"].as_u64().unwrap()
+}
+
+#[test]
+fn max_bytes_finds_the_smallest_bound_that_fits() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s.vdbc");
+    let o = out.to_str().unwrap();
+    let src = "fixtures/seq/smoke5";
+    // Between the coarsest cook and lossless f32.
+    let f32_bytes = gpu_bytes(&json(&["cook", "--json", src, "-o", o]));
+    let limit = f32_bytes / 12;
+    let c = json(&[
+        "cook",
+        "--json",
+        src,
+        "-o",
+        o,
+        "--max-bytes",
+        &limit.to_string(),
+    ]);
+    assert_eq!(c["max_error_source"], "max_bytes", "{c}");
+    let e = c["max_error"].as_f64().unwrap();
+    assert!(gpu_bytes(&c) <= limit, "{} > {limit}", gpu_bytes(&c));
+    // The bound holds on every voxel of the written file.
+    let ev = json(&["eval", "--json", o, src]);
+    assert!(ev["max_abs"].as_f64().unwrap() <= e);
+    // Smallest to the search's resolution: a bound 1% tighter, cooked on its own (the
+    // asset's own byte count, not the search's), does not fit.
+    let tighter = json(&[
+        "cook",
+        "--json",
+        src,
+        "-o",
+        d.path().join("t.vdbc").to_str().unwrap(),
+        "--max-error",
+        &(e * 0.99).to_string(),
+    ]);
+    assert!(
+        gpu_bytes(&tighter) > limit,
+        "--max-error {} fits too ({} <= {limit}): the search stopped early",
+        e * 0.99,
+        gpu_bytes(&tighter)
+    );
+    // Same bytes as --max-error E given directly, and at any thread count.
+    let direct = d.path().join("direct.vdbc");
+    let alone = json(&[
+        "cook",
+        "--json",
+        src,
+        "-o",
+        direct.to_str().unwrap(),
+        "--max-error",
+        &(e as f32).to_string(),
+    ]);
+    assert_eq!(gpu_bytes(&alone), gpu_bytes(&c));
+    let one = d.path().join("one.vdbc");
+    let code = run(&[
+        "--threads",
+        "1",
+        "cook",
+        src,
+        "-o",
+        one.to_str().unwrap(),
+        "--max-bytes",
+        &limit.to_string(),
+    ])
+    .0;
+    assert_eq!(code, 0);
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&out).unwrap());
+    // A budget lossless f32 fits in: exact, no bound.
+    let big = json(&["cook", "--json", src, "-o", o, "--max-bytes", "1GiB"]);
+    assert_eq!(big["format"], "f32");
+    assert!(
+        big["max_error"].is_null() && big["error"]["exact"] == true,
+        "{big}"
+    );
+}
+
+#[test]
+fn max_bytes_that_cannot_fit_or_contradict_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("x.vdbc");
+    let o = out.to_str().unwrap();
+    let src = "fixtures/seq/smoke5";
+    let (code, _, err) = run(&["cook", src, "-o", o, "--max-bytes", "1KiB"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("topology alone") && err.contains("1024"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing is written");
+    for bad in [
+        vec!["--max-bytes", "64KiB", "--max-error", "0.01"],
+        vec!["--max-bytes", "64KiB", "--clusters", "8"],
+        vec!["--max-bytes", "12 parsecs"],
+        vec!["--max-bytes", "0"],
+    ] {
+        let mut args = vec!["cook", src, "-o", o];
+        args.extend(bad.iter().copied());
+        let (code, _, err) = run(&args);
+        assert_eq!(code, 2, "{bad:?}: {err}");
+        assert!(
+            err.contains("--max-bytes") || err.contains("SIZE"),
+            "{bad:?}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}
