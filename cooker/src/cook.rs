@@ -658,25 +658,11 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         // its voxels.
         let mut rejected_by_error = 0usize;
         let mut member_of = r.member_of.clone();
-        if let Some(e) = budget {
+        if budget.is_some() {
             let ce = encode::encode(&r.centroids, &eopts)
                 .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
-            for (b, m) in member_of.iter_mut().enumerate() {
-                if let Some(c) = *m {
-                    let dec =
-                        &ce.decoded[c as usize * BRICK_VOXELS..(c as usize + 1) * BRICK_VOXELS];
-                    let src = &pool.bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
-                    let slack = ce.slack[c as usize] as f64;
-                    if dec
-                        .iter()
-                        .zip(src)
-                        .any(|(d, s)| ((*d as f64) - (*s as f64)).abs() + slack > e as f64)
-                    {
-                        *m = None;
-                        rejected_by_error += 1;
-                    }
-                }
-            }
+            rejected_by_error =
+                encode::guard_members(&pool.bricks, &r.centroids, &ce, &mut member_of, &eopts);
         }
         // Encode input: bricks that keep their own data, then the centroids that have members.
         let mut used = vec![u32::MAX; n_centroids];

@@ -441,6 +441,42 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
     })
 }
 
+/// The clustering guard: a brick stays a member of its cluster only if the *decoded* centroid
+/// (`centroid_values` encoded with `opts` as `centroids`), plus what a GPU's native read of it may
+/// add, is within
+/// `opts.max_error` of each of the brick's voxels; other members are released (`None`) and keep
+/// their own data. Returns how many were released. No budget: nothing is checked.
+pub fn guard_members(
+    bricks: &[f32],
+    centroid_values: &[f32],
+    centroids: &Encoded,
+    member_of: &mut [Option<u32>],
+    opts: &EncodeOptions,
+) -> usize {
+    let Some(e) = opts.max_error else {
+        return 0;
+    };
+    let mut released = 0;
+    for (b, m) in member_of.iter_mut().enumerate() {
+        if let Some(c) = *m {
+            let c = c as usize;
+            let dec =
+                &centroids.decoded_or(centroid_values)[c * BRICK_VOXELS..(c + 1) * BRICK_VOXELS];
+            let src = &bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
+            let slack = centroids.slack[c] as f64;
+            if dec
+                .iter()
+                .zip(src)
+                .any(|(d, s)| (*d as f64 - *s as f64).abs() + slack > e as f64)
+            {
+                *m = None;
+                released += 1;
+            }
+        }
+    }
+    released
+}
+
 #[cfg(test)]
 mod tests {
     //! Where each payload method fails, and the guard: on generated bricks, each failure shows
@@ -608,6 +644,119 @@ mod tests {
         .unwrap();
         assert_eq!(k.brick_counts[PayloadFormat::Bc4.rank()], 1);
         assert!((k.slack[0] - slack).abs() < 1e-9);
+    }
+
+    #[test]
+    fn bc7_smears_sharp_edges_and_the_budget_holds_while_smooth_bricks_stay_bc7() {
+        // An oblique step 0 → 1 through the brick (a smoke front, a flame boundary): BC7 shares
+        // endpoints across 4×4 texels of four z-voxels each, so an edge crossing a texel's four
+        // channels cannot be fitted; smooth bricks beside it are fine.
+        let edge = |k: usize| brick(move |x, y, z| ((x + 2 * y + 3 * z + k) > 12) as u8 as f32);
+        let smooth = |k: usize| brick(move |x, y, z| 0.4 + 0.01 * (x + y + z + k) as f32);
+        let pool: Vec<f32> = (0..6)
+            .flat_map(|k| if k % 2 == 0 { edge(k) } else { smooth(k) })
+            .collect();
+        let e = 0.05f32;
+        let plain = encode(&pool, &opts(PayloadFormat::Bc7, None, RangeMode::Brick)).unwrap();
+        let errs = errors(&pool, &plain);
+        let worst_edge = (0..6).step_by(2).map(|b| errs[b]).fold(0.0, f32::max);
+        assert!(
+            worst_edge > e,
+            "BC7 should smear the edge (error {worst_edge})"
+        );
+        let g = encode(&pool, &opts(PayloadFormat::Bc7, Some(e), RangeMode::Brick)).unwrap();
+        let ge = errors(&pool, &g);
+        for b in 0..6 {
+            assert!(
+                ge[b] + g.slack[b] <= e,
+                "brick {b}: {} + {}",
+                ge[b],
+                g.slack[b]
+            );
+        }
+        // The smooth bricks stay BC7.
+        let n_bc7 = g.brick_counts[PayloadFormat::Bc7.rank()] as u32;
+        for b in (1..6).step_by(2) {
+            assert!(
+                g.remap[b] & TILE_BIT != 0 || g.remap[b] < n_bc7,
+                "smooth {b} left BC7"
+            );
+        }
+    }
+
+    #[test]
+    fn bc4_over_a_tiny_range_far_from_zero_meets_f32_resolution() {
+        // Values 1000 + tiny steps: the brick range (≈ 5e-4) is a few f32 ulps of 1000 (6.1e-5),
+        // so BC4's 8 levels dequantized as lo + (hi − lo)·q/255 cannot land on the source values
+        // and the error is a large share of the range. Under a budget the brick leaves BC4 (here
+        // for unorm8, whose 255 levels land on the source's f32 values exactly).
+        let v = brick(|x, y, z| 1000.0 + 6.1035156e-5 * ((x + y + z) % 9) as f32);
+        let plain = encode(&v, &opts(PayloadFormat::Bc4, None, RangeMode::Brick)).unwrap();
+        let [lo, hi] = range_of(&v);
+        let err = errors(&v, &plain)[0];
+        assert!(
+            hi > lo && err > 0.1 * (hi - lo),
+            "BC4 error {err} over range {}",
+            hi - lo
+        );
+        let e = 1e-6f32;
+        let g = encode(&v, &opts(PayloadFormat::Bc4, Some(e), RangeMode::Brick)).unwrap();
+        assert_eq!(g.brick_counts[PayloadFormat::Bc4.rank()], 0);
+        assert!(errors(&v, &g)[0] + g.slack[0] <= e, "{}", errors(&v, &g)[0]);
+    }
+
+    #[test]
+    fn clustering_high_variance_bricks_is_blocky_and_the_guard_releases_them() {
+        // Noisy bricks around different means, clustered with a threshold that admits them all:
+        // members land far from their centroid. The guard releases exactly the members whose
+        // decoded centroid (plus its GPU slack) misses E; the rest are within E.
+        let mut pool = Vec::new();
+        let mut s = 0x9E37_79B9_7F4A_7C15u64;
+        for b in 0..24 {
+            let mean = 0.2 + 0.6 * (b % 4) as f32 / 3.0;
+            pool.extend((0..BRICK_VOXELS).map(|_| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                mean + 0.3 * ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5)
+            }));
+        }
+        let copts = crate::cluster::ClusterOptions {
+            clusters: 3,
+            iterations: 5,
+            variance_threshold: 10.0,
+            seed: 1,
+        };
+        let r = crate::cluster::cluster(&pool, &copts);
+        let e = 0.05f32;
+        let o = opts(PayloadFormat::Bc7, Some(e), RangeMode::Brick);
+        let ce = encode(&r.centroids, &o).unwrap();
+        let cen = ce.decoded_or(&r.centroids);
+        let miss = |b: usize, c: u32| {
+            let c = c as usize;
+            pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]
+                .iter()
+                .zip(&cen[c * BRICK_VOXELS..(c + 1) * BRICK_VOXELS])
+                .map(|(s, d)| (s - d).abs() + ce.slack[c])
+                .fold(0.0, f32::max)
+        };
+        let worst = (0..24)
+            .filter_map(|b| r.member_of[b].map(|c| miss(b, c)))
+            .fold(0.0, f32::max);
+        assert!(
+            worst > 4.0 * e,
+            "unguarded clustering should be blocky ({worst})"
+        );
+        let mut member_of = r.member_of.clone();
+        let released = guard_members(&pool, &r.centroids, &ce, &mut member_of, &o);
+        assert!(released > 0);
+        for b in 0..24 {
+            match (r.member_of[b], member_of[b]) {
+                (Some(c), Some(_)) => assert!(miss(b, c) <= e, "kept member {b}: {}", miss(b, c)),
+                (Some(c), None) => assert!(miss(b, c) > e, "released member {b} was within E"),
+                _ => {}
+            }
+        }
     }
 
     #[test]
