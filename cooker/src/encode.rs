@@ -666,13 +666,8 @@ mod tests {
         );
         let g = encode(&pool, &opts(PayloadFormat::Bc7, Some(e), RangeMode::Brick)).unwrap();
         let ge = errors(&pool, &g);
-        for b in 0..6 {
-            assert!(
-                ge[b] + g.slack[b] <= e,
-                "brick {b}: {} + {}",
-                ge[b],
-                g.slack[b]
-            );
+        for (b, (err, slack)) in ge.iter().zip(&g.slack).enumerate() {
+            assert!(err + slack <= e, "brick {b}: {err} + {slack}");
         }
         // The smooth bricks stay BC7.
         let n_bc7 = g.brick_counts[PayloadFormat::Bc7.rank()] as u32;
@@ -750,8 +745,8 @@ mod tests {
         let mut member_of = r.member_of.clone();
         let released = guard_members(&pool, &r.centroids, &ce, &mut member_of, &o);
         assert!(released > 0);
-        for b in 0..24 {
-            match (r.member_of[b], member_of[b]) {
+        for (b, (&before, &after)) in r.member_of.iter().zip(&member_of).enumerate() {
+            match (before, after) {
                 (Some(c), Some(_)) => assert!(miss(b, c) <= e, "kept member {b}: {}", miss(b, c)),
                 (Some(c), None) => assert!(miss(b, c) > e, "released member {b} was within E"),
                 _ => {}
