@@ -1,25 +1,10 @@
-//! `vdbcook`: the command-line front end. Each subcommand lives in its own module; this file
-//! parses arguments, sets up the thread pool, and turns errors into one-line messages (or one
-//! JSON document under `--json`) with a non-zero exit code.
-
-mod bcenc;
-mod build;
-mod cluster;
-mod cook;
-mod encode;
-mod errors;
-mod eval;
-mod gpu;
-mod info;
-mod inspect;
-mod output;
-mod pool;
-mod progress;
-mod render;
-mod report;
-mod size_budget;
+//! `vdbcook`: the command-line front end over the `vdbcook` library (`lib.rs`). Each subcommand
+//! lives in its own library module; this file parses arguments, sets up the thread pool, and
+//! turns errors into one-line messages (or one JSON document under `--json`) with a non-zero
+//! exit code.
 
 use clap::{Parser, Subcommand};
+use vdbcook::{cook, errors, eval, gpu, info, inspect, output, progress, render, report};
 
 /// Largest `--threads`.
 const MAX_THREADS: usize = 1024;
