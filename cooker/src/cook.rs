@@ -21,14 +21,30 @@ use crate::pool::{ranges, Pool};
 use crate::progress::Progress;
 use crate::size_budget;
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct Args {
     /// VDB files, folders, frame patterns (smoke.####.vdb, smoke.%04d.vdb) or globs.
-    #[arg(required = true, value_name = "INPUT")]
+    #[arg(required_unless_present = "manifest", value_name = "INPUT")]
     pub inputs: Vec<String>,
     /// Output asset file.
-    #[arg(short, long, value_name = "OUT")]
+    /// (Required unless --manifest.)
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output_given: Option<PathBuf>,
+    /// The output path `cook` uses (`output_given`, filled in by `run`; set directly by callers).
+    #[arg(skip)]
     pub output: PathBuf,
+    /// Cook only the frames numbered A to B, both included, as the file names number them
+    /// (`10..90`, `10..`, `..90`).
+    #[arg(long, value_name = "A..B")]
+    pub frames: Option<String>,
+    /// Cook every asset a TOML manifest lists, with a content-addressed cache: unchanged assets
+    /// are not recooked (`docs/cli.md`, "Batch cooking").
+    #[arg(long, value_name = "TOML", conflicts_with_all = ["inputs", "frames"])]
+    pub manifest: Option<PathBuf>,
+    /// The cache folder of --manifest (default: `.vdbcook-cache` beside the manifest). A plain
+    /// folder of files named by key: a build farm can share it.
+    #[arg(long, value_name = "DIR", requires = "manifest")]
+    pub cache_dir: Option<PathBuf>,
     /// Brick payload: f32 (bit exact), f16, unorm8 (8 bit), bc4 (4 bit) or bc7 (2 bit per voxel).
     /// Default f32; with --max-error and no --format, the smallest that meets the error.
     #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
@@ -89,7 +105,11 @@ impl Args {
     pub fn defaults(inputs: Vec<String>, output: PathBuf) -> Args {
         Args {
             inputs,
+            output_given: Some(output.clone()),
             output,
+            frames: None,
+            manifest: None,
+            cache_dir: None,
             format: None,
             max_error: None,
             max_bytes: None,
@@ -153,6 +173,9 @@ impl Args {
                     "--max-error {e} is out of range: E must be a finite number > 0 (for a lossless asset use --format f32)"
                 ));
             }
+        }
+        if let Some(f) = &self.frames {
+            parse_frame_range(f).map_err(CliError::Usage)?;
         }
         if let Some(n) = self.max_bytes {
             if n == 0 {
@@ -362,10 +385,26 @@ struct Stages {
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
+    let mut owned = a.clone();
+    owned.output = a.output_given.clone().unwrap_or_default();
+    let a = &owned;
+    if a.manifest.is_some() {
+        if a.output_given.is_some() {
+            return Err(CliError::Usage(
+                "--manifest writes the outputs its entries name: drop -o/--output".into(),
+            ));
+        }
+        return crate::manifest::run(a);
+    }
+    if a.output_given.is_none() {
+        return Err(CliError::Usage(
+            "the output asset is required: -o OUT (or --manifest TOML for batch cooking)".into(),
+        ));
+    }
     let t0 = Instant::now();
     a.validate()?;
     // Refuse an output that is (or would join) one of the inputs before any work.
-    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    let frames = resolve_frames(a)?;
     crate::output::refuse_inputs(&a.output, &frames, &a.inputs, "asset")?;
     let Cooked { bytes, mut doc, .. } = cook(a)?;
     let t = Instant::now();
@@ -380,6 +419,69 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         print_summary(&doc);
     }
     Ok(())
+}
+
+/// The frames `a` cooks: its inputs resolved (`sequence::resolve_inputs`), then `--frames`.
+pub fn resolve_frames(a: &Args) -> Result<Vec<Frame>, CliError> {
+    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    match &a.frames {
+        None => Ok(frames),
+        Some(spec) => select_frames(frames, spec),
+    }
+}
+
+/// Parses `A..B`, `A..` or `..B` (both ends included) into bounds.
+pub fn parse_frame_range(spec: &str) -> Result<(Option<i64>, Option<i64>), String> {
+    let bad = || format!("--frames '{spec}': expected A..B, A.. or ..B with frame numbers");
+    let (a, b) = spec.split_once("..").ok_or_else(bad)?;
+    let num = |t: &str| -> Result<Option<i64>, String> {
+        let t = t.trim();
+        if t.is_empty() {
+            Ok(None)
+        } else {
+            t.parse().map(Some).map_err(|_| bad())
+        }
+    };
+    let (lo, hi) = (num(a)?, num(b)?);
+    if let (Some(l), Some(h)) = (lo, hi) {
+        if l > h {
+            return Err(format!(
+                "--frames '{spec}': the first frame is after the last"
+            ));
+        }
+    }
+    Ok((lo, hi))
+}
+
+/// The frames numbered within `spec` (both ends included). Every frame must carry a number, and
+/// the range must select at least one.
+pub fn select_frames(frames: Vec<Frame>, spec: &str) -> Result<Vec<Frame>, CliError> {
+    let (lo, hi) = parse_frame_range(spec).map_err(CliError::Usage)?;
+    let (first, last) = (
+        frames.iter().filter_map(|f| f.number).min(),
+        frames.iter().filter_map(|f| f.number).max(),
+    );
+    if let Some(f) = frames.iter().find(|f| f.number.is_none()) {
+        return Err(CliError::Usage(format!(
+            "--frames needs numbered frames, and {} has no frame number in its name",
+            f.path.display()
+        )));
+    }
+    let picked: Vec<Frame> = frames
+        .into_iter()
+        .filter(|f| {
+            let n = f.number.expect("checked");
+            lo.is_none_or(|l| n >= l) && hi.is_none_or(|h| n <= h)
+        })
+        .collect();
+    if picked.is_empty() {
+        return Err(CliError::Usage(format!(
+            "--frames '{spec}' selects no frame (the inputs number {} to {})",
+            first.map_or("?".into(), |v| v.to_string()),
+            last.map_or("?".into(), |v| v.to_string())
+        )));
+    }
+    Ok(picked)
 }
 
 /// Cooks `a.inputs` with the options in `a`, in memory (nothing is written).
@@ -424,7 +526,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         }
     }
     let format = eopts.format;
-    let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    let frames = resolve_frames(a)?;
     let nf = NonFinite {
         replace_with: a.replace_non_finite,
         hint: !a.no_non_finite_flag,

@@ -2,7 +2,7 @@
 //! and build tools call. Data flows one way through its stages — read (`vdbcook_vdb`), build
 //! (`build`), dedup (`pool`), cluster (`cluster`), encode (`encode`, `bcenc`), write (`cook`,
 //! `output`) — and each subcommand has its module (`cook`, `info`, `eval`, `inspect`, `render`,
-//! `report`, `report`). `docs/architecture.md` maps the crates and the invariants each keeps.
+//! `report`, `report`; `manifest`: batch cooking with a content-addressed cache). `docs/architecture.md` maps the crates and the invariants each keeps.
 //!
 //! Entry points for programs: [`cook::cook`] (a cook held in memory: the asset, its bytes and the
 //! `cook --json` document) with [`cook::Args`] (`Args::defaults` for the plain options). Errors are
@@ -18,6 +18,7 @@ pub mod eval;
 pub mod gpu;
 pub mod info;
 pub mod inspect;
+pub mod manifest;
 pub mod output;
 pub mod pool;
 pub mod progress;

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{root, vdbcook};
+use common::{root, sample, vdbcook};
 use serde_json::Value;
 
 #[test]
@@ -101,17 +101,14 @@ fn broken_input_exits_non_zero_naming_the_file() {
 
 #[test]
 fn inspect_real_samples_match_the_published_counts() {
-    let s = root().join("../shared/samples");
-    if !s.is_dir() {
-        eprintln!("skipping: ../shared/samples is not present");
+    let (Some(wdas), Some(smoke1), Some(points)) = (
+        sample("wdas-cloud/wdas_cloud_sixteenth.vdb"),
+        sample("openvdb-smoke1/smoke.vdb"),
+        sample("negative/points.vdb"),
+    ) else {
         return;
-    }
-    let (code, out, err) = vdbcook(&[
-        "inspect",
-        "--json",
-        "../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb",
-        "../shared/samples/openvdb-smoke1/smoke.vdb",
-    ]);
+    };
+    let (code, out, err) = vdbcook(&["inspect", "--json", &wdas, &smoke1]);
     assert_eq!(code, 0, "{err}");
     let doc: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(doc["files"][0]["grids"][0]["active_voxels"], 415642);
@@ -119,7 +116,7 @@ fn inspect_real_samples_match_the_published_counts() {
     assert_eq!(doc["files"][1]["grids"][0]["active_voxels"], 1049275);
     assert_eq!(doc["files"][1]["grids"][0]["half_float"], true);
     // Point grids: listed with their type, not a crash.
-    let (code, out, _) = vdbcook(&["inspect", "--json", "../shared/samples/negative/points.vdb"]);
+    let (code, out, _) = vdbcook(&["inspect", "--json", &points]);
     assert_eq!(code, 0);
     assert!(out.contains("ptdataidx32"));
 }

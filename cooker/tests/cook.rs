@@ -7,7 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{json, root, vdbcook as run};
+use common::{json, root, sample, vdbcook as run};
 use serde_json::Value;
 
 fn truth_active(inputs: &[&str]) -> u64 {
@@ -148,9 +148,7 @@ fn identical_frames_cost_about_one_frame() {
 fn output_is_byte_identical_at_any_thread_count() {
     let d = tempfile::tempdir().unwrap();
     let mut inputs = vec!["fixtures/seq/smoke5".to_string()];
-    if root().join("../shared/samples").is_dir() {
-        inputs.push("../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb".into());
-    }
+    inputs.extend(sample("wdas-cloud/wdas_cloud_sixteenth.vdb"));
     for (i, inp) in inputs.iter().enumerate() {
         for fmt in ["f32", "f16", "unorm8", "bc4", "bc7"] {
             let a = d.path().join(format!("{i}-{fmt}-1.vdbc"));
@@ -365,19 +363,14 @@ fn corrupt_assets_are_refused_by_info_and_eval() {
 
 #[test]
 fn real_samples_cook_exactly_within_the_topology_bar() {
-    let s = root().join("../shared/samples");
-    if !s.is_dir() {
-        eprintln!("skipping: ../shared/samples is not present");
+    let (Some(wdas), Some(storm)) = (
+        sample("wdas-cloud/wdas_cloud_sixteenth.vdb"),
+        sample("stormscape-cloud-seq"),
+    ) else {
         return;
-    }
+    };
     let d = tempfile::tempdir().unwrap();
-    for (i, inp) in [
-        "../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb",
-        "../shared/samples/stormscape-cloud-seq",
-    ]
-    .iter()
-    .enumerate()
-    {
+    for (i, inp) in [wdas.as_str(), storm.as_str()].iter().enumerate() {
         let out = d.path().join(format!("{i}.vdbc"));
         let (c, e) = cook_exact(&[inp], &[], &out);
         let info = json(&["info", "--json", out.to_str().unwrap()]);
@@ -391,10 +384,9 @@ fn real_samples_cook_exactly_within_the_topology_bar() {
 #[test]
 fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
     let d = tempfile::tempdir().unwrap();
+    let wdas = sample("wdas-cloud/wdas_cloud_sixteenth.vdb");
     let mut inputs = vec!["fixtures/seq/smoke5", "fixtures/vdb/fog_f32_blosc_mask.vdb"];
-    if root().join("../shared/samples").is_dir() {
-        inputs.push("../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb");
-    }
+    inputs.extend(wdas.as_deref());
     for (i, inp) in inputs.iter().enumerate() {
         for e in ["0.001", "0.01", "0.05"] {
             for fmt in [None, Some("bc7"), Some("unorm8")] {

@@ -12,6 +12,22 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
+#[path = "../../../crates/vdb/tests/support/samples.rs"]
+mod samples_support;
+
+/// The real samples (`$VDBCOOK_SAMPLES` or `../shared/samples`; a failure under CI when missing).
+#[allow(dead_code)]
+pub fn samples() -> Option<PathBuf> {
+    samples_support::samples_dir(&root())
+}
+
+/// One sample as a path string, `None` where samples may be skipped.
+#[allow(dead_code)]
+pub fn sample(name: &str) -> Option<String> {
+    let dir = samples()?;
+    samples_support::sample(&dir, name).map(|p| p.to_string_lossy().into_owned())
+}
+
 /// Runs `vdbcook ARGS` in the repository root: (exit code, stdout, stderr).
 pub fn vdbcook(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_vdbcook"))

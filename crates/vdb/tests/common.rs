@@ -19,10 +19,13 @@ pub fn fixtures() -> PathBuf {
     repo_root().join("fixtures")
 }
 
-/// `../shared/samples` next to the repository, when present.
+#[path = "support/samples.rs"]
+mod samples_support;
+pub use samples_support::sample;
+
+/// The real samples (`$VDBCOOK_SAMPLES` or `../shared/samples`; a failure under CI when missing).
 pub fn samples() -> Option<PathBuf> {
-    let p = repo_root().join("../shared/samples");
-    p.is_dir().then_some(p)
+    samples_support::samples_dir(&repo_root())
 }
 
 /// Every `*.truth.json` below `dir`, sorted.

@@ -85,7 +85,6 @@ fn agrees_with_vdb_rs_on_fixtures_it_reads() {
 #[test]
 fn agrees_with_vdb_rs_on_real_samples() {
     let Some(s) = common::samples() else {
-        eprintln!("skipping: ../shared/samples is not present");
         return;
     };
     agree(&s.join("wdas-cloud/wdas_cloud_sixteenth.vdb"), "density");

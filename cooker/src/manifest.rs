@@ -1,0 +1,474 @@
+//! `vdbcook cook --manifest volumes.toml [--cache-dir DIR]`: batch cooking for build pipelines,
+//! with a content-addressed cache so an unchanged asset is never cooked twice.
+//!
+//! The manifest is a list of `[[asset]]` tables (keys: `docs/cli.md`, "Batch cooking"), each one
+//! `vdbcook cook` with its input, output and options; relative paths are relative to the
+//! manifest's folder. Everything is checked before anything is cooked or written: unknown keys,
+//! bad values, missing inputs, two entries writing one output, and an output that another entry
+//! reads (each error names the manifest line). Then every entry gets a **key**: xxh3-128 over the
+//! cooker's version, the options that shape the bytes, and each input frame's file name, number
+//! and content hash. The cache folder holds `KEY.vdbc` (the asset) and `KEY.json` (its cook
+//! report); a key that is there is **cached** (its bytes are copied to the output if it differs),
+//! the others are **cooked** (in parallel over the thread pool), stored, then written (output
+//! folders are created as needed). Cooks are
+//! deterministic, so a cached asset is byte-identical to a fresh cook (tested).
+//!
+//! Content hashes are remembered per file in `files.json` in the cache folder under the file's
+//! size, modification time (ns) and inode: a second run re-hashes only files whose metadata
+//! changed, which keeps an unchanged run to a stat per file. (Like make, it trusts that a content
+//! change moves the size or the mtime.)
+
+use std::collections::BTreeMap;
+use std::path::{Component, Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+use toml::Spanned;
+use vdbcook_vdb::sequence::Frame;
+use xxhash_rust::xxh3::Xxh3;
+
+use crate::cook::{self, Args};
+use crate::errors::CliError;
+
+/// The manifest file: `[[asset]]` tables.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ManifestFile {
+    asset: Vec<Spanned<Entry>>,
+}
+
+/// `input` as one string or a list.
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum Inputs {
+    One(String),
+    Many(Vec<String>),
+}
+
+/// `max-bytes` as a number of bytes or a size string ("32MiB").
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum Size {
+    Bytes(u64),
+    Text(String),
+}
+
+/// One `[[asset]]`: the options of `vdbcook cook`, spelt as its flags.
+#[derive(Deserialize, Clone)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+struct Entry {
+    input: Inputs,
+    output: String,
+    format: Option<String>,
+    max_error: Option<f32>,
+    max_bytes: Option<Size>,
+    grid: Option<String>,
+    clusters: Option<usize>,
+    iterations: Option<usize>,
+    variance_threshold: Option<f32>,
+    frames: Option<String>,
+    range: Option<String>,
+    bc7_quality: Option<String>,
+    allow_gaps: Option<bool>,
+    allow_missing_grid: Option<bool>,
+    replace_non_finite: Option<f32>,
+}
+
+/// What shapes an asset's bytes besides its input frames (part of the key).
+#[derive(Serialize)]
+struct KeyOptions<'a> {
+    format: &'a Option<String>,
+    max_error: Option<u32>,
+    max_bytes: Option<u64>,
+    grid: &'a Option<String>,
+    clusters: Option<usize>,
+    iterations: Option<usize>,
+    variance_threshold: Option<u32>,
+    range: &'a str,
+    bc7_quality: &'a str,
+    allow_gaps: bool,
+    allow_missing_grid: bool,
+    replace_non_finite: Option<u32>,
+}
+
+/// A checked entry, ready to cook.
+struct Job {
+    line: usize,
+    args: Args,
+    frames: Vec<Frame>,
+    output: PathBuf,
+    key: String,
+}
+
+/// Remembered content hash of one file (`files.json`).
+#[derive(Serialize, Deserialize, Clone, PartialEq)]
+struct FileStamp {
+    size: u64,
+    mtime_ns: i128,
+    inode: u64,
+    hash: String,
+}
+
+fn manifest_err(path: &Path, line: usize, m: impl std::fmt::Display) -> CliError {
+    CliError::Usage(format!("{}:{line}: {m}", path.display()))
+}
+
+/// 1-based line of byte offset `at` in `text`.
+fn line_of(text: &str, at: usize) -> usize {
+    text[..at.min(text.len())].matches('\n').count() + 1
+}
+
+/// `p` relative to `base` unless absolute, with `.` and `..` folded (no file-system access).
+fn rel(base: &Path, p: &str) -> PathBuf {
+    let joined = if Path::new(p).is_absolute() {
+        PathBuf::from(p)
+    } else {
+        base.join(p)
+    };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// The path with its existing ancestors resolved (symlinks, `..`), for comparing outputs and
+/// inputs that may not exist yet.
+fn canonical(p: &Path) -> PathBuf {
+    if let Ok(c) = p.canonicalize() {
+        return c;
+    }
+    match (p.parent(), p.file_name()) {
+        (Some(dir), Some(name)) => canonical(dir).join(name),
+        _ => p.to_path_buf(),
+    }
+}
+
+fn hex128(h: u128) -> String {
+    format!("{h:032x}")
+}
+
+/// The content hash of `path`, from `stamps` when its size, mtime and inode are unchanged.
+fn content_hash(path: &Path, stamps: &BTreeMap<String, FileStamp>) -> std::io::Result<FileStamp> {
+    use std::os::unix::fs::MetadataExt;
+    let m = std::fs::metadata(path)?;
+    let (size, mtime_ns, inode) = (
+        m.len(),
+        m.mtime() as i128 * 1_000_000_000 + m.mtime_nsec() as i128,
+        m.ino(),
+    );
+    let name = canonical(path).to_string_lossy().into_owned();
+    if let Some(s) = stamps.get(&name) {
+        if s.size == size && s.mtime_ns == mtime_ns && s.inode == inode {
+            return Ok(s.clone());
+        }
+    }
+    let mut h = Xxh3::new();
+    let mut f = std::fs::File::open(path)?;
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = std::io::Read::read(&mut f, &mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(FileStamp {
+        size,
+        mtime_ns,
+        inode,
+        hash: hex128(h.digest128()),
+    })
+}
+
+/// The cook arguments of one entry (paths resolved against `base`), checked like the CLI's.
+fn entry_args(e: &Entry, base: &Path) -> Result<Args, String> {
+    let inputs = match &e.input {
+        Inputs::One(s) => vec![s.clone()],
+        Inputs::Many(v) => v.clone(),
+    };
+    if inputs.is_empty() {
+        return Err("`input` is empty".into());
+    }
+    let inputs = inputs
+        .iter()
+        .map(|i| rel(base, i).to_string_lossy().into_owned())
+        .collect();
+    let mut a = Args::defaults(inputs, rel(base, &e.output));
+    if let Some(f) = &e.format {
+        if !["f32", "f16", "unorm8", "bc4", "bc7"].contains(&f.as_str()) {
+            return Err(format!("format '{f}' (f32, f16, unorm8, bc4, bc7)"));
+        }
+        a.format = Some(f.clone());
+    }
+    if let Some(r) = &e.range {
+        if !["brick", "global"].contains(&r.as_str()) {
+            return Err(format!("range '{r}' (brick, global)"));
+        }
+        a.range = r.clone();
+    }
+    if let Some(q) = &e.bc7_quality {
+        a.bc7_quality = q.clone();
+    }
+    a.max_error = e.max_error;
+    a.max_bytes = match &e.max_bytes {
+        None => None,
+        Some(Size::Bytes(n)) => Some(*n),
+        Some(Size::Text(t)) => Some(crate::size_budget::parse_size(t)?),
+    };
+    a.grid = e.grid.clone();
+    a.clusters = e.clusters;
+    a.iterations = e.iterations;
+    a.variance_threshold = e.variance_threshold;
+    a.frames = e.frames.clone();
+    a.allow_gaps = e.allow_gaps.unwrap_or(false);
+    a.allow_missing_grid = e.allow_missing_grid.unwrap_or(false);
+    a.replace_non_finite = e.replace_non_finite;
+    a.validate().map_err(|e| e.to_string())?;
+    if crate::bcenc::Bc7Quality::parse(&a.bc7_quality).is_none() {
+        return Err(format!(
+            "bc7-quality '{}' (ultra-fast, very-fast, fast, basic, slow)",
+            a.bc7_quality
+        ));
+    }
+    Ok(a)
+}
+
+/// The cache key of an entry: the cooker's version, its options and its frames' contents.
+fn key_of(
+    a: &Args,
+    frames: &[Frame],
+    stamps: &mut BTreeMap<String, FileStamp>,
+) -> std::io::Result<String> {
+    let opts = KeyOptions {
+        format: &a.format,
+        max_error: a.max_error.map(f32::to_bits),
+        max_bytes: a.max_bytes,
+        grid: &a.grid,
+        clusters: a.clusters,
+        iterations: a.iterations,
+        variance_threshold: a.variance_threshold.map(f32::to_bits),
+        range: &a.range,
+        bc7_quality: &a.bc7_quality,
+        allow_gaps: a.allow_gaps,
+        allow_missing_grid: a.allow_missing_grid,
+        replace_non_finite: a.replace_non_finite.map(f32::to_bits),
+    };
+    let mut h = Xxh3::new();
+    h.update(b"vdbcook cook cache v1\n");
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(serde_json::to_string(&opts).expect("json").as_bytes());
+    for f in frames {
+        let stamp = content_hash(&f.path, stamps)?;
+        let name = f
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        h.update(format!("\n{name}\t{:?}\t{}", f.number, stamp.hash).as_bytes());
+        stamps.insert(canonical(&f.path).to_string_lossy().into_owned(), stamp);
+    }
+    Ok(hex128(h.digest128()))
+}
+
+/// Runs `vdbcook cook --manifest` (`a.manifest` set; `a.json` and `--cache-dir` honoured).
+pub fn run(a: &Args) -> Result<(), CliError> {
+    let t0 = Instant::now();
+    let path = a.manifest.as_deref().expect("manifest mode");
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        CliError::Usage(format!("{}: cannot read the manifest: {e}", path.display()))
+    })?;
+    let file: ManifestFile = toml::from_str(&text).map_err(|e| {
+        let line = e.span().map(|s| line_of(&text, s.start)).unwrap_or(1);
+        manifest_err(path, line, e.message())
+    })?;
+    if file.asset.is_empty() {
+        return Err(manifest_err(path, 1, "no [[asset]] entries"));
+    }
+    let base = path
+        .parent()
+        .map(|p| {
+            if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            }
+        })
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    let cache_dir = a
+        .cache_dir
+        .clone()
+        .unwrap_or_else(|| base.join(".vdbcook-cache"));
+    let stamps_path = cache_dir.join("files.json");
+    let mut stamps: BTreeMap<String, FileStamp> = std::fs::read(&stamps_path)
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .unwrap_or_default();
+
+    // Check everything first: nothing is cooked or written unless every entry is sound.
+    let mut jobs: Vec<Job> = Vec::new();
+    for s in &file.asset {
+        let line = line_of(&text, s.span().start);
+        let e = s.get_ref();
+        let args = entry_args(e, &base).map_err(|m| manifest_err(path, line, m))?;
+        let frames = cook::resolve_frames(&args).map_err(|err| manifest_err(path, line, err))?;
+        crate::output::refuse_inputs(&args.output, &frames, &args.inputs, "asset")
+            .map_err(|err| manifest_err(path, line, err))?;
+        let output = canonical(&args.output);
+        if let Some(o) = jobs.iter().find(|j| j.output == output) {
+            return Err(manifest_err(
+                path,
+                line,
+                format!(
+                    "this entry and the one at line {} both write {}",
+                    o.line,
+                    args.output.display()
+                ),
+            ));
+        }
+        let key = key_of(&args, &frames, &mut stamps)
+            .map_err(|err| manifest_err(path, line, format!("cannot read an input: {err}")))?;
+        jobs.push(Job {
+            line,
+            args,
+            frames,
+            output,
+            key,
+        });
+    }
+    for j in &jobs {
+        for k in &jobs {
+            if let Some(f) = k.frames.iter().find(|f| canonical(&f.path) == j.output) {
+                return Err(manifest_err(
+                    path,
+                    j.line,
+                    format!(
+                        "this entry writes {}, which the entry at line {} reads: outputs cannot \
+                         be inputs",
+                        f.path.display(),
+                        k.line
+                    ),
+                ));
+            }
+        }
+    }
+    std::fs::create_dir_all(&cache_dir).map_err(|e| {
+        CliError::Usage(format!(
+            "{}: cannot create the cache folder: {e}",
+            cache_dir.display()
+        ))
+    })?;
+
+    // Cook what the cache lacks (each key once), in parallel; then write every output.
+    let cached: Vec<bool> = jobs
+        .iter()
+        .map(|j| cache_dir.join(format!("{}.vdbc", j.key)).is_file())
+        .collect();
+    let mut todo: Vec<usize> = (0..jobs.len()).filter(|&i| !cached[i]).collect();
+    let mut seen = std::collections::BTreeSet::new();
+    todo.retain(|i| seen.insert(jobs[*i].key.clone()));
+    let n = jobs.len();
+    let cooked: Vec<Result<(usize, f64), CliError>> = todo
+        .par_iter()
+        .map(|&i| {
+            let j = &jobs[i];
+            let t = Instant::now();
+            let c = cook::cook(&j.args).map_err(|err| manifest_err(path, j.line, err))?;
+            crate::output::write(
+                &cache_dir.join(format!("{}.vdbc", j.key)),
+                &c.bytes,
+                "cached asset",
+            )?;
+            let doc = serde_json::to_vec_pretty(&c.doc).expect("json");
+            crate::output::write(
+                &cache_dir.join(format!("{}.json", j.key)),
+                &doc,
+                "cook report",
+            )?;
+            if !a.json {
+                eprintln!(
+                    "cooked {} ({:.2} s)",
+                    j.args.output.display(),
+                    t.elapsed().as_secs_f64()
+                );
+            }
+            Ok((i, t.elapsed().as_secs_f64()))
+        })
+        .collect();
+    let mut seconds = vec![0.0; n];
+    for r in cooked {
+        let (i, s) = r?;
+        seconds[i] = s;
+    }
+    let mut assets = Vec::with_capacity(n);
+    for (i, j) in jobs.iter().enumerate() {
+        let bytes = std::fs::read(cache_dir.join(format!("{}.vdbc", j.key))).map_err(|e| {
+            CliError::Usage(format!(
+                "{}: cannot read the cache entry: {e}",
+                cache_dir.display()
+            ))
+        })?;
+        if std::fs::read(&j.args.output).ok().as_deref() != Some(&bytes[..]) {
+            // A build's output folders may not exist yet: make them (only now, all checks done).
+            if let Some(dir) = j.args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|e| {
+                    CliError::Usage(format!("{}: cannot create the folder: {e}", dir.display()))
+                })?;
+            }
+            crate::output::write(&j.args.output, &bytes, "asset")?;
+        }
+        let report: Value = std::fs::read(cache_dir.join(format!("{}.json", j.key)))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or(Value::Null);
+        let status = if cached[i] || seconds[i] == 0.0 {
+            "cached"
+        } else {
+            "cooked"
+        };
+        if !a.json && status == "cached" {
+            eprintln!("cached {}", j.args.output.display());
+        }
+        assets.push(json!({
+            "line": j.line,
+            "output": j.args.output.display().to_string(),
+            "status": status,
+            "key": j.key,
+            "bytes": bytes.len(),
+            "seconds": seconds[i],
+            "cook": report,
+        }));
+    }
+    let stamps_json = serde_json::to_vec_pretty(&stamps).expect("json");
+    crate::output::write(&stamps_path, &stamps_json, "file hash index")?;
+    let n_cooked = assets.iter().filter(|x| x["status"] == "cooked").count();
+    let doc = json!({
+        "manifest": path.display().to_string(),
+        "cache_dir": cache_dir.display().to_string(),
+        "assets": assets,
+        "cooked": n_cooked,
+        "cached": n - n_cooked,
+        "seconds": t0.elapsed().as_secs_f64(),
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+    } else {
+        println!(
+            "{n} asset(s) from {}: {n_cooked} cooked, {} cached, in {:.2} s (cache {})",
+            path.display(),
+            n - n_cooked,
+            t0.elapsed().as_secs_f64(),
+            cache_dir.display()
+        );
+    }
+    Ok(())
+}
