@@ -299,7 +299,10 @@ fn optical_depth_is_the_density_sum_cut_at_t_max() {
         let cut = 0.5 * (t0 + t1);
         let half = tracer.optical_depth(eye, d, cut, &mut scratch);
         let want = SIGMA as f64 * 2.0 * (cut - t0);
-        assert!((half - want).abs() < 1e-6 * (1.0 + want), "ray {i}: {half} vs {want}");
+        assert!(
+            (half - want).abs() < 1e-6 * (1.0 + want),
+            "ray {i}: {half} vs {want}"
+        );
         assert_eq!(tracer.optical_depth(eye, d, t0 * 0.9, &mut scratch), 0.0);
     }
 }
