@@ -4,7 +4,7 @@
 //! front of, beyond and through the cloud; `out = L + T·scene` for two backgrounds; translated,
 //! rotated and jittered instances; several instances in one draw; many draws of two volumes in
 //! one encoder against one submission each; crossfades; standard-Z, reversed-Z and orthographic
-//! projections; and the refusals (bad targets, singular views, times out of range).
+//! projections; an 8-bit sRGB target; and the refusals (bad targets, singular views, times out of range).
 //!
 //! Tolerance: the GPU marches in f32 and stores `(L, T)` and the colour target in half floats
 //! (relative step 2⁻¹¹), so a pixel may differ from the CPU's f64 by `TOL` per channel.
@@ -874,4 +874,122 @@ fn bad_inputs_are_errors() {
     }
     // Nothing went wrong on the device.
     let _ = gpu.device.poll(wgpu::PollType::wait_indefinitely());
+}
+
+#[test]
+fn srgb_8_bit_targets_blend_in_linear_space() {
+    let Some(gpu) = Gpu::new("srgb_8_bit_targets_blend_in_linear_space") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let vol = GpuVolume::upload(&gpu.device, &gpu.queue, &asset).expect("upload");
+    let format = wgpu::TextureFormat::Bgra8UnormSrgb;
+    let mut drawer = VolumeDrawer::new(&gpu.device, &vol, format).expect("drawer");
+    let (view, _) = framing_view(&asset);
+    let medium = Medium::default();
+    let inst = [Instance {
+        tint: Vec3::new(1.0, 0.6, 0.3),
+        ..Default::default()
+    }];
+    let color = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: W,
+            height: H,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let cv = color.create_view(&Default::default());
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let _ = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: None,
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: &cv,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: BG[0],
+                    g: BG[1],
+                    b: BG[2],
+                    a: 1.0,
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    let target = DrawTarget {
+        color: &cv,
+        depth: None,
+    };
+    drawer
+        .record(&gpu.device, &mut enc, &target, &view, &inst, &medium)
+        .unwrap();
+    // 160 texels · 4 bytes = 640: rows padded to 768 for the copy.
+    let row = 768u32;
+    let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * H) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    enc.copy_texture_to_buffer(
+        color.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(H),
+            },
+        },
+        color.size(),
+    );
+    gpu.queue.submit([enc.finish()]);
+    buf.slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .expect("poll");
+    let bytes = buf.slice(..).get_mapped_range().expect("mapped").to_vec();
+    let cpu = cpu_lt(
+        &view.rays().unwrap(),
+        &[cpu_instance(&asset, &inst[0], &medium)],
+        None,
+    );
+    let to_srgb = |l: f64| {
+        let l = l.clamp(0.0, 1.0);
+        255.0
+            * if l <= 0.0031308 {
+                12.92 * l
+            } else {
+                1.055 * l.powf(1.0 / 2.4) - 0.055
+            }
+    };
+    let mut worst = 0.0f64;
+    for y in 0..H as usize {
+        for x in 0..W as usize {
+            let lt = cpu[y * W as usize + x];
+            let px = &bytes[y * row as usize + 4 * x..][..4];
+            // BGRA in memory.
+            for (c, &b) in [2usize, 1, 0].iter().zip(&px[..3]) {
+                let want = to_srgb(lt[*c] + lt[3] * BG[*c]);
+                worst = worst.max((b as f64 - want).abs());
+            }
+            assert_eq!(px[3], 255, "the target's alpha is kept");
+        }
+    }
+    eprintln!("Bgra8UnormSrgb: within {worst:.2} of 255 levels of the CPU");
+    // Half-float (L, T), then 8-bit sRGB: at most one level plus rounding.
+    assert!(worst <= 1.6, "{worst} levels");
 }
