@@ -390,3 +390,92 @@ fn vdb_dda_next(ray: VdbRay, s: ptr<function, VdbDda>) -> VdbSeg {
     }
     return out;
 }
+
+// Optical depth beyond which `vdb_optical_depth` stops (`vdbcook_trace::OPAQUE_DEPTH`).
+const VDB_OPAQUE_DEPTH: f32 = 20.0;
+
+// The density march of the frame whose roots start at `frame_root` along `ray` for t in
+// [t0, t1] (inside the root extent, e.g. from `vdb_clip`): τ = Σ v·ℓ over the voxels, tiles and
+// background spans crossed whose value is > 0 (ℓ: segment length times `ray.per_t`), exact (no
+// step error), stopping once `absorb·τ ≥ 20`. Transmittance: `exp(−absorb·τ)`. This is the CPU
+// tracer's Density mode (`vdbcook_trace::Tracer::optical_depth`); nodes, leaves and bricks whose
+// max is ≤ 0 are passed over in one step.
+fn vdb_optical_depth(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32) -> f32 {
+    let bg = vdb_info.background;
+    let dims = vec3<i32>(vdb_info.root_dims);
+    var tau = 0.0;
+    var rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), dims, t0, t1);
+    for (var ri = 0; ri < 99; ri++) {
+        let rs = vdb_dda_next(ray, &rd);
+        if (!rs.ok) {
+            break;
+        }
+        let e = vdb_root_entry(frame_root, rs.cell);
+        if (e == VDB_EMPTY || (e & VDB_TILE_BIT) != 0u) {
+            var v = bg;
+            if (e != VDB_EMPTY) {
+                v = vdb_tile(e & ~VDB_TILE_BIT);
+            }
+            if (v > 0.0) {
+                tau += v * (rs.tb - rs.ta) * ray.per_t;
+                if (absorb * tau >= VDB_OPAQUE_DEPTH) {
+                    break;
+                }
+            }
+            continue;
+        }
+        if (!(vdb_l2_range(e).y > 0.0)) {
+            continue;
+        }
+        let llo = rs.cell * 16;
+        var ld = vdb_dda_init(ray, 8.0, llo, llo + vec3<i32>(16), rs.ta, rs.tb);
+        var opaque = false;
+        for (var li = 0; li < 51; li++) {
+            let ls = vdb_dda_next(ray, &ld);
+            if (!ls.ok) {
+                break;
+            }
+            let r = vdb_leaf_ref(e, ls.cell);
+            if (r == VDB_EMPTY || (r & VDB_TILE_BIT) != 0u) {
+                var v = bg;
+                if (r != VDB_EMPTY) {
+                    v = vdb_tile(r & ~VDB_TILE_BIT);
+                }
+                if (v > 0.0) {
+                    tau += v * (ls.tb - ls.ta) * ray.per_t;
+                    if (absorb * tau >= VDB_OPAQUE_DEPTH) {
+                        opaque = true;
+                        break;
+                    }
+                }
+                continue;
+            }
+            if (!(vdb_brick_range(r).y > 0.0)) {
+                continue;
+            }
+            let origin = ls.cell * 8;
+            var vd = vdb_dda_init(ray, 1.0, origin, origin + vec3<i32>(8), ls.ta, ls.tb);
+            for (var vi = 0; vi < 27; vi++) {
+                let vs = vdb_dda_next(ray, &vd);
+                if (!vs.ok) {
+                    break;
+                }
+                let v = vdb_brick_voxel(r, vs.cell);
+                if (v > 0.0) {
+                    tau += v * (vs.tb - vs.ta) * ray.per_t;
+                    if (absorb * tau >= VDB_OPAQUE_DEPTH) {
+                        opaque = true;
+                        break;
+                    }
+                }
+            }
+            if (opaque) {
+                break;
+            }
+        }
+        if (opaque) {
+            break;
+        }
+    }
+    return tau;
+}

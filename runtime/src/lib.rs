@@ -30,19 +30,28 @@
 //! An engine's own pipelines over [`VOLUME_WGSL`] should pass [`GpuVolume::pipeline_constants`]
 //! (the read paths the volume uses) so the others compile away.
 //!
-//! Submission rule: `render` writes the parameters with `Queue::write_buffer`, which takes
+//! Engines: [`VolumeDrawer`] draws any number of [`Instance`]s of an uploaded volume into the
+//! engine's own frame — its [`View`] (view and projection matrices), its depth buffer, blended
+//! over its colour target — recording into its encoder; `docs/engine.md` walks through it.
+//!
+//! Submission rule (`Renderer` only; the drawer writes nothing through the queue): `render` writes the parameters with `Queue::write_buffer`, which takes
 //! effect at the next `submit`; record at most one render per renderer per submission.
 
 // `!(a > b)` refuses NaN along with the ordered case (as in the CPU tracer); keep that form.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 mod camera;
+mod draw;
 mod error;
 mod render;
 mod timer;
 mod upload;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
+pub use draw::{
+    DrawTarget, Instance, Medium, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS,
+    DRAW_WGSL,
+};
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
 pub use timer::GpuTimer;
@@ -50,6 +59,9 @@ pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };
 pub use vdbcook_asset::Asset;
+/// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
+/// to be sure of matching versions.
+pub use {glam, wgpu};
 
 /// Bindings of an uploaded volume (group 0), tree access, sampling and the DDA.
 pub const VOLUME_WGSL: &str = include_str!("../../shaders/volume.wgsl");

@@ -101,6 +101,45 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// The density march's optical depth `τ` (in the settings' length unit, before `absorb`)
+    /// along the world ray from `origin` along `dir` (normalized here), for world distances
+    /// `t ∈ [0, t_max]` only: the `Density` mode's sum (whatever `settings.mode` is) with the ray
+    /// cut at `t_max` — a scene's depth — and the same stop once `absorb·τ ≥ OPAQUE_DEPTH`.
+    /// `T = exp(−absorb·τ)`; `t_max = ∞` gives the `Density` mode's `T`.
+    ///
+    /// The reference of the runtime's engine drawer (`VolumeDrawer`): an instance is a tracer
+    /// of the asset with `index_to_world` premultiplied by the instance's transform, its density
+    /// scale multiplies `absorb`, and a crossfade between frames `f` and `f + 1` with weight `a`
+    /// is `(1 − a)·τ_f + a·τ_{f+1}`. As `τ` is linear in the voxel values, that is the march
+    /// through the per-voxel lerp `(1 − a)·v_f + a·v_{f+1}` exactly, except where a frame's
+    /// march stops at the opaque depth (both transmittances are then below `e^−20·…`).
+    pub fn optical_depth(
+        &self,
+        origin: [f64; 3],
+        dir: [f64; 3],
+        t_max: f64,
+        scratch: &mut Scratch,
+    ) -> f64 {
+        let ray = IndexRay::new(
+            self.xf.index_of(origin),
+            self.xf.dir_to_index(normalize(dir)),
+            self.voxel_units(),
+        );
+        let mut v = Density {
+            per_t: ray.per_t,
+            absorb: self.settings.absorb as f64,
+            tau: 0.0,
+            steps: 0,
+        };
+        if let Some((t0, t1)) = ray.clip(self.extent) {
+            let t1 = t1.min(t_max);
+            if t1 > t0 {
+                walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
+            }
+        }
+        v.tau
+    }
+
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
     /// here). `pixel` seeds delta tracking (`y·width + x` in `render`).
     pub fn trace(&self, eye: [f64; 3], dir: [f64; 3], pixel: u32, scratch: &mut Scratch) -> Sample {

@@ -267,3 +267,42 @@ fn default_camera_frames_the_stored_box() {
         j1
     );
 }
+
+#[test]
+fn optical_depth_is_the_density_sum_cut_at_t_max() {
+    // The box holds SIGMA everywhere: τ over [0, t_max] is SIGMA · (voxel length of the part of
+    // the box before t_max), and with t_max = ∞ it is the Density mode's T.
+    let a = two_frames();
+    let to_world = |p: [f64; 3]| [0, 1, 2].map(|k| (p[k] - 0.5) * 0.5 + [1.0, 2.0, 3.0][k]);
+    let (lo, hi) = (
+        to_world(LO.map(|c| c as f64)),
+        to_world(HI.map(|c| c as f64)),
+    );
+    let cam = Camera::framing(&a, 0, 1.0).unwrap();
+    let s = RenderSettings {
+        absorb: 0.01,
+        ..small(Mode::Density, 0)
+    };
+    let tracer = Tracer::new(&a, &cam, &s).unwrap();
+    let mut rng = XorShift(5);
+    let mut scratch = Scratch::default();
+    for i in 0..100 {
+        let p = [0, 1, 2].map(|k| rng.range(LO[k] as f64, HI[k] as f64));
+        let d = rng.dir();
+        let target = to_world(p);
+        let eye = [0, 1, 2].map(|k| target[k] - 40.0 * d[k]);
+        let (t0, t1) = slab_interval(eye, d, lo, hi).expect("aimed at the box");
+        let full = tracer.optical_depth(eye, d, f64::INFINITY, &mut scratch);
+        let density = tracer.trace(eye, d, 0, &mut scratch).value as f64;
+        assert!(((-0.01 * full).exp() - density).abs() < 1e-6, "ray {i}");
+        // Voxel units: a world length ℓ is 2ℓ voxels (voxel size 0.5).
+        let cut = 0.5 * (t0 + t1);
+        let half = tracer.optical_depth(eye, d, cut, &mut scratch);
+        let want = SIGMA as f64 * 2.0 * (cut - t0);
+        assert!(
+            (half - want).abs() < 1e-6 * (1.0 + want),
+            "ray {i}: {half} vs {want}"
+        );
+        assert_eq!(tracer.optical_depth(eye, d, t0 * 0.9, &mut scratch), 0.0);
+    }
+}

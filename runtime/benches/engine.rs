@@ -1,0 +1,233 @@
+//! What the engine drawer (`VolumeDrawer`) costs per frame: N = 1, 8, 64 instances of one asset
+//! on a cubic lattice, all in view (a reversed-Z infinite perspective framing the lattice), with
+//! a depth buffer (a plane behind everything, so the depth read runs) and an `Rgba8UnormSrgb`
+//! colour target, at 640×360 and 1920×1080. GPU time by timestamp queries
+//! (`vdbcook_runtime::GpuTimer`) around the recorded compute and composite passes, median of
+//! RUNS after one warm-up, plus submit+wait wall time; the cost per instance is GPU ms / N. The
+//! figures: `docs/engine.md`.
+//!
+//! `cargo bench -p vdbcook-runtime --bench engine [-- ASSET.vdbc]`; by default the wdas f32 asset
+//! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`.
+//! `VDBCOOK_BENCH_SIZES=small`: 640×360 only.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
+use vdbcook_runtime::{
+    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Medium, View, VolumeDrawer,
+};
+
+const RUNS: usize = 3;
+const SIZES: [(u32, u32); 2] = [(640, 360), (1920, 1080)];
+const COUNTS: [usize; 3] = [1, 8, 64];
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+fn main() {
+    let arg = std::env::args()
+        .skip(1)
+        .find(|a| !a.starts_with("--"))
+        .map(PathBuf::from);
+    let path = arg.unwrap_or_else(|| {
+        let target = std::env::var("CARGO_TARGET_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|_| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
+        target.join("vs-vdb-render/wdas_cloud_sixteenth_f32.vdbc")
+    });
+    let Ok(asset) = Asset::load(&path) else {
+        eprintln!(
+            "skipping: cannot load {} (run the vdbcook-trace vs_vdb_render bench, or give a path)",
+            path.display()
+        );
+        return;
+    };
+    let sizes: &[(u32, u32)] = if std::env::var("VDBCOOK_BENCH_SIZES").as_deref() == Ok("small") {
+        &SIZES[..1]
+    } else {
+        &SIZES
+    };
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+        eprintln!("skipping: no GPU adapter");
+        return;
+    };
+    let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("engine bench"),
+        required_limits: adapter.limits(),
+        required_features: (adapter.features() & vdbcook_runtime::OPTIONAL_FEATURES)
+            | if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
+        ..Default::default()
+    }))
+    .expect("device");
+    let volume = GpuVolume::upload(&device, &queue, &asset).expect("upload");
+    let format = wgpu::TextureFormat::Rgba8UnormSrgb;
+    let mut drawer = VolumeDrawer::new(&device, &volume, format).expect("drawer");
+    let timer = GpuTimer::new(&device, &queue);
+    println!(
+        "adapter: {} ({:?}); timestamp queries: {timestamps}; {}; median of {RUNS}",
+        adapter.get_info().name,
+        adapter.get_info().backend,
+        path.display()
+    );
+
+    // The asset's stored box in world space: its centre and radius.
+    let (lo, hi) = volume.frame_bbox(0).expect("frame 0 stores something");
+    let m = asset.header.index_to_world;
+    let world = |p: [f64; 3]| {
+        Vec3::from_array(
+            [0, 1, 2].map(|r| (m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]) as f32),
+        )
+    };
+    let (wlo, whi) = (world(lo), world(hi));
+    let centre = 0.5 * (wlo + whi);
+    let radius = 0.5 * (whi - wlo).length();
+
+    println!("| instances | size | GPU ms (timestamps) | GPU ms per instance | submit+wait ms |");
+    println!("|---:|---|---:|---:|---:|");
+    for &(w, h) in sizes {
+        let tex = |format, usage| {
+            device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("engine bench target"),
+                    size: wgpu::Extent3d {
+                        width: w,
+                        height: h,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default())
+        };
+        let color = tex(format, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let depth = tex(
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        for n in COUNTS {
+            // A k×k×k lattice (k = ⌈∛n⌉), spacing 2.2 radii, the first n sites.
+            let k = (1..).find(|k| k * k * k >= n).unwrap();
+            let spacing = 2.2 * radius;
+            let instances: Vec<Instance> = (0..n)
+                .map(|i| {
+                    let c = Vec3::new((i % k) as f32, ((i / k) % k) as f32, (i / (k * k)) as f32)
+                        - Vec3::splat(0.5 * (k - 1) as f32);
+                    Instance {
+                        tint: Vec3::new(1.0, 0.5 + 0.5 * (i % 2) as f32, 0.8),
+                        ..Instance::at(Affine3A::from_translation(c * spacing))
+                    }
+                })
+                .collect();
+            let fov = 40f32.to_radians();
+            let reach = radius + spacing * 0.5 * (k - 1) as f32 * 3f32.sqrt();
+            let dist = reach / (0.5 * fov).sin();
+            let dir = Vec3::new(0.6, 0.4, 1.0).normalize();
+            let view = View::look_at(
+                centre + dir * dist,
+                centre,
+                Vec3::Y,
+                fov,
+                w as f32 / h as f32,
+                0.1,
+                (w, h),
+            )
+            .expect("view");
+            let behind = {
+                let c = view.proj * Vec4::new(0.0, 0.0, -(dist + 2.0 * reach), 1.0);
+                c.z / c.w
+            };
+            let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+            for run in 0..=RUNS {
+                let start = Instant::now();
+                let mut enc = device.create_command_encoder(&Default::default());
+                clear(&mut enc, &color, &depth, behind);
+                if let Some(t) = &timer {
+                    t.begin(&mut enc);
+                }
+                drawer
+                    .record(
+                        &device,
+                        &mut enc,
+                        &DrawTarget {
+                            color: &color,
+                            depth: Some(&depth),
+                        },
+                        &view,
+                        &instances,
+                        &Medium::default(),
+                    )
+                    .expect("record");
+                if let Some(t) = &timer {
+                    t.end(&mut enc);
+                }
+                queue.submit([enc.finish()]);
+                device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .expect("poll");
+                let elapsed = start.elapsed().as_secs_f64() * 1e3;
+                let ms = timer.as_ref().and_then(|t| t.read_ms(&device));
+                if run > 0 {
+                    wall.push(elapsed);
+                    gpu.extend(ms);
+                }
+            }
+            let (g, per) = if gpu.is_empty() {
+                ("–".to_string(), "–".to_string())
+            } else {
+                let g = median(gpu);
+                (format!("{g:.1}"), format!("{:.2}", g / n as f64))
+            };
+            println!("| {n} | {w}×{h} | {g} | {per} | {:.1} |", median(wall));
+        }
+    }
+}
+
+/// Clears the colour target and sets the depth buffer to the plane `depth`.
+fn clear(
+    enc: &mut wgpu::CommandEncoder,
+    color: &wgpu::TextureView,
+    depth: &wgpu::TextureView,
+    d: f32,
+) {
+    let _ = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("engine bench clear"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: color,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: 0.2,
+                    g: 0.3,
+                    b: 0.5,
+                    a: 1.0,
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(d),
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+}

@@ -1,0 +1,1009 @@
+//! Drawing volumes into an engine's frame: the engine owns the device, the queue, the command
+//! encoder, the depth buffer and the colour target; this module owns pipelines and the small
+//! per-draw buffers, and records work into the engine's encoder without blocking or submitting.
+//!
+//! - [`View`]: the engine's view and projection matrices (perspective or orthographic, standard
+//!   or reversed Z, finite or infinite far plane), viewport and jitter. A pixel's ray comes from
+//!   unprojecting its centre (+ jitter, in pixels) through `proj⁻¹` into view space (starting at
+//!   the eye for a perspective projection, on the near plane for an orthographic one) and then
+//!   into world space through `view⁻¹`. [`ViewRays`] is that math in f64 (the GPU does it in f32).
+//! - [`Instance`]: where a volume is (`world_from_volume`, composed with the asset's
+//!   `index_to_world`), which time of its flip-book (a fractional time crossfades two frames),
+//!   how dense and which colour.
+//! - [`VolumeDrawer`]: per uploaded volume and colour format, [`VolumeDrawer::record`] records a
+//!   compute pass (`shaders/draw.wgsl`: per pixel, every instance's density march cut at the
+//!   scene depth, composited front to back into premultiplied radiance and transmittance
+//!   `(L, T)` in an `Rgba16Float` texture) and a render pass (`shaders/composite.wgsl`: the
+//!   blend unit computes `out = L + T·scene` on the colour target, any blendable format).
+//!
+//! The density march is the CPU tracer's Density mode (`vdbcook_trace::Tracer::optical_depth`
+//! is its reference): `T = exp(−absorb·scale·τ)` with `τ` the exact sum of voxel values times
+//! segment lengths; the volume is flat-lit: `L = tint·(1 − T)`. A crossfade samples the per-voxel
+//! lerp of the two frames, which for this march is the lerp of their optical depths.
+//! `docs/engine.md` walks through the use.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
+use wgpu::util::DeviceExt;
+
+use vdbcook_trace::{Affine, MAX_SIDE};
+
+use crate::upload::GpuVolume;
+use crate::{LengthUnit, Result, RuntimeError, VOLUME_WGSL};
+
+/// The engine drawer's compute shader (needs [`VOLUME_WGSL`](crate::VOLUME_WGSL) before it).
+pub const DRAW_WGSL: &str = include_str!("../../shaders/draw.wgsl");
+/// The engine drawer's composite pass (a module of its own).
+pub const COMPOSITE_WGSL: &str = include_str!("../../shaders/composite.wgsl");
+
+/// The format of the `(L, T)` texture between the two passes.
+const LT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+const WORKGROUP: u32 = 8;
+
+/// The colour-target formats the composite blends onto.
+pub const DRAW_COLOR_FORMATS: [wgpu::TextureFormat; 6] = [
+    wgpu::TextureFormat::Rgba8Unorm,
+    wgpu::TextureFormat::Rgba8UnormSrgb,
+    wgpu::TextureFormat::Bgra8Unorm,
+    wgpu::TextureFormat::Bgra8UnormSrgb,
+    wgpu::TextureFormat::Rgba16Float,
+    wgpu::TextureFormat::Rgb10a2Unorm,
+];
+
+/// The engine's camera for one draw: its view matrix (world → view space), projection (view
+/// space → clip space, wgpu's NDC: depth in [0, 1]), viewport in pixels (the size of the colour
+/// and depth targets) and sub-pixel jitter in pixels (TAA), added to every pixel centre.
+///
+/// Any invertible projection works for perspective ones (standard or reversed Z, finite or
+/// infinite far plane). For orthographic ones (last row `[0 0 0 1]`) view space is taken to be
+/// right-handed (the camera looks down −Z, as glam's `*_rh` functions), which decides which of the
+/// two depth planes is the near one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View {
+    pub view: Mat4,
+    pub proj: Mat4,
+    pub viewport: (u32, u32),
+    pub jitter: Vec2,
+}
+
+impl View {
+    /// A view without jitter, validated ([`View::rays`]).
+    pub fn new(view: Mat4, proj: Mat4, viewport: (u32, u32)) -> Result<View> {
+        let v = View {
+            view,
+            proj,
+            viewport,
+            jitter: Vec2::ZERO,
+        };
+        v.rays()?;
+        Ok(v)
+    }
+
+    /// A right-handed look-at camera at `eye` toward `target` with a reversed-Z infinite
+    /// perspective projection (`fov_y` vertical, radians; `aspect` = width / height; `near` > 0).
+    pub fn look_at(
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        fov_y: f32,
+        aspect: f32,
+        near: f32,
+        viewport: (u32, u32),
+    ) -> Result<View> {
+        let bad = |m: String| Err(RuntimeError::Camera(m));
+        if !(fov_y > 0.0 && fov_y < std::f32::consts::PI) {
+            return bad(format!("fov_y {fov_y} rad (0 < fov_y < π)"));
+        }
+        if !(aspect > 0.0 && aspect.is_finite() && near > 0.0 && near.is_finite()) {
+            return bad(format!(
+                "aspect {aspect}, near {near} (both finite and > 0)"
+            ));
+        }
+        let f = target - eye;
+        if !eye.is_finite() || !target.is_finite() || !(f.length() > 0.0) {
+            return bad(format!("eye {eye} and target {target} (distinct, finite)"));
+        }
+        if !(f.normalize().cross(up).length() > 1e-6 * up.length()) || up.length() == 0.0 {
+            return bad(format!("up {up} is parallel to the view direction"));
+        }
+        View::new(
+            Mat4::look_at_rh(eye, target, up),
+            Mat4::perspective_infinite_reverse_rh(fov_y, aspect, near),
+            viewport,
+        )
+    }
+
+    /// Validates the view and returns its ray math: refuses a viewport side outside
+    /// `1..=MAX_SIDE`, non-finite entries or jitter, and a singular view or projection matrix.
+    pub fn rays(&self) -> Result<ViewRays> {
+        let (w, h) = self.viewport;
+        if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+            return Err(RuntimeError::Target(format!(
+                "viewport {w}x{h} (each side 1..={MAX_SIDE})"
+            )));
+        }
+        if !self.jitter.is_finite() {
+            return Err(RuntimeError::Camera(format!("jitter {}", self.jitter)));
+        }
+        let view = self.view.as_dmat4();
+        let proj = self.proj.as_dmat4();
+        check_invertible("view", &view)?;
+        check_invertible("projection", &proj)?;
+        let view_from_clip = proj.inverse();
+        let world_from_view = view.inverse();
+        let perspective = proj.row(3) != DVec4::new(0.0, 0.0, 0.0, 1.0);
+        let mut rays = ViewRays {
+            view_from_clip,
+            world_from_view,
+            perspective,
+            forward: DVec3::ZERO,
+            near_ndc: 0.0,
+            viewport: (w, h),
+            jitter: self.jitter.as_dvec2(),
+        };
+        let centre = |z| rays.unproject(0.0, 0.0, z);
+        if perspective {
+            match centre(0.5) {
+                Some(p) if p.length() > 0.0 && p.is_finite() => {}
+                _ => {
+                    return Err(RuntimeError::Camera(
+                        "the projection maps no point in front of the eye to depth 0.5".into(),
+                    ))
+                }
+            }
+        } else {
+            let (Some(p0), Some(p1)) = (centre(0.0), centre(1.0)) else {
+                return Err(RuntimeError::Camera(
+                    "orthographic projection with a depth plane at infinity".into(),
+                ));
+            };
+            let d = p1 - p0;
+            if !(d.length() > 0.0) || !d.is_finite() {
+                return Err(RuntimeError::Camera(
+                    "orthographic projection with near = far".into(),
+                ));
+            }
+            // Right-handed view space: the camera looks down −Z.
+            let (near_ndc, forward) = if d.z < 0.0 { (0.0, d) } else { (1.0, -d) };
+            rays.near_ndc = near_ndc;
+            rays.forward = forward.normalize();
+        }
+        Ok(rays)
+    }
+}
+
+/// Refuses a non-finite or (nearly) singular matrix: `|det|` below `1e-12` of the product of its
+/// column lengths (Hadamard's bound), so the test does not depend on the scene's units.
+fn check_invertible(what: &str, m: &DMat4) -> Result<()> {
+    if !m.is_finite() {
+        return Err(RuntimeError::Camera(format!(
+            "{what} matrix has a non-finite entry"
+        )));
+    }
+    let bound: f64 = (0..4).map(|c| m.col(c).length()).product();
+    let det = m.determinant();
+    if !(det.abs() > 1e-12 * bound) {
+        return Err(RuntimeError::Camera(format!(
+            "{what} matrix is singular (det {det:e}); it must be invertible"
+        )));
+    }
+    Ok(())
+}
+
+/// A validated [`View`]'s ray math in f64: what the GPU computes per pixel in f32 (the CPU
+/// reference of the tests, and picking for an engine).
+#[derive(Debug, Clone, Copy)]
+pub struct ViewRays {
+    view_from_clip: DMat4,
+    world_from_view: DMat4,
+    perspective: bool,
+    /// Orthographic: the unit view-space direction of every ray.
+    forward: DVec3,
+    /// Orthographic: the NDC depth of the near plane (0, or 1 with reversed Z).
+    near_ndc: f64,
+    viewport: (u32, u32),
+    jitter: glam::DVec2,
+}
+
+impl ViewRays {
+    /// The view-space point of NDC `(x, y, z)`, `None` at infinity.
+    fn unproject(&self, x: f64, y: f64, z: f64) -> Option<DVec3> {
+        let h = self.view_from_clip * DVec4::new(x, y, z, 1.0);
+        (h.w.abs() > 1e-30).then(|| h.truncate() / h.w)
+    }
+
+    fn ndc(&self, px: u32, py: u32) -> (f64, f64) {
+        let (w, h) = self.viewport;
+        let cx = px as f64 + 0.5 + self.jitter.x;
+        let cy = py as f64 + 0.5 + self.jitter.y;
+        (2.0 * cx / w as f64 - 1.0, 1.0 - 2.0 * cy / h as f64)
+    }
+
+    /// View-space origin and unit direction of pixel `(px, py)` (row 0 at the top).
+    fn view_ray(&self, px: u32, py: u32) -> (DVec3, DVec3) {
+        let (x, y) = self.ndc(px, py);
+        if self.perspective {
+            let p = self.unproject(x, y, 0.5).unwrap_or(DVec3::NEG_Z);
+            (DVec3::ZERO, p.normalize())
+        } else {
+            let o = self.unproject(x, y, self.near_ndc).unwrap_or(DVec3::ZERO);
+            (o, self.forward)
+        }
+    }
+
+    /// Whether the projection is a perspective one (rays start at the eye).
+    pub fn perspective(&self) -> bool {
+        self.perspective
+    }
+
+    /// The world ray of pixel `(px, py)`: origin (the eye, or the pixel on the near plane) and
+    /// unit direction. `t` along it is world distance.
+    pub fn ray(&self, px: u32, py: u32) -> (DVec3, DVec3) {
+        let (o, d) = self.view_ray(px, py);
+        let dw = self.world_from_view.transform_vector3(d);
+        (self.world_from_view.transform_point3(o), dw.normalize())
+    }
+
+    /// The world distance along pixel `(px, py)`'s ray to the scene depth `depth` (an NDC depth
+    /// as stored in a `Depth32Float` buffer), or `∞` where that depth is at infinity.
+    pub fn depth_distance(&self, px: u32, py: u32, depth: f32) -> f64 {
+        let (x, y) = self.ndc(px, py);
+        let (o, d) = self.view_ray(px, py);
+        let Some(p) = self.unproject(x, y, depth as f64) else {
+            return f64::INFINITY;
+        };
+        let s = self.world_from_view.transform_vector3(d).length();
+        (p - o).dot(d) * s
+    }
+
+    /// The world position of the eye (perspective) or of the near plane's centre.
+    fn eye(&self) -> DVec3 {
+        let o = if self.perspective {
+            DVec3::ZERO
+        } else {
+            self.unproject(0.0, 0.0, self.near_ndc)
+                .unwrap_or(DVec3::ZERO)
+        };
+        self.world_from_view.transform_point3(o)
+    }
+}
+
+/// One placed volume: where (`world_from_volume` maps the volume's world space — the asset's
+/// `index_to_world` image — into the engine's world), when (`time` in frames: an integer shows
+/// that frame, a fraction crossfades frames `⌊time⌋` and `⌊time⌋ + 1` by the per-voxel density
+/// lerp; must lie in `[0, frames − 1]`), how dense (`density_scale` ≥ 0 multiplies the medium's
+/// absorption) and which colour (`tint` ≥ 0: the flat-lit radiance is `tint·(1 − T)`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Instance {
+    pub world_from_volume: Affine3A,
+    pub time: f32,
+    pub density_scale: f32,
+    pub tint: Vec3,
+}
+
+impl Default for Instance {
+    fn default() -> Self {
+        Instance {
+            world_from_volume: Affine3A::IDENTITY,
+            time: 0.0,
+            density_scale: 1.0,
+            tint: Vec3::ONE,
+        }
+    }
+}
+
+impl Instance {
+    /// Frame 0 at `world_from_volume`, density scale 1, white.
+    pub fn at(world_from_volume: Affine3A) -> Instance {
+        Instance {
+            world_from_volume,
+            ..Default::default()
+        }
+    }
+
+    /// The `index_to_world` of this instance (row-major, column vectors, as the asset header's):
+    /// `world_from_volume · index_to_world`. A CPU tracer given an asset with this transform
+    /// draws what the drawer draws for the instance.
+    pub fn index_to_world(&self, index_to_world: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+        let m = self.world_from_volume;
+        let w = |r: usize, c: usize| -> f64 {
+            if c == 3 {
+                m.translation[r] as f64
+            } else {
+                m.matrix3.col(c)[r] as f64
+            }
+        };
+        let mut out = [[0.0; 4]; 4];
+        for (r, row) in out.iter_mut().enumerate().take(3) {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = (0..3).map(|k| w(r, k) * index_to_world[k][c]).sum::<f64>()
+                    + if c == 3 { w(r, 3) } else { 0.0 };
+            }
+        }
+        out[3] = [0.0, 0.0, 0.0, 1.0];
+        out
+    }
+
+    /// The two frames and the weight of the second: `(⌊time⌋, ⌊time⌋ + 1, time − ⌊time⌋)`, the
+    /// second frame equal to the first when the weight is 0. Refuses a time outside
+    /// `[0, frames − 1]` (or NaN).
+    pub fn frames(&self, frames: usize) -> Result<(usize, usize, f32)> {
+        let t = self.time;
+        let last = frames.saturating_sub(1) as f32;
+        if frames == 0 || !(t >= 0.0 && t <= last) {
+            return Err(RuntimeError::Setting(format!(
+                "instance time {t} outside [0, {last}] (frames of the asset: {frames})"
+            )));
+        }
+        let f0 = t.floor();
+        let a = t - f0;
+        let f0 = f0 as usize;
+        Ok(if a > 0.0 {
+            (f0, f0 + 1, a)
+        } else {
+            (f0, f0, 0.0)
+        })
+    }
+
+    fn validate(&self) -> Result<()> {
+        if !self.world_from_volume.is_finite() {
+            return Err(RuntimeError::Transform(
+                "instance world_from_volume has a non-finite entry".into(),
+            ));
+        }
+        if !(self.density_scale >= 0.0 && self.density_scale.is_finite()) {
+            return Err(RuntimeError::Setting(format!(
+                "instance density_scale {} (finite, ≥ 0)",
+                self.density_scale
+            )));
+        }
+        if !(self.tint.is_finite() && self.tint.min_element() >= 0.0) {
+            return Err(RuntimeError::Setting(format!(
+                "instance tint {} (finite, ≥ 0)",
+                self.tint
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The medium of a draw: absorption per length unit (`Voxel`: per voxel of the instance, as the
+/// CPU tracer's default; `World`: per world unit). Defaults: the CPU tracer's (0.1 per voxel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Medium {
+    pub absorb: f32,
+    pub unit: LengthUnit,
+}
+
+impl Default for Medium {
+    fn default() -> Self {
+        let s = vdbcook_trace::RenderSettings::default();
+        Medium {
+            absorb: s.absorb,
+            unit: s.unit,
+        }
+    }
+}
+
+/// Where a draw lands: the engine's colour target (a view of mip 0 of a 2D texture of the
+/// drawer's format, `RENDER_ATTACHMENT` usage, single-sampled, the view's viewport size) and
+/// optionally its depth (a view of a `Depth32Float` 2D texture of the same size with
+/// `TEXTURE_BINDING` usage, written with the same projection). Without depth rays run to the
+/// volume's end.
+#[derive(Debug, Clone, Copy)]
+pub struct DrawTarget<'a> {
+    pub color: &'a wgpu::TextureView,
+    pub depth: Option<&'a wgpu::TextureView>,
+}
+
+/// The `DrawView` uniform of `draw.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct DrawView {
+    view_from_clip: [[f32; 4]; 4],
+    world_from_view: [[f32; 4]; 4],
+    forward: [f32; 4],
+    viewport: [u32; 2],
+    jitter: [f32; 2],
+    near_ndc: f32,
+    instance_count: u32,
+    has_depth: u32,
+    voxel_units: u32,
+}
+
+/// One element of the `draw_instances` array of `draw.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct DrawInstance {
+    cell_from_world: [[f32; 4]; 3],
+    tint_absorb: [f32; 4],
+    box_lo: [f32; 4],
+    box_hi: [f32; 4],
+    frame_root0: u32,
+    frame_root1: u32,
+    _pad: [u32; 2],
+}
+
+/// The `(L, T)` texture of one viewport size and the composite's bind group over it.
+struct LtTexture {
+    size: (u32, u32),
+    view: wgpu::TextureView,
+    composite_group: wgpu::BindGroup,
+}
+
+/// Draws instances of one uploaded volume into an engine's frame (one colour format). Create it
+/// once; [`VolumeDrawer::record`] each frame (any number of times per encoder).
+pub struct VolumeDrawer {
+    draw_pipeline: wgpu::ComputePipeline,
+    draw_layout: wgpu::BindGroupLayout,
+    composite_pipeline: wgpu::RenderPipeline,
+    composite_layout: wgpu::BindGroupLayout,
+    volume_group: wgpu::BindGroup,
+    color_format: wgpu::TextureFormat,
+    dummy_depth: wgpu::TextureView,
+    lt: Option<LtTexture>,
+    index_to_world: [[f64; 4]; 4],
+    frames: usize,
+    root_len: usize,
+    /// Per frame: the cell-space box outside which every value is ≤ 0.
+    content: Vec<Option<([f64; 3], [f64; 3])>>,
+}
+
+impl VolumeDrawer {
+    /// Builds the pipelines for `volume` and colour targets of `color_format` (one of
+    /// [`DRAW_COLOR_FORMATS`]).
+    pub fn new(
+        device: &wgpu::Device,
+        volume: &GpuVolume,
+        color_format: wgpu::TextureFormat,
+    ) -> Result<VolumeDrawer> {
+        if !DRAW_COLOR_FORMATS.contains(&color_format) {
+            return Err(RuntimeError::Target(format!(
+                "colour format {color_format:?} (the drawer blends onto {DRAW_COLOR_FORMATS:?})"
+            )));
+        }
+        // Refuses a non-affine or singular index_to_world up front.
+        Affine::cells(volume.index_to_world())?;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("vdbcook draw"),
+            source: wgpu::ShaderSource::Wgsl(format!("{VOLUME_WGSL}\n{DRAW_WGSL}").into()),
+        });
+        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty,
+            count: None,
+        };
+        let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook draw"),
+            entries: &[
+                entry(
+                    0,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(
+                            std::mem::size_of::<DrawView>() as u64
+                        ),
+                    },
+                ),
+                entry(
+                    1,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(
+                            std::mem::size_of::<DrawInstance>() as u64,
+                        ),
+                    },
+                ),
+                entry(
+                    2,
+                    wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                ),
+                entry(
+                    3,
+                    wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: LT_FORMAT,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                ),
+            ],
+        });
+        let (volume_layout, volume_group) = volume.bind_group();
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("vdbcook draw"),
+            bind_group_layouts: &[Some(volume_layout), Some(&draw_layout)],
+            immediate_size: 0,
+        });
+        let draw_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("vdbcook draw"),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some("draw_main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &volume.pipeline_constants(),
+                ..Default::default()
+            },
+            cache: None,
+        });
+
+        let composite_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("vdbcook composite"),
+            source: wgpu::ShaderSource::Wgsl(COMPOSITE_WGSL.into()),
+        });
+        let composite_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook composite"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let composite_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vdbcook composite"),
+                bind_group_layouts: &[Some(&composite_layout)],
+                immediate_size: 0,
+            });
+        let composite_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("vdbcook composite"),
+            layout: Some(&composite_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &composite_module,
+                entry_point: Some("composite_vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &composite_module,
+                entry_point: Some("composite_fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: color_format,
+                    // out.rgb = L + T·scene.rgb; out.a = scene.a.
+                    blend: Some(wgpu::BlendState {
+                        color: wgpu::BlendComponent {
+                            src_factor: wgpu::BlendFactor::One,
+                            dst_factor: wgpu::BlendFactor::SrcAlpha,
+                            operation: wgpu::BlendOperation::Add,
+                        },
+                        alpha: wgpu::BlendComponent {
+                            src_factor: wgpu::BlendFactor::Zero,
+                            dst_factor: wgpu::BlendFactor::One,
+                            operation: wgpu::BlendOperation::Add,
+                        },
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let dummy_depth = device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some("vdbcook no depth"),
+                size: wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Depth32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default());
+        let frames = volume.frame_count();
+        Ok(VolumeDrawer {
+            draw_pipeline,
+            draw_layout,
+            composite_pipeline,
+            composite_layout,
+            volume_group: volume_group.clone(),
+            color_format,
+            dummy_depth,
+            lt: None,
+            index_to_world: *volume.index_to_world(),
+            frames,
+            root_len: volume.root_len(),
+            content: (0..frames).map(|f| volume.content_box(f)).collect(),
+        })
+    }
+
+    /// The colour format this drawer blends onto.
+    pub fn color_format(&self) -> wgpu::TextureFormat {
+        self.color_format
+    }
+
+    /// Validates the targets against the view.
+    fn check_targets(&self, target: &DrawTarget, (w, h): (u32, u32)) -> Result<()> {
+        let c = target.color.texture();
+        if c.format() != self.color_format {
+            return Err(RuntimeError::Target(format!(
+                "colour target format {:?}, the drawer was built for {:?}",
+                c.format(),
+                self.color_format
+            )));
+        }
+        if (c.width(), c.height()) != (w, h)
+            || c.sample_count() != 1
+            || !c.usage().contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+        {
+            return Err(RuntimeError::Target(format!(
+                "colour target {}x{} ({} samples, usage {:?}): needs the viewport size {w}x{h}, \
+                 one sample and RENDER_ATTACHMENT",
+                c.width(),
+                c.height(),
+                c.sample_count(),
+                c.usage()
+            )));
+        }
+        if let Some(d) = target.depth {
+            let d = d.texture();
+            if d.format() != wgpu::TextureFormat::Depth32Float {
+                return Err(RuntimeError::Target(format!(
+                    "depth format {:?} (the drawer reads Depth32Float)",
+                    d.format()
+                )));
+            }
+            if (d.width(), d.height()) != (w, h)
+                || d.sample_count() != 1
+                || !d.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
+            {
+                return Err(RuntimeError::Target(format!(
+                    "depth texture {}x{} ({} samples, usage {:?}): needs the viewport size \
+                     {w}x{h}, one sample and TEXTURE_BINDING",
+                    d.width(),
+                    d.height(),
+                    d.sample_count(),
+                    d.usage()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The `(L, T)` texture for `size`, created when the size changes.
+    fn lt_texture(&mut self, device: &wgpu::Device, size: (u32, u32)) -> &LtTexture {
+        if self.lt.as_ref().map(|l| l.size) != Some(size) {
+            let view = device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("vdbcook draw (L, T)"),
+                    size: wgpu::Extent3d {
+                        width: size.0,
+                        height: size.1,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: LT_FORMAT,
+                    usage: wgpu::TextureUsages::STORAGE_BINDING
+                        | wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default());
+            let composite_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vdbcook composite"),
+                layout: &self.composite_layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                }],
+            });
+            self.lt = Some(LtTexture {
+                size,
+                view,
+                composite_group,
+            });
+        }
+        self.lt.as_ref().expect("just created")
+    }
+
+    /// The GPU instances in front-to-back order (by the distance from the eye, or the near
+    /// plane's centre, to the centre of each instance's box; ties keep the caller's order),
+    /// leaving out instances with nothing > 0 in their frames.
+    fn instances(
+        &self,
+        rays: &ViewRays,
+        instances: &[Instance],
+        medium: &Medium,
+    ) -> Result<Vec<DrawInstance>> {
+        let eye = rays.eye();
+        let mut out = Vec::with_capacity(instances.len());
+        for (i, inst) in instances.iter().enumerate() {
+            inst.validate()
+                .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
+            let (f0, f1, a) = inst.frames(self.frames)?;
+            let xf = Affine::cells(&inst.index_to_world(&self.index_to_world))
+                .map_err(|e| RuntimeError::Transform(format!("instance {i}: {e}")))?;
+            let boxes = [self.content[f0], self.content[f1]];
+            let Some((lo, hi)) = boxes.into_iter().flatten().reduce(|x, y| {
+                (
+                    [0, 1, 2].map(|k| x.0[k].min(y.0[k])),
+                    [0, 1, 2].map(|k| x.1[k].max(y.1[k])),
+                )
+            }) else {
+                continue;
+            };
+            let centre = xf.world_of([0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k])));
+            let distance = (DVec3::from(centre) - eye).length();
+            // world → cell: c = inv_a·(w − b).
+            let shift = [0, 1, 2].map(|r| (0..3).map(|k| xf.inv_a[r][k] * xf.b[k]).sum::<f64>());
+            let row = |r: usize| {
+                let m = xf.inv_a[r];
+                [m[0] as f32, m[1] as f32, m[2] as f32, -shift[r] as f32]
+            };
+            let v4 = |v: [f64; 3], w: f32| [v[0] as f32, v[1] as f32, v[2] as f32, w];
+            let absorb = medium.absorb * inst.density_scale;
+            let t = inst.tint;
+            out.push((
+                distance,
+                DrawInstance {
+                    cell_from_world: [row(0), row(1), row(2)],
+                    tint_absorb: [t.x, t.y, t.z, absorb],
+                    box_lo: v4(lo, a),
+                    box_hi: v4(hi, 0.0),
+                    frame_root0: (f0 * self.root_len) as u32,
+                    frame_root1: (f1 * self.root_len) as u32,
+                    _pad: [0; 2],
+                },
+            ));
+        }
+        out.sort_by(|x, y| x.0.total_cmp(&y.0));
+        Ok(out.into_iter().map(|(_, d)| d).collect())
+    }
+
+    /// Records the draw of `instances` seen through `view` into `encoder`: a compute pass that
+    /// writes `(L, T)` per pixel, then a render pass that blends `out = L + T·scene` onto
+    /// `target.color` (loaded and stored). Creates two small buffers and a bind group; writes
+    /// nothing through the queue, so any number of draws may be recorded into one encoder (each
+    /// composites over what the earlier ones left). Instances of this volume composite front to
+    /// back per pixel (ordered by distance, see `docs/engine.md`); draws of other volumes
+    /// composite in the order they are recorded. Nothing is recorded for an empty list.
+    pub fn record(
+        &mut self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &DrawTarget,
+        view: &View,
+        instances: &[Instance],
+        medium: &Medium,
+    ) -> Result<()> {
+        let rays = view.rays()?;
+        if !(medium.absorb >= 0.0 && medium.absorb.is_finite()) {
+            return Err(RuntimeError::Setting(format!(
+                "absorb {} (finite, ≥ 0)",
+                medium.absorb
+            )));
+        }
+        let size = view.viewport;
+        self.check_targets(target, size)?;
+        let gpu_instances = self.instances(&rays, instances, medium)?;
+        if gpu_instances.is_empty() {
+            return Ok(());
+        }
+        let m4 = |m: &DMat4| m.as_mat4().to_cols_array_2d();
+        let params = DrawView {
+            view_from_clip: m4(&rays.view_from_clip),
+            world_from_view: m4(&rays.world_from_view),
+            forward: [
+                rays.forward.x as f32,
+                rays.forward.y as f32,
+                rays.forward.z as f32,
+                rays.perspective as u32 as f32,
+            ],
+            viewport: [size.0, size.1],
+            jitter: [view.jitter.x, view.jitter.y],
+            near_ndc: rays.near_ndc as f32,
+            instance_count: gpu_instances.len() as u32,
+            has_depth: target.depth.is_some() as u32,
+            voxel_units: (medium.unit == LengthUnit::Voxel) as u32,
+        };
+        let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vdbcook draw view"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let instance_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vdbcook draw instances"),
+            contents: bytemuck::cast_slice(&gpu_instances),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let depth = target.depth.unwrap_or(&self.dummy_depth).clone();
+        let lt = self.lt_texture(device, size);
+        let (lt_view, composite_group) = (lt.view.clone(), lt.composite_group.clone());
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook draw"),
+            layout: &self.draw_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: view_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: instance_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&depth),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&lt_view),
+                },
+            ],
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vdbcook draw"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.draw_pipeline);
+            pass.set_bind_group(0, &self.volume_group, &[]);
+            pass.set_bind_group(1, &group, &[]);
+            pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
+        }
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("vdbcook composite"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target.color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.composite_pipeline);
+        pass.set_bind_group(0, &composite_group, &[]);
+        pass.draw(0..3, 0..1);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec4;
+
+    /// The Rust mirrors of `draw.wgsl`'s structs have the WGSL sizes (std140/std430 rules:
+    /// `DrawView` = 2 mat4x4 + vec4 + 2 vec2 + 4 scalars = 176 bytes; `DrawInstance` = 6 vec4 +
+    /// 4 u32 = 112, a multiple of its 16-byte alignment, so the array stride is 112). The
+    /// bindings' `min_binding_size` makes pipeline creation fail if the WGSL grows past them.
+    #[test]
+    fn mirrored_struct_sizes() {
+        assert_eq!(std::mem::size_of::<DrawView>(), 176);
+        assert_eq!(std::mem::size_of::<DrawInstance>(), 112);
+        for (name, size) in [("DrawView", 176usize), ("DrawInstance", 112)] {
+            assert!(DRAW_WGSL.contains(&format!("struct {name} {{")), "{name}");
+            assert_eq!(size % 16, 0);
+        }
+    }
+
+    #[test]
+    fn view_rays_perspective_and_orthographic() {
+        let eye = Vec3::new(1.0, 2.0, 10.0);
+        let v = View::look_at(
+            eye,
+            Vec3::new(1.0, 2.0, 0.0),
+            Vec3::Y,
+            1.0,
+            2.0,
+            0.1,
+            (200, 100),
+        )
+        .unwrap();
+        let r = v.rays().unwrap();
+        assert!(r.perspective());
+        let (o, d) = r.ray(100, 50);
+        assert!((o - eye.as_dvec3()).length() < 1e-5);
+        // Pixel (100, 50) sits half a pixel right of and below the centre.
+        assert!(d.z < -0.999 && d.x > 0.0 && d.y < 0.0, "{d}");
+        // Reversed Z: depth 0 is at infinity, 1 at the near plane.
+        assert_eq!(r.depth_distance(100, 50, 0.0), f64::INFINITY);
+        let t = r.depth_distance(100, 50, 0.01);
+        assert!((t * d.z.abs() - 10.0).abs() < 1e-3, "{t}");
+
+        let ortho = View::new(
+            Mat4::look_at_rh(eye, Vec3::new(1.0, 2.0, 0.0), Vec3::Y),
+            Mat4::orthographic_rh(-4.0, 4.0, -2.0, 2.0, 1.0, 21.0),
+            (8, 4),
+        )
+        .unwrap();
+        let r = ortho.rays().unwrap();
+        let (o, d) = r.ray(0, 0);
+        assert!((d - DVec3::NEG_Z).length() < 1e-9);
+        assert!(
+            (o - DVec3::new(1.0 - 3.5, 2.0 + 1.5, 9.0)).length() < 1e-5,
+            "{o}"
+        );
+        assert!((r.depth_distance(0, 0, 0.5) - 10.0).abs() < 1e-5);
+        // The same with reversed Z (near and far swapped).
+        let rev = View::new(
+            ortho.view,
+            Mat4::orthographic_rh(-4.0, 4.0, -2.0, 2.0, 21.0, 1.0),
+            (8, 4),
+        )
+        .unwrap()
+        .rays()
+        .unwrap();
+        let (o2, d2) = rev.ray(0, 0);
+        assert!(
+            (o2 - o).length() < 1e-5 && (d2 - d).length() < 1e-9,
+            "{o2} {d2}"
+        );
+        assert!((rev.depth_distance(0, 0, 0.25) - 15.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn singular_views_and_bad_times_are_errors() {
+        let proj = Mat4::perspective_rh(1.0, 1.0, 0.1, 100.0);
+        let e = View::new(Mat4::ZERO, proj, (4, 4)).unwrap_err();
+        assert!(matches!(e, RuntimeError::Camera(_)), "{e}");
+        assert!(e.to_string().contains("singular"), "{e}");
+        let mut p = proj;
+        p.z_axis = Vec4::ZERO;
+        assert!(View::new(Mat4::IDENTITY, p, (4, 4)).is_err());
+        assert!(View::new(Mat4::IDENTITY, proj, (0, 4)).is_err());
+        let i = Instance {
+            time: 2.5,
+            ..Default::default()
+        };
+        assert_eq!(i.frames(4).unwrap(), (2, 3, 0.5));
+        assert_eq!(Instance { time: 3.0, ..i }.frames(4).unwrap(), (3, 3, 0.0));
+        assert!(i.frames(3).is_err());
+        for t in [-0.5, f32::NAN, 3.5] {
+            assert!(Instance { time: t, ..i }.frames(4).is_err(), "{t}");
+        }
+    }
+
+    #[test]
+    fn instance_index_to_world_composes() {
+        let m = Affine3A::from_scale_rotation_translation(
+            Vec3::new(2.0, 2.0, 2.0),
+            glam::Quat::from_rotation_z(0.5),
+            Vec3::new(1.0, -3.0, 4.0),
+        );
+        let i2w = [
+            [0.5, 0.0, 0.0, 10.0],
+            [0.0, 0.5, 0.0, 20.0],
+            [0.0, 0.0, 0.5, 30.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        let c = Instance::at(m).index_to_world(&i2w);
+        let p = [3.0, -1.0, 7.0];
+        let direct = m.transform_point3(Vec3::new(
+            (0.5 * p[0] + 10.0) as f32,
+            (0.5 * p[1] + 20.0) as f32,
+            (0.5 * p[2] + 30.0) as f32,
+        ));
+        for r in 0..3 {
+            let v = c[r][0] * p[0] + c[r][1] * p[1] + c[r][2] * p[2] + c[r][3];
+            assert!((v - direct[r] as f64).abs() < 1e-4, "{r}: {v} vs {direct}");
+        }
+        assert_eq!(c[3], [0.0, 0.0, 0.0, 1.0]);
+    }
+}

@@ -1,0 +1,995 @@
+//! The engine drawer (`VolumeDrawer`) on whatever adapter exists (lavapipe in CI), each answer
+//! checked against the CPU reference tracer (`Tracer::optical_depth` per pixel, along the rays of
+//! `ViewRays`, the f64 twin of the GPU's unprojection) or against a closed form: depth planes in
+//! front of, beyond and through the cloud; `out = L + T·scene` for two backgrounds; translated,
+//! rotated and jittered instances; several instances in one draw; many draws of two volumes in
+//! one encoder against one submission each; crossfades; standard-Z, reversed-Z and orthographic
+//! projections; an 8-bit sRGB target; and the refusals (bad targets, singular views, times out of range).
+//!
+//! Tolerance: the GPU marches in f32 and stores `(L, T)` and the colour target in half floats
+//! (relative step 2⁻¹¹), so a pixel may differ from the CPU's f64 by `TOL` per channel.
+
+mod common;
+
+use common::*;
+use vdbcook_asset::{Asset, PayloadFormat};
+use vdbcook_runtime::glam::{Affine3A, EulerRot, Mat4, Quat, Vec2, Vec3, Vec4};
+use vdbcook_runtime::{
+    DrawTarget, GpuVolume, Instance, Medium, RuntimeError, View, ViewRays, VolumeDrawer,
+};
+use vdbcook_trace::{Camera, LengthUnit, RenderSettings, Scratch, Tracer};
+
+const W: u32 = 160;
+const H: u32 = 96;
+const TOL: f32 = 3e-3;
+const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+
+/// Three frames of a cloud that moves and thickens (frame 2 also holds a tiled region).
+fn cloud(format: PayloadFormat) -> Asset {
+    build(
+        [2, 2, 2],
+        rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
+        0.0,
+        &[
+            blob_frame([120.0, 100.0, 40.0], 34.0, 1.2, None),
+            blob_frame([140.0, 110.0, 50.0], 28.0, 2.5, None),
+            blob_frame([100.0, 120.0, 60.0], 30.0, 0.8, Some([1, 1, 1])),
+        ],
+        format,
+    )
+}
+
+struct Gpu {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+}
+
+/// A colour target and a depth buffer of the test size.
+struct Frame {
+    color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+}
+
+impl Gpu {
+    fn new(test: &str) -> Option<Gpu> {
+        gpu(test).map(|(device, queue)| Gpu { device, queue })
+    }
+
+    fn frame(&self) -> Frame {
+        let tex = |format, usage| {
+            self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("test target"),
+                size: wgpu::Extent3d {
+                    width: W,
+                    height: H,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let color = tex(
+            FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth = tex(
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("test readback"),
+            size: (W * H * 8) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Frame {
+            color_view: color.create_view(&Default::default()),
+            depth_view: depth.create_view(&Default::default()),
+            color,
+            readback,
+        }
+    }
+
+    /// Records clearing the colour target to `bg` and, with `depth`, the depth buffer to it (a
+    /// plane of constant NDC depth: what an engine's depth pre-pass leaves).
+    fn clear(&self, enc: &mut wgpu::CommandEncoder, f: &Frame, bg: [f64; 3], depth: Option<f32>) {
+        let _ = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("test clear"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &f.color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: bg[0],
+                        g: bg[1],
+                        b: bg[2],
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: depth.map(|d| wgpu::RenderPassDepthStencilAttachment {
+                view: &f.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(d),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+    }
+
+    /// Reads the colour target back (RGBA, f32 from the half floats).
+    fn read(&self, f: &Frame) -> Vec<f32> {
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            f.color.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &f.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(W * 8),
+                    rows_per_image: Some(H),
+                },
+            },
+            f.color.size(),
+        );
+        self.queue.submit([enc.finish()]);
+        let slice = f.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("poll");
+        let out = {
+            let data = slice.get_mapped_range().expect("mapped");
+            data.chunks_exact(2)
+                .map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32())
+                .collect()
+        };
+        f.readback.unmap();
+        out
+    }
+
+    /// Clears (background `bg`, depth plane `depth`), draws, submits and reads back.
+    #[allow(clippy::too_many_arguments)]
+    fn draw(
+        &self,
+        drawer: &mut VolumeDrawer,
+        f: &Frame,
+        view: &View,
+        instances: &[Instance],
+        medium: &Medium,
+        bg: [f64; 3],
+        depth: Option<f32>,
+    ) -> Vec<f32> {
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        self.clear(&mut enc, f, bg, depth);
+        let target = DrawTarget {
+            color: &f.color_view,
+            depth: depth.map(|_| &f.depth_view),
+        };
+        drawer
+            .record(&self.device, &mut enc, &target, view, instances, medium)
+            .expect("record");
+        self.queue.submit([enc.finish()]);
+        self.read(f)
+    }
+}
+
+/// The CPU reference of one instance: a tracer per frame of the crossfade on the asset moved by
+/// the instance's transform, absorption scaled by its density.
+struct CpuInstance<'a> {
+    tracers: Vec<(Tracer<'a>, f64)>,
+    absorb: f64,
+    tint: Vec3,
+}
+
+fn cpu_instance<'a>(moved: &'a Asset, inst: &Instance, medium: &Medium) -> CpuInstance<'a> {
+    let (f0, f1, a) = inst.frames(moved.frame_count()).unwrap();
+    let cam = Camera::framing(moved, 0, 1.0).unwrap();
+    let absorb = medium.absorb * inst.density_scale;
+    let tracer = |frame| {
+        let s = RenderSettings {
+            width: 4,
+            height: 4,
+            frame,
+            absorb,
+            unit: medium.unit,
+            ..Default::default()
+        };
+        Tracer::new(moved, &cam, &s).unwrap()
+    };
+    let mut tracers = vec![(tracer(f0), 1.0 - a as f64)];
+    if a > 0.0 {
+        tracers.push((tracer(f1), a as f64));
+    }
+    CpuInstance {
+        tracers,
+        absorb: absorb as f64,
+        tint: inst.tint,
+    }
+}
+
+/// The asset as the instance places it (what the CPU tracer gets).
+fn moved(asset: &Asset, inst: &Instance) -> Asset {
+    let mut a = asset.clone();
+    a.header.index_to_world = inst.index_to_world(&asset.header.index_to_world);
+    a
+}
+
+/// Per pixel `(L, T)` on the CPU: instances composited in the order given (tests use equal
+/// tints wherever instances overlap, where the order does not matter), rays cut at the depth.
+fn cpu_lt(rays: &ViewRays, instances: &[CpuInstance], depth: Option<f32>) -> Vec<[f64; 4]> {
+    let mut scratch = Scratch::default();
+    let mut out = Vec::with_capacity((W * H) as usize);
+    for y in 0..H {
+        for x in 0..W {
+            let (o, d) = rays.ray(x, y);
+            let t_max = depth.map_or(f64::INFINITY, |z| rays.depth_distance(x, y, z));
+            let (mut l, mut t) = ([0.0f64; 3], 1.0f64);
+            for inst in instances {
+                let tau: f64 = inst
+                    .tracers
+                    .iter()
+                    .map(|(tr, w)| w * tr.optical_depth(o.into(), d.into(), t_max, &mut scratch))
+                    .sum();
+                let ti = (-inst.absorb * tau).exp();
+                for (c, lc) in l.iter_mut().enumerate() {
+                    *lc += t * inst.tint[c] as f64 * (1.0 - ti);
+                }
+                t *= ti;
+            }
+            out.push([l[0], l[1], l[2], t]);
+        }
+    }
+    out
+}
+
+/// Largest difference between the GPU picture and `L + T·bg` from the CPU.
+fn max_diff(gpu: &[f32], cpu: &[[f64; 4]], bg: [f64; 3]) -> (f32, String) {
+    let mut worst = (0.0f32, String::new());
+    for (p, lt) in cpu.iter().enumerate() {
+        for c in 0..3 {
+            let want = (lt[c] + lt[3] * bg[c]) as f32;
+            let got = gpu[4 * p + c];
+            let d = (got - want).abs();
+            // NaN counts as the worst.
+            if d.is_nan() || d > worst.0 {
+                worst = (
+                    d,
+                    format!(
+                        "pixel ({}, {}) channel {c}: gpu {got}, cpu {want} (T {})",
+                        p as u32 % W,
+                        p as u32 / W,
+                        lt[3]
+                    ),
+                );
+            }
+        }
+    }
+    worst
+}
+
+/// A view of the moved asset as the CPU tracer's default framing sees it: reversed-Z infinite
+/// perspective (`View::look_at`).
+fn framing_view(asset: &Asset) -> (View, Camera) {
+    let cam = Camera::framing(asset, 0, W as f64 / H as f64).unwrap();
+    let v = |a: [f64; 3]| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32);
+    let view = View::look_at(
+        v(cam.eye),
+        v(cam.look_at),
+        v(cam.up),
+        (cam.fov_y_deg as f32).to_radians(),
+        W as f32 / H as f32,
+        0.05,
+        (W, H),
+    )
+    .unwrap();
+    (view, cam)
+}
+
+/// The NDC depth `proj` gives a point `dist` in front of a right-handed camera.
+fn ndc_depth(proj: &Mat4, dist: f32) -> f32 {
+    let c = *proj * Vec4::new(0.0, 0.0, -dist, 1.0);
+    c.z / c.w
+}
+
+/// Distance from the eye to the framing camera's look-at point (the cloud's box centre).
+fn centre_distance(cam: &Camera) -> f32 {
+    let d: f64 = (0..3).map(|k| (cam.look_at[k] - cam.eye[k]).powi(2)).sum();
+    d.sqrt() as f32
+}
+
+fn setup(gpu: &Gpu, asset: &Asset) -> (GpuVolume, VolumeDrawer) {
+    let vol = GpuVolume::upload(&gpu.device, &gpu.queue, asset).expect("upload");
+    let drawer = VolumeDrawer::new(&gpu.device, &vol, FORMAT).expect("drawer");
+    (vol, drawer)
+}
+
+const BG: [f64; 3] = [0.25, 0.5, 0.75];
+
+#[test]
+fn depth_planes_in_front_beyond_and_through_the_cloud() {
+    let Some(gpu) = Gpu::new("depth_planes_in_front_beyond_and_through_the_cloud") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let (view, cam) = framing_view(&asset);
+    let rays = view.rays().unwrap();
+    let inst = [Instance::default()];
+    let medium = Medium::default();
+    let mid = centre_distance(&cam);
+
+    let free = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, None);
+    let cpu_free = cpu_lt(&rays, &[cpu_instance(&asset, &inst[0], &medium)], None);
+    let (d, at) = max_diff(&free, &cpu_free, BG);
+    eprintln!("no depth: max diff {d:.2e} {at}");
+    assert!(d <= TOL, "no depth: {at}");
+    assert!(
+        cpu_free.iter().filter(|p| p[3] < 0.5).count() > 100,
+        "the cloud covers the picture"
+    );
+
+    // In front of the cloud: the background, bit for bit.
+    let near = gpu.draw(
+        &mut drawer,
+        &f,
+        &view,
+        &inst,
+        &medium,
+        BG,
+        Some(ndc_depth(&view.proj, 0.2 * mid)),
+    );
+    let bg16: Vec<f32> = (0..(W * H) as usize)
+        .flat_map(|_| [BG[0], BG[1], BG[2], 1.0])
+        .map(|v| half::f16::from_f64(v).to_f32())
+        .collect();
+    assert_eq!(
+        near, bg16,
+        "a depth plane in front of the cloud changed pixels"
+    );
+
+    // Beyond it: the same pixels as without depth.
+    let far = gpu.draw(
+        &mut drawer,
+        &f,
+        &view,
+        &inst,
+        &medium,
+        BG,
+        Some(ndc_depth(&view.proj, 4.0 * mid)),
+    );
+    assert_eq!(far, free, "a depth plane beyond the cloud changed pixels");
+
+    // Through its centre: cut, as the CPU cut at the same distances.
+    let z = ndc_depth(&view.proj, mid);
+    let cut = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, Some(z));
+    let cpu_cut = cpu_lt(&rays, &[cpu_instance(&asset, &inst[0], &medium)], Some(z));
+    let (d, at) = max_diff(&cut, &cpu_cut, BG);
+    eprintln!("depth through the centre: max diff {d:.2e} {at}");
+    assert!(d <= TOL, "cut: {at}");
+    let thinner = (0..cpu_cut.len())
+        .filter(|&p| cpu_cut[p][3] > cpu_free[p][3] + 0.05)
+        .count();
+    assert!(
+        thinner > 100,
+        "the cut removes part of the cloud ({thinner} pixels)"
+    );
+}
+
+#[test]
+fn blend_is_radiance_plus_transmittance_times_scene() {
+    let Some(gpu) = Gpu::new("blend_is_radiance_plus_transmittance_times_scene") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    let inst = [Instance {
+        tint: Vec3::new(1.0, 0.6, 0.3),
+        ..Default::default()
+    }];
+    let medium = Medium::default();
+    let (a, b) = ([0.9, 0.1, 0.4], [0.0, 0.8, 0.2]);
+    let ga = gpu.draw(&mut drawer, &f, &view, &inst, &medium, a, None);
+    let gb = gpu.draw(&mut drawer, &f, &view, &inst, &medium, b, None);
+    let cpu = cpu_lt(
+        &view.rays().unwrap(),
+        &[cpu_instance(&asset, &inst[0], &medium)],
+        None,
+    );
+    let mut worst = 0.0f32;
+    for (p, lt) in cpu.iter().enumerate() {
+        for c in 0..3 {
+            // out_a − out_b = T·(a − b), and out_a − T·a = L = tint·(1 − T).
+            let t = (ga[4 * p + c] - gb[4 * p + c]) as f64 / (a[c] - b[c]);
+            let l = ga[4 * p + c] as f64 - t * a[c];
+            worst = worst.max((t - lt[3]).abs() as f32);
+            worst = worst.max((l - lt[c]).abs() as f32);
+            assert!(
+                (t - lt[3]).abs() < 4e-3 && (l - lt[c]).abs() < 4e-3,
+                "pixel {p} channel {c}: T {t} vs {}, L {l} vs {}",
+                lt[3],
+                lt[c]
+            );
+        }
+        // The target's alpha is kept.
+        assert_eq!(ga[4 * p + 3], 1.0);
+    }
+    eprintln!("blend: T and L within {worst:.2e} of the CPU");
+}
+
+#[test]
+fn moved_and_jittered_instances_match_the_cpu() {
+    let Some(gpu) = Gpu::new("moved_and_jittered_instances_match_the_cpu") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let medium = Medium::default();
+    let cases = [
+        (
+            "translated",
+            Affine3A::from_translation(Vec3::new(30.0, -12.0, 7.0)),
+        ),
+        (
+            "rotated and scaled",
+            Affine3A::from_scale_rotation_translation(
+                Vec3::splat(1.3),
+                Quat::from_euler(EulerRot::XYZ, 0.4, -0.9, 1.7),
+                Vec3::new(-5.0, 4.0, 3.0),
+            ),
+        ),
+    ];
+    for (what, xf) in cases {
+        let inst = Instance {
+            density_scale: 1.7,
+            tint: Vec3::new(0.5, 1.0, 2.0),
+            ..Instance::at(xf)
+        };
+        let m = moved(&asset, &inst);
+        let (mut view, _) = framing_view(&m);
+        view.jitter = Vec2::new(0.3, -0.45);
+        let g = gpu.draw(&mut drawer, &f, &view, &[inst], &medium, BG, None);
+        let unit = Instance {
+            world_from_volume: Affine3A::IDENTITY,
+            ..inst
+        };
+        let cpu = cpu_lt(
+            &view.rays().unwrap(),
+            &[cpu_instance(&m, &unit, &medium)],
+            None,
+        );
+        let (d, at) = max_diff(&g, &cpu, BG);
+        eprintln!("{what}: max diff {d:.2e} {at}");
+        assert!(d <= 2.0 * TOL, "{what}: {at}");
+        assert!(cpu.iter().filter(|p| p[3] < 0.5).count() > 100, "{what}");
+    }
+    // World length units too.
+    let medium = Medium {
+        absorb: 0.2,
+        unit: LengthUnit::World,
+    };
+    let (view, _) = framing_view(&asset);
+    let g = gpu.draw(
+        &mut drawer,
+        &f,
+        &view,
+        &[Instance::default()],
+        &medium,
+        BG,
+        None,
+    );
+    let cpu = cpu_lt(
+        &view.rays().unwrap(),
+        &[cpu_instance(&asset, &Instance::default(), &medium)],
+        None,
+    );
+    let (d, at) = max_diff(&g, &cpu, BG);
+    eprintln!("world units: max diff {d:.2e} {at}");
+    assert!(d <= TOL, "world units: {at}");
+}
+
+/// Three overlapping copies (equal tints: the result does not depend on their order).
+fn three_copies() -> Vec<Instance> {
+    [0.0f32, 12.0, 24.0]
+        .iter()
+        .enumerate()
+        .map(|(i, &dx)| Instance {
+            time: i as f32 * 0.5,
+            density_scale: 0.6,
+            tint: Vec3::new(0.8, 0.9, 1.0),
+            ..Instance::at(Affine3A::from_translation(Vec3::new(dx, 0.5 * dx, 0.0)))
+        })
+        .collect()
+}
+
+#[test]
+fn overlapping_instances_in_one_draw_multiply_transmittances() {
+    let Some(gpu) = Gpu::new("overlapping_instances_in_one_draw_multiply_transmittances") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let medium = Medium::default();
+    let insts = three_copies();
+    let (view, cam) = framing_view(&moved(&asset, &insts[1]));
+    let z = ndc_depth(&view.proj, 1.1 * centre_distance(&cam));
+    let g = gpu.draw(&mut drawer, &f, &view, &insts, &medium, BG, Some(z));
+    let movedv: Vec<Asset> = insts.iter().map(|i| moved(&asset, i)).collect();
+    let cpu_insts: Vec<CpuInstance> = insts
+        .iter()
+        .zip(&movedv)
+        .map(|(i, m)| {
+            cpu_instance(
+                m,
+                &Instance {
+                    world_from_volume: Affine3A::IDENTITY,
+                    ..*i
+                },
+                &medium,
+            )
+        })
+        .collect();
+    let cpu = cpu_lt(&view.rays().unwrap(), &cpu_insts, Some(z));
+    let (d, at) = max_diff(&g, &cpu, BG);
+    eprintln!("three overlapping instances: max diff {d:.2e} {at}");
+    assert!(d <= TOL, "{at}");
+}
+
+#[test]
+fn many_draws_in_one_encoder_equal_one_submission_each() {
+    let Some(gpu) = Gpu::new("many_draws_in_one_encoder_equal_one_submission_each") else {
+        return;
+    };
+    // Two volumes (one of them quantized), two instances each, different tints.
+    let a = cloud(PayloadFormat::F32);
+    let b = cloud(PayloadFormat::Unorm8);
+    let (_va, mut da) = setup(&gpu, &a);
+    let (_vb, mut db) = setup(&gpu, &b);
+    let medium = Medium::default();
+    let (view, cam) = framing_view(&a);
+    let z = Some(ndc_depth(&view.proj, centre_distance(&cam)));
+    let draws: Vec<(bool, Instance)> = (0..4)
+        .map(|i| {
+            (
+                i % 2 == 0,
+                Instance {
+                    time: [0.0, 1.5, 2.0, 0.25][i],
+                    tint: Vec3::new(1.0, 0.3 * i as f32, 0.5),
+                    ..Instance::at(Affine3A::from_translation(Vec3::new(
+                        8.0 * i as f32,
+                        -4.0 * i as f32,
+                        0.0,
+                    )))
+                },
+            )
+        })
+        .collect();
+    let target = |f: &'_ Frame| -> (wgpu::TextureView, wgpu::TextureView) {
+        (f.color_view.clone(), f.depth_view.clone())
+    };
+    // One encoder.
+    let f1 = gpu.frame();
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    gpu.clear(&mut enc, &f1, BG, z);
+    let (c, d) = target(&f1);
+    for (first, inst) in &draws {
+        let drawer = if *first { &mut da } else { &mut db };
+        let t = DrawTarget {
+            color: &c,
+            depth: Some(&d),
+        };
+        drawer
+            .record(&gpu.device, &mut enc, &t, &view, &[*inst], &medium)
+            .unwrap();
+    }
+    gpu.queue.submit([enc.finish()]);
+    let one = gpu.read(&f1);
+    // One submission each.
+    let f2 = gpu.frame();
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    gpu.clear(&mut enc, &f2, BG, z);
+    gpu.queue.submit([enc.finish()]);
+    let (c, d) = target(&f2);
+    for (first, inst) in &draws {
+        let drawer = if *first { &mut da } else { &mut db };
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let t = DrawTarget {
+            color: &c,
+            depth: Some(&d),
+        };
+        drawer
+            .record(&gpu.device, &mut enc, &t, &view, &[*inst], &medium)
+            .unwrap();
+        gpu.queue.submit([enc.finish()]);
+    }
+    let each = gpu.read(&f2);
+    assert_eq!(one, each);
+    let changed = (0..one.len())
+        .filter(|&i| i % 4 != 3 && one[i] != f32::from(half::f16::from_f64(BG[i % 4])))
+        .count();
+    assert!(
+        changed > 100,
+        "the draws changed the picture ({changed} channels)"
+    );
+}
+
+#[test]
+fn crossfades_lerp_the_densities() {
+    let Some(gpu) = Gpu::new("crossfades_lerp_the_densities") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let medium = Medium::default();
+    let (view, _) = framing_view(&asset);
+    let rays = view.rays().unwrap();
+    let draw = |drawer: &mut VolumeDrawer, time: f32| {
+        let inst = Instance {
+            time,
+            ..Default::default()
+        };
+        let g = gpu.draw(drawer, &f, &view, &[inst], &medium, BG, None);
+        let cpu = cpu_lt(&rays, &[cpu_instance(&asset, &inst, &medium)], None);
+        (g, cpu)
+    };
+    let mut frames = Vec::new();
+    for k in 0..3 {
+        let (g, cpu) = draw(&mut drawer, k as f32);
+        let (d, at) = max_diff(&g, &cpu, BG);
+        eprintln!("time {k}: max diff {d:.2e} {at}");
+        assert!(d <= TOL, "time {k}: {at}");
+        frames.push(g);
+    }
+    assert_ne!(frames[0], frames[1]);
+    for time in [0.5f32, 1.25, 1.999] {
+        let (g, cpu) = draw(&mut drawer, time);
+        let (d, at) = max_diff(&g, &cpu, BG);
+        eprintln!("time {time}: max diff {d:.2e} {at}");
+        assert!(d <= TOL, "time {time}: {at}");
+    }
+}
+
+#[test]
+fn standard_reversed_and_orthographic_projections() {
+    let Some(gpu) = Gpu::new("standard_reversed_and_orthographic_projections") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let medium = Medium::default();
+    let inst = [Instance::default()];
+    let (base, cam) = framing_view(&asset);
+    let mid = centre_distance(&cam);
+    let aspect = W as f32 / H as f32;
+    let fov = (cam.fov_y_deg as f32).to_radians();
+    let half_h = mid * (0.5 * fov).tan();
+    let projections = [
+        (
+            "standard Z",
+            Mat4::perspective_rh(fov, aspect, 0.5, 4.0 * mid),
+        ),
+        (
+            "reversed Z",
+            Mat4::perspective_rh(fov, aspect, 4.0 * mid, 0.5),
+        ),
+        (
+            "standard Z, infinite far",
+            Mat4::perspective_infinite_rh(fov, aspect, 0.5),
+        ),
+        (
+            "orthographic",
+            Mat4::orthographic_rh(
+                -half_h * aspect,
+                half_h * aspect,
+                -half_h,
+                half_h,
+                0.1 * mid,
+                3.0 * mid,
+            ),
+        ),
+        (
+            "orthographic, reversed Z",
+            Mat4::orthographic_rh(
+                -half_h * aspect,
+                half_h * aspect,
+                -half_h,
+                half_h,
+                3.0 * mid,
+                0.1 * mid,
+            ),
+        ),
+    ];
+    for (what, proj) in projections {
+        let view = View::new(base.view, proj, (W, H)).unwrap();
+        let rays = view.rays().unwrap();
+        let mut free: Vec<[f64; 4]> = Vec::new();
+        for (plane, depth) in [("no depth", None), ("depth", Some(ndc_depth(&proj, mid)))] {
+            let g = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, depth);
+            let cpu = cpu_lt(&rays, &[cpu_instance(&asset, &inst[0], &medium)], depth);
+            if depth.is_none() {
+                free = cpu.clone();
+            } else {
+                let thinner = (0..cpu.len())
+                    .filter(|&p| cpu[p][3] > free[p][3] + 0.05)
+                    .count();
+                assert!(
+                    thinner > 100,
+                    "{what}: the depth plane cuts the cloud ({thinner})"
+                );
+            }
+            let (d, at) = max_diff(&g, &cpu, BG);
+            eprintln!("{what}, {plane}: max diff {d:.2e} {at}");
+            assert!(d <= TOL, "{what}, {plane}: {at}");
+            assert!(
+                cpu.iter().filter(|p| p[3] < 0.9).count() > 100,
+                "{what}, {plane}: the cloud is in view"
+            );
+        }
+    }
+}
+
+#[test]
+fn bad_inputs_are_errors() {
+    let Some(gpu) = Gpu::new("bad_inputs_are_errors") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    let medium = Medium::default();
+    let inst = [Instance::default()];
+    let tex = |w, h, format, usage| {
+        gpu.device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: None,
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+    };
+    let depth_usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+    let small_depth = tex(W / 2, H, wgpu::TextureFormat::Depth32Float, depth_usage);
+    let d24 = tex(W, H, wgpu::TextureFormat::Depth24Plus, depth_usage);
+    let rgba8 = tex(
+        W,
+        H,
+        wgpu::TextureFormat::Rgba8Unorm,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    let mut record = |target: DrawTarget, view: &View, insts: &[Instance]| {
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        drawer.record(&gpu.device, &mut enc, &target, view, insts, &medium)
+    };
+    let with_depth = |d| DrawTarget {
+        color: &f.color_view,
+        depth: Some(d),
+    };
+    let e = record(with_depth(&small_depth), &view, &inst).unwrap_err();
+    assert!(
+        matches!(e, RuntimeError::Target(_)) && e.to_string().contains("80x96"),
+        "{e}"
+    );
+    let e = record(with_depth(&d24), &view, &inst).unwrap_err();
+    assert!(e.to_string().contains("Depth24Plus"), "{e}");
+    let e = record(
+        DrawTarget {
+            color: &rgba8,
+            depth: None,
+        },
+        &view,
+        &inst,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("Rgba8Unorm"), "{e}");
+    let ok = DrawTarget {
+        color: &f.color_view,
+        depth: Some(&f.depth_view),
+    };
+    // A singular view matrix (a user's bug: an all-zero matrix, or a degenerate scale).
+    let singular = View {
+        view: Mat4::from_scale(Vec3::new(1.0, 0.0, 1.0)),
+        ..view
+    };
+    let e = record(ok, &singular, &inst).unwrap_err();
+    assert!(
+        matches!(e, RuntimeError::Camera(_)) && e.to_string().contains("singular"),
+        "{e}"
+    );
+    // A viewport other than the targets'.
+    let e = record(
+        ok,
+        &View {
+            viewport: (W, H + 1),
+            ..view
+        },
+        &inst,
+    )
+    .unwrap_err();
+    assert!(matches!(e, RuntimeError::Target(_)), "{e}");
+    // Time out of range, NaN time, negative density.
+    for bad in [
+        Instance {
+            time: 2.5,
+            ..Default::default()
+        },
+        Instance {
+            time: f32::NAN,
+            ..Default::default()
+        },
+        Instance {
+            density_scale: -1.0,
+            ..Default::default()
+        },
+    ] {
+        let e = record(ok, &view, &[Instance::default(), bad]).unwrap_err();
+        assert!(matches!(e, RuntimeError::Setting(_)), "{e}");
+    }
+    let e = record(
+        ok,
+        &view,
+        &[Instance {
+            time: 7.0,
+            ..Default::default()
+        }],
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("[0, 2]"), "{e}");
+    // A colour format the composite cannot blend onto.
+    let Err(e) = VolumeDrawer::new(&gpu.device, &vol, wgpu::TextureFormat::Rgba32Float) else {
+        panic!("Rgba32Float accepted");
+    };
+    assert!(matches!(e, RuntimeError::Target(_)), "{e}");
+    // Every listed format builds.
+    for format in vdbcook_runtime::DRAW_COLOR_FORMATS {
+        VolumeDrawer::new(&gpu.device, &vol, format).unwrap();
+    }
+    // Nothing went wrong on the device.
+    let _ = gpu.device.poll(wgpu::PollType::wait_indefinitely());
+}
+
+#[test]
+fn srgb_8_bit_targets_blend_in_linear_space() {
+    let Some(gpu) = Gpu::new("srgb_8_bit_targets_blend_in_linear_space") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let vol = GpuVolume::upload(&gpu.device, &gpu.queue, &asset).expect("upload");
+    let format = wgpu::TextureFormat::Bgra8UnormSrgb;
+    let mut drawer = VolumeDrawer::new(&gpu.device, &vol, format).expect("drawer");
+    let (view, _) = framing_view(&asset);
+    let medium = Medium::default();
+    let inst = [Instance {
+        tint: Vec3::new(1.0, 0.6, 0.3),
+        ..Default::default()
+    }];
+    let color = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: W,
+            height: H,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let cv = color.create_view(&Default::default());
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let _ = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: None,
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: &cv,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: BG[0],
+                    g: BG[1],
+                    b: BG[2],
+                    a: 1.0,
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    let target = DrawTarget {
+        color: &cv,
+        depth: None,
+    };
+    drawer
+        .record(&gpu.device, &mut enc, &target, &view, &inst, &medium)
+        .unwrap();
+    // 160 texels · 4 bytes = 640: rows padded to 768 for the copy.
+    let row = 768u32;
+    let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * H) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    enc.copy_texture_to_buffer(
+        color.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(H),
+            },
+        },
+        color.size(),
+    );
+    gpu.queue.submit([enc.finish()]);
+    buf.slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .expect("poll");
+    let bytes = buf.slice(..).get_mapped_range().expect("mapped").to_vec();
+    let cpu = cpu_lt(
+        &view.rays().unwrap(),
+        &[cpu_instance(&asset, &inst[0], &medium)],
+        None,
+    );
+    let to_srgb = |l: f64| {
+        let l = l.clamp(0.0, 1.0);
+        255.0
+            * if l <= 0.0031308 {
+                12.92 * l
+            } else {
+                1.055 * l.powf(1.0 / 2.4) - 0.055
+            }
+    };
+    let mut worst = 0.0f64;
+    for y in 0..H as usize {
+        for x in 0..W as usize {
+            let lt = cpu[y * W as usize + x];
+            let px = &bytes[y * row as usize + 4 * x..][..4];
+            // BGRA in memory.
+            for (c, &b) in [2usize, 1, 0].iter().zip(&px[..3]) {
+                let want = to_srgb(lt[*c] + lt[3] * BG[*c]);
+                worst = worst.max((b as f64 - want).abs());
+            }
+            assert_eq!(px[3], 255, "the target's alpha is kept");
+        }
+    }
+    eprintln!("Bgra8UnormSrgb: within {worst:.2} of 255 levels of the CPU");
+    // Half-float (L, T), then 8-bit sRGB: at most one level plus rounding.
+    assert!(worst <= 1.6, "{worst} levels");
+}
