@@ -21,6 +21,7 @@ pub fn fixtures() -> PathBuf {
 
 #[path = "support/samples.rs"]
 mod samples_support;
+#[allow(unused_imports)]
 pub use samples_support::sample;
 
 /// The real samples (`$VDBCOOK_SAMPLES` or `../shared/samples`; a failure under CI when missing).
