@@ -7,16 +7,10 @@
 //! qualities are timed on the top rows of the surface only, sized from a quick probe so that each
 //! row of the table takes about SECONDS; the table says how many rows were used.
 
-// Cargo builds benches with `cfg(test)` but without the test harness: the module's unit tests
-// compile to unused items here.
-#[allow(dead_code, unused_imports)]
-#[path = "../src/bcenc.rs"]
-mod bcenc;
-
 use std::time::Instant;
 
-use bcenc::{encode_bc4, encode_bc7, Bc7Quality};
 use rayon::prelude::*;
+use vdbcook::bcenc::{encode_bc4, encode_bc7, Bc7Quality};
 use vdbcook_asset::bc::{decode_bc4_block, decode_bc7_block};
 
 /// Smooth density in [0, 1]: low-frequency waves and a diagonal gradient.

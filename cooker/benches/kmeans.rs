@@ -1,14 +1,12 @@
 //! k-means speed: N candidate bricks (default 1 M, synthetic smooth densities with a few dozen
-//! underlying shapes plus noise), k = 100, 5 iterations, the project's k-means (`cooker/src/cluster.rs`,
-//! included here as a module) on all cores. Times `cluster()` only (not the data generation) and
-//! prints seconds, candidates·k·iterations per second (the rate), the same counting the
+//! underlying shapes plus noise), k = 100, 5 iterations, the project's k-means
+//! (`vdbcook::cluster`) on all cores. Times `cluster()` only (not the data generation) and prints
+//! seconds, candidates·k·iterations per second (the rate), the same counting the
 //! final assignment pass too, and a fingerprint of the result (FNV-1a over the assignments and
 //! the centroids' bits) to check that a change keeps the clusters bit-identical.
 //! Usage: `cargo bench -p vdbcook --bench kmeans -- [N] [K] [ITERATIONS]`.
 
-#[path = "../src/cluster.rs"]
-#[allow(dead_code)]
-mod cluster;
+use vdbcook::cluster;
 
 use std::time::Instant;
 

@@ -107,8 +107,8 @@ impl View {
             return bad(format!("up {up} is parallel to the view direction"));
         }
         View::new(
-            Mat4::look_at_rh(eye, target, up),
-            Mat4::perspective_infinite_reverse_rh(fov_y, aspect, near),
+            glam::camera::rh::view::look_at_mat4(eye, target, up),
+            glam::camera::rh::proj::directx::perspective_infinite_reverse(fov_y, aspect, near),
             viewport,
         )
     }
@@ -928,8 +928,8 @@ mod tests {
         assert!((t * d.z.abs() - 10.0).abs() < 1e-3, "{t}");
 
         let ortho = View::new(
-            Mat4::look_at_rh(eye, Vec3::new(1.0, 2.0, 0.0), Vec3::Y),
-            Mat4::orthographic_rh(-4.0, 4.0, -2.0, 2.0, 1.0, 21.0),
+            glam::camera::rh::view::look_at_mat4(eye, Vec3::new(1.0, 2.0, 0.0), Vec3::Y),
+            glam::camera::rh::proj::directx::orthographic(-4.0, 4.0, -2.0, 2.0, 1.0, 21.0),
             (8, 4),
         )
         .unwrap();
@@ -944,7 +944,7 @@ mod tests {
         // The same with reversed Z (near and far swapped).
         let rev = View::new(
             ortho.view,
-            Mat4::orthographic_rh(-4.0, 4.0, -2.0, 2.0, 21.0, 1.0),
+            glam::camera::rh::proj::directx::orthographic(-4.0, 4.0, -2.0, 2.0, 21.0, 1.0),
             (8, 4),
         )
         .unwrap()
@@ -960,7 +960,7 @@ mod tests {
 
     #[test]
     fn singular_views_and_bad_times_are_errors() {
-        let proj = Mat4::perspective_rh(1.0, 1.0, 0.1, 100.0);
+        let proj = glam::camera::rh::proj::directx::perspective(1.0, 1.0, 0.1, 100.0);
         let e = View::new(Mat4::ZERO, proj, (4, 4)).unwrap_err();
         assert!(matches!(e, RuntimeError::Camera(_)), "{e}");
         assert!(e.to_string().contains("singular"), "{e}");

@@ -685,19 +685,31 @@ fn standard_reversed_and_orthographic_projections() {
     let projections = [
         (
             "standard Z",
-            Mat4::perspective_rh(fov, aspect, 0.5, 4.0 * mid),
+            vdbcook_runtime::glam::camera::rh::proj::directx::perspective(
+                fov,
+                aspect,
+                0.5,
+                4.0 * mid,
+            ),
         ),
         (
             "reversed Z",
-            Mat4::perspective_rh(fov, aspect, 4.0 * mid, 0.5),
+            vdbcook_runtime::glam::camera::rh::proj::directx::perspective(
+                fov,
+                aspect,
+                4.0 * mid,
+                0.5,
+            ),
         ),
         (
             "standard Z, infinite far",
-            Mat4::perspective_infinite_rh(fov, aspect, 0.5),
+            vdbcook_runtime::glam::camera::rh::proj::directx::perspective_infinite(
+                fov, aspect, 0.5,
+            ),
         ),
         (
             "orthographic",
-            Mat4::orthographic_rh(
+            vdbcook_runtime::glam::camera::rh::proj::directx::orthographic(
                 -half_h * aspect,
                 half_h * aspect,
                 -half_h,
@@ -708,7 +720,7 @@ fn standard_reversed_and_orthographic_projections() {
         ),
         (
             "orthographic, reversed Z",
-            Mat4::orthographic_rh(
+            vdbcook_runtime::glam::camera::rh::proj::directx::orthographic(
                 -half_h * aspect,
                 half_h * aspect,
                 -half_h,
