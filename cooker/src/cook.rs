@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use rayon::prelude::*;
-use serde_json::{json, Value};
+use serde_json::Value;
 use vdbcook_asset::*;
 use vdbcook_vdb::sequence::{self, Frame};
 use vdbcook_vdb::{ErrorKind, Transform, VdbError, VdbFile};
@@ -15,6 +15,7 @@ use vdbcook_vdb::{ErrorKind, Transform, VdbError, VdbFile};
 use crate::bcenc::Bc7Quality;
 use crate::build::{build_frame, BuiltFrame, NonFinite};
 use crate::cluster;
+use crate::cook_report::{self as report, CookReport};
 use crate::encode;
 use crate::errors::CliError;
 use crate::pool::{ranges, Pool};
@@ -205,12 +206,12 @@ impl Args {
     }
 }
 
-/// A cook held in memory: the asset, its file bytes and the JSON document `cook --json` prints
+/// A cook held in memory: the asset, its file bytes and the report `cook --json` prints
 /// (without `seconds.write`, which only `run` knows).
 pub struct Cooked {
     pub asset: Asset,
     pub bytes: Vec<u8>,
-    pub doc: Value,
+    pub report: CookReport,
 }
 
 fn err(path: &Path, kind: ErrorKind, m: impl Into<String>) -> CliError {
@@ -406,13 +407,16 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // Refuse an output that is (or would join) one of the inputs before any work.
     let frames = resolve_frames(a)?;
     crate::output::refuse_inputs(&a.output, &frames, &a.inputs, "asset")?;
-    let Cooked { bytes, mut doc, .. } = cook(a)?;
+    let Cooked {
+        bytes, mut report, ..
+    } = cook(a)?;
     let t = Instant::now();
     let stage = Progress::new(a.json || a.quiet).stage("write", "bytes");
     crate::output::write(&a.output, &bytes, "asset")?;
     stage.finish();
-    doc["seconds"]["write"] = json!(t.elapsed().as_secs_f64());
-    doc["seconds"]["total"] = json!(t0.elapsed().as_secs_f64());
+    report.seconds.write = t.elapsed().as_secs_f64();
+    report.seconds.total = t0.elapsed().as_secs_f64();
+    let doc = serde_json::to_value(&report).expect("json");
     if a.json {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {
@@ -689,7 +693,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
         (None, false) => None,
     };
     // --max-bytes: the smallest bound whose GPU bytes fit (lossless f32 if it fits).
-    let mut size_doc = Value::Null;
+    let mut size_doc: Option<report::SizeSearch> = None;
     if let Some(max_bytes) = a.max_bytes {
         let root_len = root_dims.iter().map(|&d| d as u64).product::<u64>();
         let n_l2 = pool.l2_refs.len() as u64;
@@ -709,7 +713,12 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             pool.tiles.len(),
             r[1] - r[0],
             max_bytes,
-            |e, b| steps.push(json!({"max_error": e, "gpu_bytes": b})),
+            |e, b| {
+                steps.push(report::SizeStep {
+                    max_error: e,
+                    gpu_bytes: b,
+                })
+            },
         )
         .map_err(CliError::Usage)?;
         search_stage.finish();
@@ -734,7 +743,12 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                 }
             }
         }
-        size_doc = json!({"limit": max_bytes, "predicted_gpu_bytes": found.gpu_bytes, "trials": found.trials, "steps": steps});
+        size_doc = Some(report::SizeSearch {
+            limit: max_bytes,
+            predicted_gpu_bytes: found.gpu_bytes,
+            trials: found.trials,
+            steps,
+        });
     }
     let format = eopts.format;
     let budget = eopts.max_error;
@@ -745,7 +759,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     let n_pool = pool.brick_count();
     let mut input_of: Vec<u32> = (0..n_pool as u32).collect();
     let mut enc_input: Option<Vec<f32>> = None;
-    let mut cstats: Option<Value> = None;
+    let mut cstats: Option<report::Clustering> = None;
     if let Some(k) = a.clusters {
         let copts = cluster::ClusterOptions {
             clusters: k,
@@ -810,16 +824,16 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                 );
             }
         }
-        cstats = Some(json!({
-            "candidates": r.candidates,
-            "clusters_requested": k,
-            "clusters": clusters_used,
-            "iterations": r.iterations_run,
-            "rejected_by_variance": r.rejected_by_variance,
-            "rejected_by_error": rejected_by_error,
-            "variance_threshold": copts.variance_threshold,
-            "seconds": tc.elapsed().as_secs_f64(),
-        }));
+        cstats = Some(report::Clustering {
+            candidates: r.candidates,
+            clusters_requested: k,
+            clusters: clusters_used,
+            iterations: r.iterations_run,
+            rejected_by_variance: r.rejected_by_variance,
+            rejected_by_error,
+            variance_threshold: copts.variance_threshold,
+            seconds: tc.elapsed().as_secs_f64(),
+        });
         enc_input = Some(input);
     }
     st.cluster = tc.elapsed().as_secs_f64();
@@ -1000,7 +1014,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     let (topology, atlas) = topology_and_atlas(&sizes);
     if let Some(max_bytes) = a.max_bytes {
         // The search counted these bytes without building the asset: hold it to that.
-        let predicted = size_doc["predicted_gpu_bytes"].as_u64().unwrap_or(0);
+        let predicted = size_doc.as_ref().map_or(0, |s| s.predicted_gpu_bytes);
         if topology + atlas != predicted || topology + atlas > max_bytes {
             return Err(CliError::Other(format!(
                 "internal: --max-bytes {max_bytes} predicted {predicted} GPU bytes, the asset has {}",
@@ -1022,39 +1036,95 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             0.0
         }
     };
-    let doc = json!({
-        "output": a.output.display().to_string(),
-        "format": format.name(),
-        "grid": asset.header.grid_name,
-        "missing_grid_frames": missing,
-        "frames": asset.frame_count(),
-        "active_voxels": active,
-        "bricks": {"source": pool.source_bricks, "unique": unique_bricks, "after_clustering": after_clustering, "stored": asset.brick_count(), "tiles": asset.tiles.len(), "tile_leaves": pool.source_tiles},
-        "nodes": {"l2": asset.l2_count(), "leaf_refs": asset.l3_refs.len(), "root_dims": root_dims},
-        "bytes": {"topology": topology, "atlas": atlas, "file": bytes.len()},
-        "bits_per_active_voxel": bpv(bytes.len() as u64),
-        "bits_per_active_voxel_gpu": bpv(topology + atlas),
-        "topology_bits_per_active_voxel": bpv(topology),
-        "error": {"rmse": rmse, "psnr_db": psnr, "max_abs": max_abs, "exact": max_abs == 0.0, "max_abs_any_gpu": gpu_bound},
-        "frame_errors": per_frame.iter().zip(&asset.header.frames).enumerate().map(|(i, (e, f))| {
-            let rmse = if f.active_voxels > 0 { (e.sum_sq / f.active_voxels as f64).sqrt() } else { 0.0 };
-            json!({"frame": i, "number": f.number, "rmse": rmse, "psnr_db": (rmse > 0.0 && peak > 0.0).then(|| 20.0 * (peak / rmse).log10()), "max_abs": e.max_abs})
-        }).collect::<Vec<_>>(),
-        "clustering": cstats,
-        "representations": {
-            "tile": enc.representation.tile,
-            "bc7": enc.representation.per_format[0], "bc4": enc.representation.per_format[1],
-            "unorm8": enc.representation.per_format[2], "f16": enc.representation.per_format[3], "f32": enc.representation.per_format[4],
+    let [r0, r1, r2, r3, r4] = enc.representation.per_format;
+    let report = CookReport {
+        output: a.output.display().to_string(),
+        format: format.name().to_string(),
+        grid: asset.header.grid_name.clone(),
+        missing_grid_frames: missing,
+        frames: asset.frame_count(),
+        active_voxels: active,
+        bricks: report::Bricks {
+            source: pool.source_bricks,
+            unique: unique_bricks as u64,
+            after_clustering: after_clustering as u64,
+            stored: asset.brick_count() as u64,
+            tiles: asset.tiles.len() as u64,
+            tile_leaves: pool.source_tiles,
         },
-        "max_error": budget,
-        "max_error_source": budget_source,
-        "max_bytes": size_doc,
-        "bc7_quality": eopts.bc7_quality.name(),
-        "range": match eopts.range { RangeMode::Brick => "brick", RangeMode::Global => "global" },
-        "peak_memory_bytes": peak_memory_bytes(),
-        "seconds": {"total": t0.elapsed().as_secs_f64(), "read": st.read, "build": st.build, "dedup": st.dedup, "cluster": st.cluster, "encode": st.encode, "write": st.write},
-    });
-    Ok(Cooked { asset, bytes, doc })
+        nodes: report::Nodes {
+            l2: asset.l2_count() as u64,
+            leaf_refs: asset.l3_refs.len() as u64,
+            root_dims,
+        },
+        bytes: report::Bytes {
+            topology,
+            atlas,
+            file: bytes.len() as u64,
+        },
+        bits_per_active_voxel: bpv(bytes.len() as u64),
+        bits_per_active_voxel_gpu: bpv(topology + atlas),
+        topology_bits_per_active_voxel: bpv(topology),
+        error: report::ErrorFigures {
+            rmse,
+            psnr_db: psnr,
+            max_abs,
+            exact: max_abs == 0.0,
+            max_abs_any_gpu: gpu_bound,
+        },
+        frame_errors: per_frame
+            .iter()
+            .zip(&asset.header.frames)
+            .enumerate()
+            .map(|(i, (e, f))| {
+                let rmse = if f.active_voxels > 0 {
+                    (e.sum_sq / f.active_voxels as f64).sqrt()
+                } else {
+                    0.0
+                };
+                report::FrameError {
+                    frame: i,
+                    number: f.number,
+                    rmse,
+                    psnr_db: (rmse > 0.0 && peak > 0.0).then(|| 20.0 * (peak / rmse).log10()),
+                    max_abs: e.max_abs,
+                }
+            })
+            .collect(),
+        clustering: cstats,
+        representations: report::Representations {
+            tile: enc.representation.tile,
+            bc7: r0,
+            bc4: r1,
+            unorm8: r2,
+            f16: r3,
+            f32: r4,
+        },
+        max_error: budget,
+        max_error_source: budget_source.map(str::to_string),
+        max_bytes: size_doc,
+        bc7_quality: eopts.bc7_quality.name().to_string(),
+        range: match eopts.range {
+            RangeMode::Brick => "brick",
+            RangeMode::Global => "global",
+        }
+        .to_string(),
+        peak_memory_bytes: peak_memory_bytes(),
+        seconds: report::Seconds {
+            total: t0.elapsed().as_secs_f64(),
+            read: st.read,
+            build: st.build,
+            dedup: st.dedup,
+            cluster: st.cluster,
+            encode: st.encode,
+            write: st.write,
+        },
+    };
+    Ok(Cooked {
+        asset,
+        bytes,
+        report,
+    })
 }
 
 /// Reads and validates an asset, with errors naming the file once.

@@ -5,13 +5,14 @@
 //! `report`, `report`; `manifest`: batch cooking with a content-addressed cache). `docs/architecture.md` maps the crates and the invariants each keeps.
 //!
 //! Entry points for programs: [`cook::cook`] (a cook held in memory: the asset, its bytes and the
-//! `cook --json` document) with [`cook::Args`] (`Args::defaults` for the plain options). Errors are
+//! typed [`cook_report::CookReport`] that `cook --json` prints) with [`cook::Args`] (`Args::defaults` for the plain options). Errors are
 //! [`errors::CliError`] values whose kind matches their cause.
 
 pub mod bcenc;
 pub mod build;
 pub mod cluster;
 pub mod cook;
+pub mod cook_report;
 pub mod encode;
 pub mod errors;
 pub mod eval;

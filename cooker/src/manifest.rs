@@ -388,7 +388,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 &c.bytes,
                 "cached asset",
             )?;
-            let doc = serde_json::to_vec_pretty(&c.doc).expect("json");
+            let doc = serde_json::to_vec_pretty(&c.report).expect("json");
             crate::output::write(
                 &cache_dir.join(format!("{}.json", j.key)),
                 &doc,

@@ -749,3 +749,59 @@ fn max_bytes_that_cannot_fit_or_contradict_are_refused() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn cook_json_is_the_typed_report_with_the_contract_keys() {
+    // The keys scripts rely on (../shared/notes/product.md), checked on the printed document,
+    // and the document read back as the library's typed report.
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("r.vdbc");
+    let o = out.to_str().unwrap();
+    let (code, stdout, err) = run(&[
+        "cook",
+        "--json",
+        "fixtures/seq/smoke5",
+        "-o",
+        o,
+        "--clusters",
+        "4",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    for path in [
+        "frames",
+        "active_voxels",
+        "bricks/source",
+        "bricks/unique",
+        "bricks/after_clustering",
+        "bricks/stored",
+        "bytes/topology",
+        "bytes/atlas",
+        "bytes/file",
+        "bits_per_active_voxel",
+        "error/rmse",
+        "error/psnr_db",
+        "error/max_abs",
+        "seconds/total",
+        "seconds/read",
+        "seconds/build",
+        "seconds/dedup",
+        "seconds/cluster",
+        "seconds/encode",
+        "seconds/write",
+    ] {
+        assert!(
+            v.pointer(&format!("/{path}")).is_some(),
+            "cook --json lost the contract key {path}"
+        );
+    }
+    let r: vdbcook::cook_report::CookReport = serde_json::from_value(v.clone()).unwrap();
+    assert_eq!(r.frames, 5);
+    assert!(r.seconds.write > 0.0 && r.seconds.total >= r.seconds.write);
+    assert_eq!(r.clustering.as_ref().unwrap().clusters_requested, 4);
+    assert_eq!(
+        serde_json::to_value(&r).unwrap(),
+        v,
+        "nothing is lost both ways"
+    );
+}

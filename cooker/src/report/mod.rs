@@ -158,7 +158,7 @@ pub struct Row {
     /// Cook stages in seconds (read, build, dedup, cluster, encode).
     pub cook_stages: Value,
     /// Bricks stored per representation (tile, bc7, bc4, unorm8, f16, f32).
-    pub representations: Value,
+    pub representations: crate::cook_report::Representations,
     /// What the runtime put on the GPU for this asset (bytes and layout), when measured.
     pub gpu_upload_bytes: Option<u64>,
     pub gpu_layout: Option<String>,
@@ -513,7 +513,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let max_error = c.tolerance.map(|t| t * value_range);
         ca.max_error = max_error.map(|e| e as f32);
         let cooked = cook::cook(&ca)?;
-        let d = &cooked.doc;
+        let d = &cooked.report;
         if camera.is_none() {
             // The reference (f32) cook.
             let r = cooked
@@ -528,7 +528,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             } else {
                 1.0
             };
-            active = d["active_voxels"].as_u64().unwrap_or(0);
+            active = d.active_voxels;
             grid_name = cooked.asset.header.grid_name.clone();
             camera = Some(
                 Camera::framing(&cooked.asset, a.frame, w as f64 / h as f64)
@@ -558,31 +558,28 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             Some(reference) => image_error(&img, reference),
             None => (0.0, 0.0),
         };
-        let num = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
-        let bytes = &d["bytes"];
-        let gpu_b = bytes["topology"].as_u64().unwrap_or(0) + bytes["atlas"].as_u64().unwrap_or(0);
-        let s = &d["seconds"];
+        let s = &d.seconds;
         rows.push(Row {
             format: c.format.unwrap_or("auto").to_string(),
-            clusters: d["clustering"]["clusters"].as_u64().map(|k| k as usize),
+            clusters: d.clustering.as_ref().map(|c| c.clusters),
             max_error,
-            bytes_gpu: gpu_b,
-            bytes_file: bytes["file"].as_u64().unwrap_or(0),
-            bits_per_active_voxel: num(&d["bits_per_active_voxel"]),
-            rmse: num(&d["error"]["rmse"]),
-            psnr_db: d["error"]["psnr_db"].as_f64(),
-            max_abs: num(&d["error"]["max_abs"]),
+            bytes_gpu: d.bytes.topology + d.bytes.atlas,
+            bytes_file: d.bytes.file,
+            bits_per_active_voxel: d.bits_per_active_voxel,
+            rmse: d.error.rmse,
+            psnr_db: d.error.psnr_db,
+            max_abs: d.error.max_abs,
             image_rmse: im_rmse,
-            cook_seconds: s["total"].as_f64().unwrap_or(f64::NAN),
+            cook_seconds: s.total,
             trace_ms_cpu: cpu_ms,
             trace_ms_gpu: gpu_ms,
             label: c.label.clone(),
             variance_threshold: c.clusters.map(|(_, t)| t),
-            bits_per_active_voxel_gpu: num(&d["bits_per_active_voxel_gpu"]),
+            bits_per_active_voxel_gpu: d.bits_per_active_voxel_gpu,
             image_max_abs: im_max,
-            cook_stages: json!({"read": s["read"], "build": s["build"], "dedup": s["dedup"],
-                                "cluster": s["cluster"], "encode": s["encode"]}),
-            representations: d["representations"].clone(),
+            cook_stages: json!({"read": s.read, "build": s.build, "dedup": s.dedup,
+                                "cluster": s.cluster, "encode": s.encode}),
+            representations: d.representations.clone(),
             gpu_upload_bytes: up_bytes,
             gpu_layout: layout,
         });
