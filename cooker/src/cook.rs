@@ -98,6 +98,10 @@ pub struct Args {
     /// The calling command has no `--replace-non-finite` (so errors do not suggest it).
     #[arg(skip)]
     pub no_non_finite_flag: bool,
+    /// Where a program linking the library gets the cook's stages and notes (`None`: the CLI's
+    /// stderr display unless quiet or `--json`).
+    #[arg(skip)]
+    pub progress: Option<std::sync::Arc<dyn crate::progress::ProgressSink>>,
 }
 
 impl Args {
@@ -126,6 +130,7 @@ impl Args {
             replace_non_finite: None,
             quiet: true,
             no_non_finite_flag: false,
+            progress: None,
         }
     }
 }
@@ -411,7 +416,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         bytes, mut report, ..
     } = cook(a)?;
     let t = Instant::now();
-    let stage = Progress::new(a.json || a.quiet).stage("write", "bytes");
+    let stage =
+        Progress::with(a.progress.clone(), a.json || a.quiet, !a.quiet).stage("write", "bytes");
     crate::output::write(&a.output, &bytes, "asset")?;
     stage.finish();
     report.seconds.write = t.elapsed().as_secs_f64();
@@ -561,7 +567,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
     let mut missing: Vec<String> = Vec::new();
     let mut infos = Vec::with_capacity(frames.len());
     let mut value_range = [f32::INFINITY, f32::NEG_INFINITY];
-    let progress = Progress::new(a.json || a.quiet);
+    let progress = Progress::with(a.progress.clone(), a.json || a.quiet, !a.quiet);
     let stage = progress.stage("read, build, dedup", "frames");
     crate::progress::add_total(frames.len() as u64);
     let threads = rayon::current_num_threads().max(1);
@@ -669,12 +675,12 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             format!("no frame has the grid '{grid_name}' ({grid_how})"),
         ));
     };
-    if !missing.is_empty() && !a.quiet {
-        eprintln!(
+    if !missing.is_empty() {
+        progress.note(&format!(
             "note: {} frame(s) have no grid '{grid_name}' and are cooked as empty frames (--allow-missing-grid): {}",
             missing.len(),
             missing.join(", ")
-        );
+        ));
     }
     let (offset, root_dims) = pool
         .extent()
@@ -734,12 +740,12 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                 eopts.max_error = Some(e);
                 budget_source = Some("max_bytes");
                 let default = encode::default_budget(r);
-                if e > default && !a.quiet {
-                    eprintln!(
+                if e > default {
+                    progress.note(&format!(
                         "warning: --max-bytes {max_bytes} needs an error bound of {e:e}, over the \
                          default artefact guard ({default:e}, 10% of the value range): expect \
                          visible artefacts"
-                    );
+                    ));
                 }
             }
         }
@@ -804,25 +810,23 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             }
         }
         let clusters_used = used.iter().filter(|&&u| u != u32::MAX).count();
-        // What clustering did, said on stderr whenever it is less than what was asked.
-        if !a.quiet {
-            if r.candidates == 0 {
-                eprintln!(
-                    "note: --clusters {k}: no brick has normalized variance <= {} (0 of {n_pool} candidates); nothing was clustered",
-                    copts.variance_threshold
-                );
-            } else if k > r.candidates {
-                eprintln!(
-                    "note: --clusters {k} exceeds the {} candidate bricks; k is capped at {}",
-                    r.candidates, r.candidates
-                );
-            }
-            if r.candidates > 0 && clusters_used == 0 {
-                eprintln!(
-                    "note: --clusters {k}: every candidate was rejected by the error guard ({rejected_by_error} bricks; budget {}); nothing was clustered",
-                    budget.unwrap_or(0.0)
-                );
-            }
+        // What clustering did, said whenever it is less than what was asked.
+        if r.candidates == 0 {
+            progress.note(&format!(
+                "note: --clusters {k}: no brick has normalized variance <= {} (0 of {n_pool} candidates); nothing was clustered",
+                copts.variance_threshold
+            ));
+        } else if k > r.candidates {
+            progress.note(&format!(
+                "note: --clusters {k} exceeds the {} candidate bricks; k is capped at {}",
+                r.candidates, r.candidates
+            ));
+        }
+        if r.candidates > 0 && clusters_used == 0 {
+            progress.note(&format!(
+                "note: --clusters {k}: every candidate was rejected by the error guard ({rejected_by_error} bricks; budget {}); nothing was clustered",
+                budget.unwrap_or(0.0)
+            ));
         }
         cstats = Some(report::Clustering {
             candidates: r.candidates,

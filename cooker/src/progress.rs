@@ -1,12 +1,16 @@
-//! Progress of `cook`'s long stages (read+build+dedup, cluster, encode, write) on stderr, so a
-//! 100-second BC7 encode is not a silent stall. On a terminal: one line redrawn a few times a
-//! second with the stage, its count, rate and ETA where the stage counts its work (frames,
-//! compressed blocks), else the elapsed time. Not on a terminal (or with `CI` set): one plain
-//! line per stage when it ends. Nothing under `--json` or for in-memory cooks (`render`,
-//! `report`), which report for themselves.
+//! Progress of `cook`'s long stages (read+build+dedup, size search, cluster, encode, write) and
+//! its notes, reported through a [`ProgressSink`]: a program linking the library passes its own
+//! (`cook::Args::progress`); the CLI uses [`StderrProgress`], so a 100-second BC7 encode is not a
+//! silent stall. On a terminal: one line redrawn a few times a second with the stage, its count,
+//! rate and ETA where the stage counts its work (frames, compressed blocks), else the elapsed
+//! time. Not on a terminal (or with `CI` set): one plain line per stage when it ends. Nothing
+//! under `--json` or for in-memory cooks (`render`, `report`, `manifest`), which report for
+//! themselves; notes (stated decisions such as a capped k) still go to stderr there.
 //!
 //! Work is counted through two process-wide counters (`add_total`, `advance`) so deep code (the
-//! block compressor's strips) can report without threading a handle through every call.
+//! block compressor's strips) can report without threading a handle through every call; two cooks
+//! running at once in one process therefore share the counts a sink sees (their results are not
+//! affected).
 
 use std::io::{IsTerminal, Write};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -34,21 +38,63 @@ pub fn hook_block_compressor() {
     });
 }
 
-#[derive(Clone, Copy, PartialEq)]
-enum Mode {
-    Off,
-    Terminal,
-    Lines,
+/// Receives a cook's progress. Every method has a default that ignores it.
+pub trait ProgressSink: Send + Sync {
+    /// A stage begins; `unit` is what it counts.
+    fn started(&self, _stage: &str, _unit: &str) {}
+    /// A few times a second while a stage runs: `done` of `total` units (`total` 0: the stage does
+    /// not count its work), `seconds` since it began.
+    fn update(&self, _stage: &str, _unit: &str, _done: u64, _total: u64, _seconds: f64) {}
+    /// A stage ended.
+    fn finished(&self, _stage: &str, _unit: &str, _done: u64, _total: u64, _seconds: f64) {}
+    /// A note or warning the user should see (a decision the cook made, e.g. a capped `k`).
+    fn note(&self, _message: &str) {}
 }
 
-/// Where progress goes for this run.
+/// The CLI's display on stderr (see the module docs).
+pub struct StderrProgress {
+    terminal: bool,
+}
+
+impl StderrProgress {
+    /// Redrawn lines on a terminal (without `CI` set), plain lines otherwise.
+    pub fn detect() -> StderrProgress {
+        StderrProgress {
+            terminal: std::io::stderr().is_terminal() && std::env::var_os("CI").is_none(),
+        }
+    }
+}
+
+impl ProgressSink for StderrProgress {
+    fn update(&self, stage: &str, unit: &str, done: u64, total: u64, seconds: f64) {
+        if self.terminal {
+            eprint!("\r{}\x1b[K", line(stage, unit, seconds, done, total, false));
+            let _ = std::io::stderr().flush();
+        }
+    }
+    fn finished(&self, stage: &str, unit: &str, done: u64, total: u64, seconds: f64) {
+        let l = line(stage, unit, seconds, done, total, true);
+        if self.terminal {
+            eprintln!("\r{l}\x1b[K");
+        } else {
+            eprintln!("{l}");
+        }
+    }
+    fn note(&self, message: &str) {
+        eprintln!("{message}");
+    }
+}
+
+/// Where progress and notes go for this run.
 pub struct Progress {
-    mode: Mode,
+    sink: Option<Arc<dyn ProgressSink>>,
+    /// Notes without a sink: to stderr unless the caller is quiet.
+    print_notes: bool,
 }
 
 /// A running stage; reports its end when dropped (or `finish`ed).
 pub struct Stage {
-    mode: Mode,
+    sink: Option<Arc<dyn ProgressSink>>,
     name: &'static str,
     unit: &'static str,
     start: Instant,
@@ -74,16 +120,37 @@ fn line(name: &str, unit: &str, elapsed: f64, done: u64, total: u64, end: bool) 
 }
 
 impl Progress {
-    /// `silent`: `--json` or an in-memory cook.
+    /// `silent`: `--json` or an in-memory cook (no stages shown; notes still on stderr unless
+    /// `silent` came from a quiet caller, see [`Progress::with`]).
     pub fn new(silent: bool) -> Progress {
-        let mode = if silent {
-            Mode::Off
-        } else if std::io::stderr().is_terminal() && std::env::var_os("CI").is_none() {
-            Mode::Terminal
-        } else {
-            Mode::Lines
-        };
-        Progress { mode }
+        Progress::with(None, silent, true)
+    }
+
+    /// Progress into `sink` when given (stages and notes); otherwise [`StderrProgress`] unless
+    /// `silent`, and notes on stderr when `print_notes`.
+    pub fn with(sink: Option<Arc<dyn ProgressSink>>, silent: bool, print_notes: bool) -> Progress {
+        // Library callers have no `main` to install it; installing twice is a no-op.
+        hook_block_compressor();
+        match sink {
+            Some(s) => Progress {
+                sink: Some(s),
+                print_notes: false,
+            },
+            None => Progress {
+                sink: (!silent)
+                    .then(|| Arc::new(StderrProgress::detect()) as Arc<dyn ProgressSink>),
+                print_notes,
+            },
+        }
+    }
+
+    /// A note for the user: to the sink, or stderr.
+    pub fn note(&self, message: &str) {
+        match &self.sink {
+            Some(s) => s.note(message),
+            None if self.print_notes => eprintln!("{message}"),
+            None => {}
+        }
     }
 
     /// Starts a stage counting `unit`s (its total is announced with `add_total`).
@@ -92,7 +159,10 @@ impl Progress {
         TOTAL.store(0, Ordering::Relaxed);
         let stop = Arc::new(AtomicBool::new(false));
         let start = Instant::now();
-        let ticker = (self.mode == Mode::Terminal).then(|| {
+        if let Some(s) = &self.sink {
+            s.started(name, unit);
+        }
+        let ticker = self.sink.clone().map(|sink| {
             let stop = stop.clone();
             std::thread::spawn(move || {
                 while !stop.load(Ordering::Relaxed) {
@@ -100,21 +170,18 @@ impl Progress {
                     if stop.load(Ordering::Relaxed) {
                         break;
                     }
-                    let l = line(
+                    sink.update(
                         name,
                         unit,
-                        start.elapsed().as_secs_f64(),
                         DONE.load(Ordering::Relaxed),
                         TOTAL.load(Ordering::Relaxed),
-                        false,
+                        start.elapsed().as_secs_f64(),
                     );
-                    eprint!("\r{l}\x1b[K");
-                    let _ = std::io::stderr().flush();
                 }
             })
         });
         Stage {
-            mode: self.mode,
+            sink: self.sink.clone(),
             name,
             unit,
             start,
@@ -135,20 +202,17 @@ impl Drop for Stage {
         if let Some(t) = self.ticker.take() {
             let _ = t.join();
         }
-        if self.mode == Mode::Off || std::thread::panicking() {
+        if std::thread::panicking() {
             return;
         }
-        let l = line(
-            self.name,
-            self.unit,
-            self.start.elapsed().as_secs_f64(),
-            DONE.load(Ordering::Relaxed),
-            TOTAL.load(Ordering::Relaxed),
-            true,
-        );
-        match self.mode {
-            Mode::Terminal => eprintln!("\r{l}\x1b[K"),
-            _ => eprintln!("{l}"),
+        if let Some(s) = &self.sink {
+            s.finished(
+                self.name,
+                self.unit,
+                DONE.load(Ordering::Relaxed),
+                TOTAL.load(Ordering::Relaxed),
+                self.start.elapsed().as_secs_f64(),
+            );
         }
     }
 }
