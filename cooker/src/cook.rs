@@ -22,6 +22,8 @@ use crate::pool::{ranges, Pool};
 use crate::progress::Progress;
 use crate::size_budget;
 
+/// A cook's options: the struct the CLI parses, and what a program fills in
+/// (`Args::defaults`, then the fields it wants) before calling [`cook`].
 #[derive(clap::Args, Clone)]
 pub struct Args {
     /// VDB files, folders, frame patterns (smoke.####.vdb, smoke.%04d.vdb) or globs.
@@ -50,9 +52,10 @@ pub struct Args {
     /// Default f32; with --max-error and no --format, the smallest that meets the error.
     #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
     pub format: Option<String>,
-    /// Every voxel of every frame decodes within E of its source value: each brick takes the
-    /// cheapest representation that meets E (tile, bc7, bc4, unorm8, f16, f32), starting at
-    /// --format when one is given.
+    /// Every voxel of every frame decodes within E of its source value, as any conformant GPU
+    /// reads it: each brick takes the cheapest representation that meets E (tile, bc7, bc4,
+    /// unorm8, f16, f32), starting at --format when one is given. Without it a lossy cook gets
+    /// 10% of the value range as an artefact guard.
     #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub max_error: Option<f32>,
     /// Size budget instead of an error budget: the smallest error bound whose asset's GPU bytes
