@@ -617,6 +617,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     .map_err(|e| at(&e))?;
     let near = near_plane(&camera);
     let (view_m, proj_m) = camera_matrices(&camera, s.width, s.height, near).map_err(|e| at(&e))?;
+    #[cfg(feature = "gpu")]
     let scene = plate.is_some() || depth.is_some();
     let t_render = Instant::now();
     // `composited`: whether the plate is already under the image (the GPU drawer does it).
