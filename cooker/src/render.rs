@@ -1,14 +1,18 @@
 //! `vdbcook render`: draws one frame of a cooked asset (or of VDB sources, cooked in memory
-//! losslessly first) to a PNG, with the CPU reference tracer (`vdbcook-trace`, any machine) or
-//! the GPU runtime (`vdbcook-runtime`, the code engines link). `--json` reports the settings,
-//! camera, backend and timing.
+//! losslessly first) to a PNG or a linear PFM, with the CPU reference tracer (`vdbcook-trace`,
+//! any machine) or the GPU runtime (`vdbcook-runtime`, the code engines link), optionally
+//! composited over a scene: `--background PLATE.png` (the scene's colours, sRGB) and `--depth
+//! DEPTH.pfm` (its depth along the view axis, which cuts the density march as an engine's depth
+//! buffer does; on the GPU through the engine drawer, `VolumeDrawer`). `--json` reports the
+//! settings, the camera (with view and projection matrices that reproduce it), backend and
+//! timing.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde_json::json;
 use vdbcook_asset::Asset;
-use vdbcook_trace::{Camera, LengthUnit, Mode, RenderSettings};
+use vdbcook_trace::{Camera, Image, LengthUnit, Mode, RenderSettings, Scratch, Tracer};
 
 use crate::cook;
 use crate::errors::CliError;
@@ -20,9 +24,18 @@ pub struct Args {
     /// are cooked in memory (f32, lossless) first.
     #[arg(value_name = "ASSET|VDB")]
     input: PathBuf,
-    /// Output PNG (8-bit RGBA): the name must end in .png (or be a device or FIFO).
+    /// Output: .png (8-bit RGBA) or .pfm (linear RGB floats, `PF`); a device or FIFO gets PNG.
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
+    /// The scene's colours to composite over (8-bit sRGB PNG of the output's size): the output
+    /// is `L + T·plate` in linear light, sRGB-encoded in a PNG.
+    #[arg(long, value_name = "PLATE.png")]
+    background: Option<PathBuf>,
+    /// The scene's depth (PFM greyscale `Pf`, the output's size, rows bottom to top): distance
+    /// along the view axis in world units; non-finite or ≤ 0 = no surface. Cuts each ray at
+    /// depth / cos(angle to the view axis). Density mode only.
+    #[arg(long, value_name = "DEPTH.pfm")]
+    depth: Option<PathBuf>,
     /// Frame index (0-based).
     #[arg(long, default_value_t = 0)]
     frame: usize,
@@ -211,28 +224,318 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
     crate::output::write(path, &encode_png(width, height, rgba)?, "PNG")
 }
 
-/// `render` writes PNG only: the output name must say so (or be a device or FIFO, written
-/// as PNG bytes).
-fn check_output_format(out: &Path) -> Result<(), CliError> {
-    let png = out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if png || crate::output::is_special(out) {
-        Ok(())
+/// What `render` writes, from the output's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum OutFormat {
+    Png,
+    Pfm,
+}
+
+/// `render` writes PNG or PFM: the output name must say which (a device or FIFO gets PNG).
+fn check_output_format(out: &Path) -> Result<OutFormat, CliError> {
+    let ext = |x: &str| out.extension().is_some_and(|e| e.eq_ignore_ascii_case(x));
+    if ext("png") || (!ext("pfm") && crate::output::is_special(out)) {
+        Ok(OutFormat::Png)
+    } else if ext("pfm") {
+        Ok(OutFormat::Pfm)
     } else {
         Err(CliError::Usage(format!(
-            "{}: render writes PNG only; give an output name ending in .png",
-            out.display()
+            "{}: render writes PNG (8-bit) or PFM (linear float RGB), not {}; give an output \
+             name ending in .png or .pfm",
+            out.display(),
+            out.extension()
+                .map(|e| format!(".{}", e.to_string_lossy()))
+                .unwrap_or_else(|| "a name without an extension".into())
         )))
     }
 }
 
+/// The sRGB transfer function, decoding: an 8-bit code to linear light.
+pub fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB transfer function, encoding: linear light (clamped to [0, 1]; non-finite → 0) to an
+/// 8-bit code.
+pub fn linear_to_srgb8(x: f32) -> u8 {
+    if !x.is_finite() {
+        return 0;
+    }
+    let x = x.clamp(0.0, 1.0);
+    let s = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+/// A background plate: linear RGB and alpha per pixel, row 0 at the top.
+pub struct Plate {
+    pub width: u32,
+    pub height: u32,
+    /// `width × height × 4`: linear RGB (decoded from sRGB) and alpha.
+    pub rgba: Vec<f32>,
+}
+
+/// Reads a PNG plate (any colour type and depth, normalized to 8 bits, decoded from sRGB).
+pub fn read_plate(path: &Path) -> Result<Plate, CliError> {
+    let at = |m: String| other(format!("{}: {m}", path.display()));
+    let file = std::fs::File::open(path).map_err(|e| at(format!("cannot read the plate: {e}")))?;
+    let mut dec = png::Decoder::new(std::io::BufReader::new(file));
+    dec.set_transformations(png::Transformations::normalize_to_color8());
+    let mut reader = dec
+        .read_info()
+        .map_err(|e| at(format!("not a readable PNG plate: {e}")))?;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| at(format!("not a readable PNG plate: {e}")))?;
+    let (w, h) = (info.width, info.height);
+    let n = (w * h) as usize;
+    let ch = match info.color_type {
+        png::ColorType::Grayscale => 1,
+        png::ColorType::GrayscaleAlpha => 2,
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        c => {
+            return Err(at(format!(
+                "PNG colour type {c:?} not supported as a plate"
+            )))
+        }
+    };
+    let data = &buf[..info.buffer_size()];
+    let mut rgba = Vec::with_capacity(4 * n);
+    for p in data.chunks_exact(ch).take(n) {
+        let (rgb, a) = match ch {
+            1 => ([p[0]; 3], 255),
+            2 => ([p[0]; 3], p[1]),
+            3 => ([p[0], p[1], p[2]], 255),
+            _ => ([p[0], p[1], p[2]], p[3]),
+        };
+        rgba.extend(rgb.map(srgb_to_linear));
+        rgba.push(a as f32 / 255.0);
+    }
+    Ok(Plate {
+        width: w,
+        height: h,
+        rgba,
+    })
+}
+
+/// The next whitespace-separated token of a PNM-style header at `*pos`, and the position after
+/// it (on the single whitespace byte that ends it).
+fn pfm_token<'b>(b: &'b [u8], pos: &mut usize) -> Option<&'b str> {
+    while *pos < b.len() && b[*pos].is_ascii_whitespace() {
+        *pos += 1;
+    }
+    let start = *pos;
+    while *pos < b.len() && !b[*pos].is_ascii_whitespace() && *pos - start < 32 {
+        *pos += 1;
+    }
+    (*pos > start && *pos < b.len())
+        .then(|| std::str::from_utf8(&b[start..*pos]).ok())
+        .flatten()
+}
+
+/// A PFM image: width, height, channels (1 for `Pf`, 3 for `PF`) and the floats, rows top to
+/// bottom (flipped from the file's bottom-to-top order).
+pub fn parse_pfm(b: &[u8]) -> Result<(u32, u32, usize, Vec<f32>), String> {
+    let mut pos = 0;
+    let magic = pfm_token(b, &mut pos).ok_or("not a PFM (empty or no header)")?;
+    let ch = match magic {
+        "Pf" => 1,
+        "PF" => 3,
+        m => return Err(format!("not a PFM: magic {m:?} (expected Pf or PF)")),
+    };
+    let dim = |t: Option<&str>| {
+        t.and_then(|t| t.parse::<u32>().ok())
+            .filter(|&v| v > 0 && v <= vdbcook_trace::MAX_SIDE)
+    };
+    let w = dim(pfm_token(b, &mut pos)).ok_or("PFM width missing or out of range")?;
+    let h = dim(pfm_token(b, &mut pos)).ok_or("PFM height missing or out of range")?;
+    let scale: f32 = pfm_token(b, &mut pos)
+        .and_then(|t| t.parse().ok())
+        .filter(|s: &f32| s.is_finite() && *s != 0.0)
+        .ok_or("PFM scale missing or not a non-zero number")?;
+    pos += 1; // the single whitespace byte after the scale
+    let data = &b[pos..];
+    let want = w as usize * h as usize * ch * 4;
+    if data.len() != want {
+        return Err(format!(
+            "PFM {w}x{h} ({ch} channel(s)) needs {want} bytes of data, the file has {}",
+            data.len()
+        ));
+    }
+    let row = w as usize * ch;
+    let mut out = vec![0.0f32; row * h as usize];
+    for (k, c) in data.chunks_exact(4).enumerate() {
+        let bytes = [c[0], c[1], c[2], c[3]];
+        let v = if scale < 0.0 {
+            f32::from_le_bytes(bytes)
+        } else {
+            f32::from_be_bytes(bytes)
+        };
+        let (y, x) = (k / row, k % row);
+        out[(h as usize - 1 - y) * row + x] = v;
+    }
+    Ok((w, h, ch, out))
+}
+
+/// The bytes of a colour PFM (`PF`, little-endian) of `rgb` (3 floats per pixel, row 0 at the
+/// top; written bottom to top as PFM stores rows).
+pub fn encode_pfm(width: u32, height: u32, rgb: &[f32]) -> Vec<u8> {
+    let mut out = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    let row = 3 * width as usize;
+    for y in (0..height as usize).rev() {
+        for v in &rgb[y * row..(y + 1) * row] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Reads a depth PFM (`Pf`): per pixel the view-axis distance, row 0 at the top.
+fn read_depth(path: &Path) -> Result<(u32, u32, Vec<f32>), CliError> {
+    let at = |m: String| other(format!("{}: {m}", path.display()));
+    let bytes = std::fs::read(path).map_err(|e| at(format!("cannot read the depth: {e}")))?;
+    let (w, h, ch, v) = parse_pfm(&bytes).map_err(at)?;
+    if ch != 1 {
+        return Err(at(
+            "a colour PFM (PF); the depth is one float per pixel (greyscale Pf)".into(),
+        ));
+    }
+    Ok((w, h, v))
+}
+
+/// The world distance along a ray at `cos` to the view axis to a surface at view-axis depth
+/// `d`: `d / cos`, or `∞` where there is no surface (non-finite or ≤ 0).
+fn depth_to_t(d: f32, cos: f64) -> f64 {
+    if d.is_finite() && d > 0.0 && cos > 0.0 {
+        d as f64 / cos
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The density mode on the CPU with every ray cut at the scene depth (`Tracer::optical_depth`):
+/// the same pixels as `vdbcook_trace::render` in density mode where the depth does not cut.
+fn render_density_clipped(
+    asset: &Asset,
+    camera: &Camera,
+    s: &RenderSettings,
+    depth: &[f32],
+) -> Result<Image, vdbcook_trace::TraceError> {
+    use rayon::prelude::*;
+    let tracer = Tracer::new(asset, camera, s)?;
+    let (w, h) = (s.width, s.height);
+    let b = camera.basis(w, h)?;
+    let mut rgba = vec![0.0f32; w as usize * h as usize * 4];
+    let mut value = vec![0.0f32; w as usize * h as usize];
+    rgba.par_chunks_mut(w as usize * 4)
+        .zip(value.par_chunks_mut(w as usize))
+        .enumerate()
+        .for_each_init(Scratch::default, |scratch, (j, (row, vrow))| {
+            for i in 0..w as usize {
+                let x = 2.0 * (i as f64 + 0.5) / w as f64 - 1.0;
+                let y = 1.0 - 2.0 * (j as f64 + 0.5) / h as f64;
+                let d = [0, 1, 2].map(|a| b.forward[a] + x * b.right[a] + y * b.up[a]);
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let dir = d.map(|c| c / len);
+                let cos = (0..3).map(|a| dir[a] * b.forward[a]).sum::<f64>();
+                let t_max = depth_to_t(depth[j * w as usize + i], cos);
+                let tau = tracer.optical_depth(camera.eye, dir, t_max, scratch);
+                let t = (-(s.absorb as f64) * tau).exp() as f32;
+                let g = 1.0 - t;
+                row[4 * i..4 * i + 4].copy_from_slice(&[g, g, g, 1.0]);
+                vrow[i] = t;
+            }
+        });
+    Ok(Image {
+        width: w,
+        height: h,
+        rgba,
+        value,
+    })
+}
+
+/// `out = L + T·plate` per pixel, the plate's alpha kept: `L` is the image's colour, `T` its
+/// transmittance (density: the raw value; steps: 0; other modes: 1 − alpha).
+fn composite_over(img: &mut Image, plate: &Plate, mode: Mode) {
+    for (k, px) in img.rgba.chunks_exact_mut(4).enumerate() {
+        let t = match mode {
+            Mode::Density => img.value[k],
+            Mode::Steps => 0.0,
+            _ => 1.0 - px[3],
+        };
+        let p = &plate.rgba[4 * k..4 * k + 4];
+        for c in 0..3 {
+            px[c] += t * p[c];
+        }
+        px[3] = p[3];
+    }
+}
+
+/// A 4×4 matrix, row-major (column vectors).
+pub type Mat4Rows = [[f64; 4]; 4];
+
+/// The camera as matrices another renderer can use: the view matrix (world → view, right-handed,
+/// the camera looking down −Z) and a reversed-Z infinite perspective projection (wgpu's depth
+/// range: NDC z = near / view-axis distance), both row-major, for column vectors.
+pub fn camera_matrices(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    near: f64,
+) -> Result<(Mat4Rows, Mat4Rows), vdbcook_trace::TraceError> {
+    let b = camera.basis(width, height)?;
+    let unit = |v: [f64; 3]| {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|c| c / l)
+    };
+    let (r, u, f) = (unit(b.right), unit(b.up), b.forward);
+    let e = camera.eye;
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let view = [
+        [r[0], r[1], r[2], -dot(r, e)],
+        [u[0], u[1], u[2], -dot(u, e)],
+        [-f[0], -f[1], -f[2], dot(f, e)],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let fy = 1.0 / (camera.fov_y_deg.to_radians() * 0.5).tan();
+    let aspect = width as f64 / height as f64;
+    let proj = [
+        [fy / aspect, 0.0, 0.0, 0.0],
+        [0.0, fy, 0.0, 0.0],
+        [0.0, 0.0, 0.0, near],
+        [0.0, 0.0, -1.0, 0.0],
+    ];
+    Ok((view, proj))
+}
+
+/// The near plane of the reported projection (and of the GPU composite's depth buffer): a
+/// thousandth of the eye's distance to the look-at point.
+fn near_plane(camera: &Camera) -> f64 {
+    let d = [0, 1, 2].map(|i| camera.look_at[i] - camera.eye[i]);
+    1e-3 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
-    check_output_format(&a.output)?;
-    // The output must not replace the input (an asset, or a VDB file or frame set).
+    let format = check_output_format(&a.output)?;
+    let what = match format {
+        OutFormat::Png => "PNG",
+        OutFormat::Pfm => "PFM",
+    };
+    // The output must not replace the input (an asset, or a VDB file or frame set), the plate
+    // or the depth.
     let input_str = a.input.to_string_lossy().into_owned();
-    let in_frames = if looks_like_vdb(&a.input) {
+    let mut in_frames = if looks_like_vdb(&a.input) {
         vdbcook_vdb::sequence::resolve_inputs(std::slice::from_ref(&input_str), a.allow_gaps)
             .unwrap_or_default()
     } else {
@@ -241,8 +544,50 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             number: None,
         }]
     };
-    crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], "PNG")?;
+    for p in [&a.background, &a.depth].into_iter().flatten() {
+        in_frames.push(vdbcook_vdb::sequence::Frame {
+            path: p.clone(),
+            number: None,
+        });
+    }
+    crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], what)?;
     let s = settings(a)?;
+    if a.depth.is_some() && s.mode != Mode::Density {
+        return Err(CliError::Usage(format!(
+            "--depth cuts the density mode only (the other modes do not stop at a depth yet), \
+             not --mode {}",
+            s.mode.name()
+        )));
+    }
+    // The scene (plate, depth) is read and checked before any cooking or rendering.
+    let size_check = |path: &Path, what: &str, w: u32, h: u32| {
+        if (w, h) != (s.width, s.height) {
+            Err(other(format!(
+                "{}: the {what} is {w}x{h}, the output {}x{} (--width, --height); they must match",
+                path.display(),
+                s.width,
+                s.height
+            )))
+        } else {
+            Ok(())
+        }
+    };
+    let plate = match &a.background {
+        Some(p) => {
+            let plate = read_plate(p)?;
+            size_check(p, "background", plate.width, plate.height)?;
+            Some(plate)
+        }
+        None => None,
+    };
+    let depth = match &a.depth {
+        Some(p) => {
+            let (w, h, d) = read_depth(p)?;
+            size_check(p, "depth", w, h)?;
+            Some(d)
+        }
+        None => None,
+    };
     // Open the GPU first: a missing adapter is reported before any cooking.
     let gpu = match a.backend.as_str() {
         "gpu" => Some(Gpu::open().map_err(other)?),
@@ -270,8 +615,28 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         a.width as f64 / a.height.max(1) as f64,
     )
     .map_err(|e| at(&e))?;
+    let near = near_plane(&camera);
+    let (view_m, proj_m) = camera_matrices(&camera, s.width, s.height, near).map_err(|e| at(&e))?;
+    #[cfg(feature = "gpu")]
+    let scene = plate.is_some() || depth.is_some();
     let t_render = Instant::now();
-    let (image, backend, adapter, gpu_ms) = match &gpu {
+    // `composited`: whether the plate is already under the image (the GPU drawer does it).
+    let (mut image, backend, adapter, gpu_ms, composited) = match &gpu {
+        #[cfg(feature = "gpu")]
+        Some(_) if scene && s.mode == Mode::Density => {
+            s.validate(asset.frame_count()).map_err(|e| at(&e))?;
+            let (image, adapter, gpu_ms) = drawer::composite(
+                &asset,
+                &s,
+                view_m,
+                proj_m,
+                near,
+                plate.as_ref(),
+                depth.as_deref(),
+            )
+            .map_err(|e| at(&e))?;
+            (image, "gpu", Some(adapter), gpu_ms, true)
+        }
         Some(g) => {
             let up = g.upload(&asset).map_err(|e| at(&e))?;
             let r = g.render(&up, &camera, &s, 1).map_err(|e| at(&e))?;
@@ -280,22 +645,59 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "gpu",
                 Some(g.describe()),
                 r.gpu_ms.first().copied(),
+                false,
             )
         }
-        None => (
-            vdbcook_trace::render(&asset, &camera, &s).map_err(|e| at(&e))?,
-            "cpu",
-            None,
-            None,
-        ),
+        None => {
+            let image = match &depth {
+                Some(d) => render_density_clipped(&asset, &camera, &s, d),
+                None => vdbcook_trace::render(&asset, &camera, &s),
+            }
+            .map_err(|e| at(&e))?;
+            (image, "cpu", None, None, false)
+        }
     };
+    if let (Some(p), false) = (&plate, composited) {
+        composite_over(&mut image, p, s.mode);
+    }
     let render_seconds = t_render.elapsed().as_secs_f64();
-    write_png(&a.output, image.width, image.height, &image.to_rgba8())?;
+    match format {
+        OutFormat::Pfm => {
+            let rgb: Vec<f32> = image
+                .rgba
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            crate::output::write(&a.output, &encode_pfm(s.width, s.height, &rgb), "PFM")?;
+        }
+        // Over a plate the PNG is sRGB-encoded (as the plate); alone, the mode's display
+        // values are written as they are (no transfer curve), as always.
+        OutFormat::Png if plate.is_some() => {
+            let rgba: Vec<u8> = image
+                .rgba
+                .chunks_exact(4)
+                .flat_map(|p| {
+                    [
+                        linear_to_srgb8(p[0]),
+                        linear_to_srgb8(p[1]),
+                        linear_to_srgb8(p[2]),
+                        (p[3].clamp(0.0, 1.0) * 255.0).round() as u8,
+                    ]
+                })
+                .collect();
+            write_png(&a.output, image.width, image.height, &rgba)?;
+        }
+        OutFormat::Png => write_png(&a.output, image.width, image.height, &image.to_rgba8())?,
+    }
     let seconds = t0.elapsed().as_secs_f64();
     if a.json {
+        let path = |p: &Option<PathBuf>| p.as_ref().map(|p| p.display().to_string());
         let doc = json!({
             "output": a.output.display().to_string(),
+            "output_format": what.to_ascii_lowercase(),
             "asset": a.input.display().to_string(),
+            "background": path(&a.background),
+            "depth": path(&a.depth),
             "cooked_in_memory_seconds": cooked_from,
             "mode": s.mode.name(),
             "frame": s.frame,
@@ -310,6 +712,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "camera": {
                 "eye": camera.eye, "look_at": camera.look_at, "up": camera.up,
                 "fov_y_deg": camera.fov_y_deg,
+                "view_matrix": view_m,
+                "projection_matrix": proj_m,
+                "near": near,
+                "projection": "perspective, right-handed, reversed Z, infinite far plane, \
+                               NDC z in [0, 1] = near / view-axis distance; row-major, column vectors",
             },
             "settings": {
                 "absorb": short(s.absorb), "scatter": short(s.scatter),
@@ -322,8 +729,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {
         let on = adapter.map(|d| format!(" on {d}")).unwrap_or_default();
+        let over = match (&a.background, &a.depth) {
+            (None, None) => String::new(),
+            (b, d) => format!(
+                ", over{}{}",
+                b.as_ref()
+                    .map(|p| format!(" {}", p.display()))
+                    .unwrap_or_default(),
+                d.as_ref()
+                    .map(|p| format!(" depth {}", p.display()))
+                    .unwrap_or_default()
+            ),
+        };
         println!(
-            "wrote {} ({}x{}, {}, frame {}, {backend} backend{on}) in {:.3} s (render {:.3} s)",
+            "wrote {} ({}x{}, {}, frame {}, {backend} backend{on}{over}) in {:.3} s (render {:.3} s)",
             a.output.display(),
             s.width,
             s.height,
@@ -334,4 +753,338 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         );
     }
     Ok(())
+}
+
+/// The scene for the GPU composite: linear RGBA per pixel (black, opaque without a plate) and
+/// the NDC depth of the reversed-Z projection (0 = no surface).
+#[cfg(feature = "gpu")]
+mod drawer {
+    use vdbcook_runtime::glam::Mat4;
+    use vdbcook_runtime::{
+        DrawTarget, GpuTimer, GpuVolume, Instance, Medium, View, VolumeDrawer, OPTIONAL_FEATURES,
+    };
+
+    use super::*;
+
+    /// Writes the scene into the colour target and the depth buffer: a full-screen triangle
+    /// that copies the plate (linear floats) and writes `frag_depth`.
+    const SCENE_WGSL: &str = r#"
+@group(0) @binding(0) var plate: texture_2d<f32>;
+@group(0) @binding(1) var ndc_depth: texture_2d<f32>;
+@vertex
+fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let p = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(p * 2.0 - 1.0, 0.0, 1.0);
+}
+struct Out { @location(0) color: vec4<f32>, @builtin(frag_depth) depth: f32 };
+@fragment
+fn fs(@builtin(position) pos: vec4<f32>) -> Out {
+    let q = vec2<i32>(pos.xy);
+    var o: Out;
+    o.color = textureLoad(plate, q, 0);
+    o.depth = textureLoad(ndc_depth, q, 0).x;
+    return o;
+}
+"#;
+
+    const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+
+    fn f16_to_f32(h: u16) -> f32 {
+        let (s, e, m) = ((h >> 15) & 1, (h >> 10) & 0x1f, (h & 0x3ff) as f32);
+        let v = match e {
+            0 => m * 2f32.powi(-24),
+            31 if m == 0.0 => f32::INFINITY,
+            31 => f32::NAN,
+            _ => (1.0 + m / 1024.0) * 2f32.powi(e as i32 - 15),
+        };
+        if s == 1 {
+            -v
+        } else {
+            v
+        }
+    }
+
+    /// The density mode composited by the runtime's engine drawer over `plate` (black without
+    /// one), cut at `depth` (view-axis distances, row 0 at the top): the image (linear RGB,
+    /// the plate's alpha), the adapter, and the GPU time of the drawer's passes.
+    #[allow(clippy::too_many_arguments)]
+    pub fn composite(
+        asset: &Asset,
+        s: &RenderSettings,
+        view: [[f64; 4]; 4],
+        proj: [[f64; 4]; 4],
+        near: f64,
+        plate: Option<&Plate>,
+        depth: Option<&[f32]>,
+    ) -> Result<(Image, String, Option<f64>), String> {
+        let (w, h) = (s.width, s.height);
+        let n = (w * h) as usize;
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|e| format!("no GPU adapter ({e}); use --backend cpu"))?;
+        let info = adapter.get_info();
+        let wanted = wgpu::Features::TIMESTAMP_QUERY | OPTIONAL_FEATURES;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("vdbcook render composite"),
+            required_limits: adapter.limits(),
+            required_features: adapter.features() & wanted,
+            ..Default::default()
+        }))
+        .map_err(|e| format!("cannot open the GPU device: {e}"))?;
+        let volume = GpuVolume::upload(&device, &queue, asset).map_err(|e| e.to_string())?;
+        let mut drawer = VolumeDrawer::new(&device, &volume, COLOR).map_err(|e| e.to_string())?;
+        let m4 = |m: [[f64; 4]; 4]| {
+            Mat4::from_cols_array_2d(&m.map(|r| r.map(|v| v as f32))).transpose()
+        };
+        let view = View::new(m4(view), m4(proj), (w, h)).map_err(|e| e.to_string())?;
+
+        let tex = |format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("vdbcook render composite"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let upload = |format, texel: u32, bytes: &[u8]| {
+            let t = tex(
+                format,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            );
+            queue.write_texture(
+                t.as_image_copy(),
+                bytes,
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(w * texel),
+                    rows_per_image: None,
+                },
+                t.size(),
+            );
+            t.create_view(&Default::default())
+        };
+        let scene_rgba: Vec<f32> = match plate {
+            Some(p) => p.rgba.clone(),
+            None => [0.0, 0.0, 0.0, 1.0].repeat(n),
+        };
+        // Reversed-Z infinite: NDC z = near / d (clamped to the near plane), 0 = no surface.
+        let ndc: Vec<f32> = match depth {
+            Some(d) => d
+                .iter()
+                .map(|&d| {
+                    if d.is_finite() && d > 0.0 {
+                        (near / d as f64).min(1.0) as f32
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+            None => vec![0.0; n],
+        };
+        let plate_view = upload(
+            wgpu::TextureFormat::Rgba32Float,
+            16,
+            bytemuck::cast_slice(&scene_rgba),
+        );
+        let depth_in = upload(wgpu::TextureFormat::R32Float, 4, bytemuck::cast_slice(&ndc));
+        let color = tex(
+            COLOR,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth_tex = tex(
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let (color_view, depth_view) = (
+            color.create_view(&Default::default()),
+            depth_tex.create_view(&Default::default()),
+        );
+
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("vdbcook render scene"),
+            source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),
+        });
+        let unfiltered = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook render scene"),
+            entries: &[unfiltered(0), unfiltered(1)],
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook render scene"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&plate_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&depth_in),
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("vdbcook render scene"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("vdbcook render scene"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(COLOR.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let row = (w * 8).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vdbcook render composite readback"),
+            size: row as u64 * h as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let timer = GpuTimer::new(&device, &queue);
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("vdbcook render scene"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &color_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        if let Some(t) = &timer {
+            t.begin(&mut encoder);
+        }
+        let inst = Instance {
+            time: s.frame as f32,
+            ..Default::default()
+        };
+        drawer
+            .record(
+                &device,
+                &mut encoder,
+                &DrawTarget {
+                    color: &color_view,
+                    depth: Some(&depth_view),
+                },
+                &view,
+                &[inst],
+                &Medium {
+                    absorb: s.absorb,
+                    unit: s.unit,
+                },
+            )
+            .map_err(|e| e.to_string())?;
+        if let Some(t) = &timer {
+            t.end(&mut encoder);
+        }
+        encoder.copy_texture_to_buffer(
+            color.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: None,
+                },
+            },
+            color.size(),
+        );
+        queue.submit([encoder.finish()]);
+        readback
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, |r| r.expect("map readback"));
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| format!("GPU: {e}"))?;
+        let gpu_ms = timer.as_ref().and_then(|t| t.read_ms(&device));
+        let data = readback
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| format!("GPU read-back: {e}"))?;
+        let mut rgba = Vec::with_capacity(4 * n);
+        for y in 0..h as usize {
+            let r = &data[y * row as usize..][..8 * w as usize];
+            rgba.extend(
+                r.chunks_exact(2)
+                    .map(|c| f16_to_f32(u16::from_le_bytes([c[0], c[1]]))),
+            );
+        }
+        let soft = if info.device_type == wgpu::DeviceType::Cpu {
+            ", software"
+        } else {
+            ""
+        };
+        Ok((
+            Image {
+                width: w,
+                height: h,
+                rgba,
+                value: vec![0.0; n],
+            },
+            format!("{} ({:?}{soft})", info.name, info.backend),
+            gpu_ms,
+        ))
+    }
 }
