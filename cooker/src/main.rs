@@ -52,13 +52,15 @@ vdbcook cook --manifest volumes.toml --json    (batch, with a cache: docs/cli.md
         after_help = "Examples:\n  vdbcook eval smoke.vdbc 'cache/smoke.####.vdb'\n  vdbcook eval smoke.vdbc cache/ --json"
     )]
     Eval(eval::Args),
-    /// Render one frame of an asset (or of VDB sources, cooked in memory) to a PNG, on the CPU
-    /// reference tracer or the GPU runtime.
+    /// Render one frame of an asset (or of VDB sources, cooked in memory) to a PNG or a linear
+    /// PFM, on the CPU reference tracer or the GPU runtime, optionally over a background plate
+    /// with scene depth.
     #[command(
         after_help = "MODE: density, depth, first-hit, brick-hue, steps, scatter (vdb_render's \
 single scattering), delta (delta tracking).\n\nExamples:\n  vdbcook render smoke.vdbc -o smoke.png\n  \
 vdbcook render smoke.vdbc -o f10.png --frame 10 --mode scatter --width 1280 --height 720\n  \
-vdbcook render smoke.vdbc -o d.png --mode delta --spp 64 --camera 20,15,30,0,5,0,40 --json"
+vdbcook render smoke.vdbc -o d.png --mode delta --spp 64 --camera 20,15,30,0,5,0,40 --json\n  \
+vdbcook render smoke.vdbc -o comp.pfm --background plate.png --depth depth.pfm   (density over a scene)"
     )]
     Render(render::Args),
     /// Cook an input across formats, clustering and error bounds; chart size, cook time and
