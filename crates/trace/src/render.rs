@@ -1,6 +1,7 @@
 //! Per-render state (`Tracer`: the inverse transform, the light in index space, the depth range)
-//! and the per-ray dispatch to the modes; `render` runs it over the image rows with rayon.
+//! and the per-ray dispatch to the modes; `render` runs it over the image rows (with rayon under the default `parallel` feature).
 
+#[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
 
@@ -281,18 +282,30 @@ pub fn render(
     let basis = camera.basis(w, h)?;
     let mut rgba = vec![0.0f32; w as usize * h as usize * 4];
     let mut value = vec![0.0f32; w as usize * h as usize];
+    let trace_row = |scratch: &mut Scratch, (j, (row, vrow)): (usize, (&mut [f32], &mut [f32]))| {
+        let j = j as u32;
+        for i in 0..w {
+            let dir = basis.dir(i, j, w, h);
+            let px = tracer.trace(camera.eye, dir, j * w + i, scratch);
+            row[4 * i as usize..4 * i as usize + 4].copy_from_slice(&px.rgba);
+            vrow[i as usize] = px.value;
+        }
+    };
+    // Rows on rayon's pool with the `parallel` feature (default); one thread without it (the
+    // runtime turns it off: engines get the tracer's definitions without a thread pool).
+    #[cfg(feature = "parallel")]
     rgba.par_chunks_mut(w as usize * 4)
         .zip(value.par_chunks_mut(w as usize))
         .enumerate()
-        .for_each_init(Scratch::default, |scratch, (j, (row, vrow))| {
-            let j = j as u32;
-            for i in 0..w {
-                let dir = basis.dir(i, j, w, h);
-                let px = tracer.trace(camera.eye, dir, j * w + i, scratch);
-                row[4 * i as usize..4 * i as usize + 4].copy_from_slice(&px.rgba);
-                vrow[i as usize] = px.value;
-            }
-        });
+        .for_each_init(Scratch::default, trace_row);
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut scratch = Scratch::default();
+        rgba.chunks_mut(w as usize * 4)
+            .zip(value.chunks_mut(w as usize))
+            .enumerate()
+            .for_each(|x| trace_row(&mut scratch, x));
+    }
     Ok(Image {
         width: w,
         height: h,
