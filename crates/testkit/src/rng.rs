@@ -1,4 +1,4 @@
-//! The seeded generator of the tests. Before the test kit, six test files each carried their
+//! The seeded generator of the tests. Before the test kit, five test files each carried their
 //! own copy of this xorshift64* (same shifts, same multiplier), so it is kept bit for bit: a
 //! seed draws the same numbers it always did.
 
