@@ -205,19 +205,8 @@ mod tests {
         sum as f64 / a.len() as f64
     }
 
-    /// Small deterministic generator (xorshift64*), so tests need no extra crate.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-        }
-        fn byte(&mut self) -> u8 {
-            (self.next() >> 56) as u8
-        }
-    }
+    // The test kit's seeded xorshift64*.
+    use vdbcook_testkit::XorShift as Rng;
 
     fn noise(len: usize, seed: u64) -> Vec<u8> {
         let mut rng = Rng(seed);
@@ -382,7 +371,7 @@ mod tests {
                 let colors: Vec<[u8; 4]> = (0..3)
                     .map(|_| [rng.byte(), rng.byte(), rng.byte(), rng.byte()])
                     .collect();
-                let split = rng.next() % 4;
+                let split = rng.next_u64() % 4;
                 for t in 0..16usize {
                     let (x, y) = (t % 4, t / 4);
                     let px: [u8; 4] = match kind {

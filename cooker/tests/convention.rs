@@ -19,9 +19,7 @@ use vdbcook_asset::Asset;
 use vdbcook_trace::{Camera, Mode, RenderSettings, Scratch, Tracer};
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/vdb")
-        .join(name)
+    vdbcook_testkit::fixtures().join("vdb").join(name)
 }
 
 fn truth() -> Value {

@@ -11,7 +11,7 @@ use std::process::Command;
 use serde_json::Value;
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+    vdbcook_testkit::repo_root()
 }
 
 fn vdbcook(args: &[&str]) -> (i32, String, String) {

@@ -8,8 +8,9 @@ use std::process::Command;
 
 use serde_json::Value;
 
+/// The repository root (the test kit's).
 pub fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+    vdbcook_testkit::repo_root()
 }
 
 #[path = "../../../crates/vdb/tests/support/samples.rs"]

@@ -47,6 +47,7 @@
 //! per-node deserialization.
 
 pub mod bc;
+pub mod builder;
 mod error;
 mod format;
 mod load;

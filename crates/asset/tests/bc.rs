@@ -4,6 +4,7 @@
 //! (endpoint expansion, p-bits, partitions, anchor indices, index selection, rotation).
 
 use vdbcook_asset::bc::{decode_bc4_block, decode_bc7_block};
+use vdbcook_testkit::XorShift;
 
 // ---------------------------------------------------------------------------------------------
 // BC4
@@ -350,31 +351,20 @@ fn bc7_reserved_mode_is_transparent_black() {
     assert_eq!(decode_bc7_block(&[0; 16]), [[0; 4]; 16]);
 }
 
-/// xorshift64*: deterministic bytes without a dependency.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-}
-
 #[test]
 fn decoders_never_panic_on_arbitrary_bytes() {
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut rng = XorShift(0x9E37_79B9_7F4A_7C15);
     for i in 0..200_000u32 {
         let mut bc7 = [0u8; 16];
-        bc7[..8].copy_from_slice(&rng.next().to_le_bytes());
-        bc7[8..].copy_from_slice(&rng.next().to_le_bytes());
+        bc7[..8].copy_from_slice(&rng.next_u64().to_le_bytes());
+        bc7[8..].copy_from_slice(&rng.next_u64().to_le_bytes());
         // Force every mode (and the reserved one) to come up often.
         bc7[0] = (bc7[0] | 1).checked_shl(i % 9).unwrap_or(0);
         let texels = decode_bc7_block(&bc7);
         if bc7[0] == 0 {
             assert_eq!(texels, [[0; 4]; 16]);
         }
-        let bc4: [u8; 8] = rng.next().to_le_bytes();
+        let bc4: [u8; 8] = rng.next_u64().to_le_bytes();
         decode_bc4_block(&bc4);
     }
     for fill in [0x00, 0xFF, 0x80, 0x01] {
@@ -391,12 +381,12 @@ fn decoders_never_panic_on_arbitrary_bytes() {
 #[test]
 fn bc7_opaque_modes_have_full_alpha() {
     // Modes 0-3 carry no alpha: every texel decodes with alpha 255 whatever the other bits.
-    let mut rng = Rng(7);
+    let mut rng = XorShift(7);
     for mode in 0..4 {
         for _ in 0..1000 {
             let mut block = [0u8; 16];
-            block[..8].copy_from_slice(&rng.next().to_le_bytes());
-            block[8..].copy_from_slice(&rng.next().to_le_bytes());
+            block[..8].copy_from_slice(&rng.next_u64().to_le_bytes());
+            block[8..].copy_from_slice(&rng.next_u64().to_le_bytes());
             block[0] = (block[0] | 1) << mode;
             for texel in decode_bc7_block(&block) {
                 assert_eq!(texel[3], 255, "mode {mode}");

@@ -6,6 +6,7 @@ mod common;
 
 use common::*;
 use vdbcook_blosc::{decompress, decompress_into, parse_header, BloscError, HEADER_LEN};
+use vdbcook_testkit::XorShift;
 
 const MAX_LEN: usize = 1 << 20;
 
@@ -112,7 +113,7 @@ fn truncate_at_every_length() {
 
 #[test]
 fn random_multi_byte_mutations() {
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut rng = XorShift(0x9E37_79B9_7F4A_7C15);
     for (_name, src) in victims() {
         for _ in 0..3000 {
             let mut m = src.clone();
@@ -128,7 +129,7 @@ fn random_multi_byte_mutations() {
 
 #[test]
 fn random_garbage_with_plausible_headers() {
-    let mut rng = Rng(42);
+    let mut rng = XorShift(42);
     let mut oks = 0;
     for iter in 0..200_000 {
         let len = rng.below(300);
@@ -300,7 +301,7 @@ fn blosclz_match_before_output_start() {
 #[test]
 fn mutate_every_vector() {
     let (cases, _) = load_cases();
-    let mut rng = Rng(7);
+    let mut rng = XorShift(7);
     for case in &cases {
         let src = frame(&case.name);
         for _ in 0..20 {

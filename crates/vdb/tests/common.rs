@@ -8,16 +8,7 @@ use std::path::{Path, PathBuf};
 use serde_json::Value;
 use vdbcook_vdb::{CodeStats, VdbFile};
 
-pub fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .expect("repo root")
-}
-
-pub fn fixtures() -> PathBuf {
-    repo_root().join("fixtures")
-}
+pub use vdbcook_testkit::{fixtures, repo_root};
 
 #[path = "support/samples.rs"]
 mod samples_support;

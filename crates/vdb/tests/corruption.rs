@@ -7,6 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
+use vdbcook_testkit::XorShift;
 use vdbcook_vdb::VdbFile;
 
 /// Opens and fully reads every float grid; returns the error text if any.
@@ -19,20 +20,6 @@ fn exercise(path: &Path, bytes: Vec<u8>) -> Result<(), String> {
         }
     }
     Ok(())
-}
-
-/// A small deterministic PRNG (xorshift64*), so failures reproduce.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545F4914F6CDD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
 }
 
 fn corpus() -> Vec<PathBuf> {
@@ -88,7 +75,7 @@ fn truncated_files_are_refused_cleanly() {
 
 #[test]
 fn flipped_bytes_never_panic() {
-    let mut rng = Rng(0x5eed_1234_abcd_0001);
+    let mut rng = XorShift(0x5eed_1234_abcd_0001);
     for p in &corpus() {
         let data = std::fs::read(p).unwrap();
         // Every byte of the header region, then a seeded sample of the rest.
@@ -97,7 +84,7 @@ fn flipped_bytes_never_panic() {
             .collect();
         for pos in positions {
             let mut d = data.clone();
-            d[pos] ^= (rng.next() as u8) | 1;
+            d[pos] ^= (rng.next_u64() as u8) | 1;
             run_case(p, d, &format!("a flipped byte at {pos}"));
         }
     }
@@ -105,7 +92,7 @@ fn flipped_bytes_never_panic() {
 
 #[test]
 fn absurd_lengths_never_panic_or_allocate() {
-    let mut rng = Rng(42);
+    let mut rng = XorShift(42);
     for p in &corpus() {
         let data = std::fs::read(p).unwrap();
         for _ in 0..300 {
@@ -115,7 +102,7 @@ fn absurd_lengths_never_panic_or_allocate() {
                 0 => u64::MAX.to_le_bytes(),
                 1 => (i64::MAX).to_le_bytes(),
                 2 => [0xff, 0xff, 0xff, 0x7f, 0, 0, 0, 0],
-                _ => (rng.next() | 0x8000_0000).to_le_bytes(),
+                _ => (rng.next_u64() | 0x8000_0000).to_le_bytes(),
             };
             let len = if rng.below(2) == 0 { 4 } else { 8 };
             let end = (pos + len).min(d.len());
@@ -127,14 +114,14 @@ fn absurd_lengths_never_panic_or_allocate() {
 
 #[test]
 fn random_bytes_after_a_valid_prefix_never_panic() {
-    let mut rng = Rng(7);
+    let mut rng = XorShift(7);
     for p in corpus().iter().take(6) {
         let data = std::fs::read(p).unwrap();
         for _ in 0..60 {
             let keep = rng.below(data.len());
             let mut d = data[..keep].to_vec();
             let extra = rng.below(4096);
-            d.extend((0..extra).map(|_| rng.next() as u8));
+            d.extend((0..extra).map(|_| rng.next_u64() as u8));
             run_case(p, d, &format!("random bytes after {keep}"));
         }
     }

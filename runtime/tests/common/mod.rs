@@ -4,9 +4,7 @@
 //! and the conversions between the CPU reference tracer's camera/settings and the runtime's.
 #![allow(dead_code)]
 
-#[path = "../../../crates/trace/tests/common/builder.rs"]
-mod builder;
-pub use builder::*;
+pub use vdbcook_testkit::*;
 
 use vdbcook_asset::*;
 
@@ -16,35 +14,14 @@ pub fn gpu(test: &str) -> Option<(wgpu::Device, wgpu::Queue)> {
     gpu_with(test, vdbcook_runtime::OPTIONAL_FEATURES, None)
 }
 
-/// As [`gpu`], enabling only `features ∩ the adapter's`, with the adapter's limits or `limits`.
+/// As [`gpu`], enabling only `features ∩ the adapter's`, with the adapter's limits or `limits`
+/// (the test kit's opener).
 pub fn gpu_with(
     test: &str,
     features: wgpu::Features,
     limits: Option<wgpu::Limits>,
 ) -> Option<(wgpu::Device, wgpu::Queue)> {
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-    let adapter = match pollster::block_on(instance.request_adapter(&Default::default())) {
-        Ok(a) => a,
-        Err(e) => {
-            let msg = format!(
-                "{test}: skipped, no GPU adapter ({e}); install mesa-vulkan-drivers for software Vulkan"
-            );
-            if std::env::var("VDBCOOK_REQUIRE_GPU").as_deref() == Ok("1") {
-                panic!("{msg} (VDBCOOK_REQUIRE_GPU=1 makes this a failure)");
-            }
-            eprintln!("{msg}");
-            return None;
-        }
-    };
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        label: Some("vdbcook test"),
-        // BC textures where the adapter has them: the default upload then uses them.
-        required_features: adapter.features() & features,
-        required_limits: limits.unwrap_or_else(|| adapter.limits()),
-        ..Default::default()
-    }))
-    .expect("device on the adapter");
-    Some((device, queue))
+    vdbcook_testkit::gpu::open_device(test, features, limits)
 }
 
 /// A smooth blob (a cloud-like ball of radius `r` around `c`, density up to `peak`, 0 outside)

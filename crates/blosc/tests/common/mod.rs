@@ -1,12 +1,12 @@
 //! Shared helpers for the blosc integration tests: loading the c-blosc test
 //! vectors written by `fixtures/gen/gen_blosc.py` (`fixtures/blosc/cases.tsv`,
-//! `cases/CASE.blosc`, `inputs/INPUT.raw`) and a small seeded PRNG.
+//! `cases/CASE.blosc`, `inputs/INPUT.raw`); the seeded PRNG is the test kit's.
 #![allow(dead_code)]
 
 use std::path::PathBuf;
 
 pub fn fixtures_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blosc")
+    vdbcook_testkit::fixtures().join("blosc")
 }
 
 pub struct Case {
@@ -54,24 +54,4 @@ pub fn frame(name: &str) -> Vec<u8> {
 pub fn raw(input: &str) -> Vec<u8> {
     std::fs::read(fixtures_dir().join("inputs").join(format!("{input}.raw")))
         .unwrap_or_else(|e| panic!("input {input}: {e}"))
-}
-
-/// xorshift64* — deterministic, dependency-free.
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-    pub fn byte(&mut self) -> u8 {
-        (self.next() >> 56) as u8
-    }
 }

@@ -1,9 +1,8 @@
-//! Helpers of the tracer tests: the hand-built assets (`builder.rs`, shared with the runtime's
-//! tests), box-shaped content, and exact slab lengths to check ray integrals against.
+//! Helpers of the tracer tests: the hand-built assets (from the test kit, shared with the
+//! runtime's tests), box-shaped content, and exact slab lengths to check ray integrals against.
 #![allow(dead_code)]
 
-mod builder;
-pub use builder::*;
+pub use vdbcook_testkit::*;
 
 use std::collections::BTreeMap;
 
