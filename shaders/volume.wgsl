@@ -256,6 +256,24 @@ fn vdb_value_nearest(frame_root: u32, p: vec3<f32>) -> f32 {
     return vdb_value(frame_root, vec3<i32>(floor(p + vec3<f32>(0.5))));
 }
 
+// The density an engine's own shader samples at a world point, with no tracer state:
+// `world_to_index` maps world space to the asset's index space (the inverse of the instance's
+// world_from_volume times the asset's index_to_world: `vdbcook_runtime::world_to_index`), the
+// nearest voxel by OpenVDB's rounding, and a fractional flip-book `time` (clamped to the sequence)
+// crossfades frames floor(time) and floor(time) + 1.
+fn vdb_sample(world_to_index: mat4x4<f32>, world_pos: vec3<f32>, time: f32) -> f32 {
+    let p = (world_to_index * vec4<f32>(world_pos, 1.0)).xyz;
+    let t = clamp(time, 0.0, f32(vdb_info.frames - 1u));
+    let f0 = u32(floor(t));
+    let f1 = min(f0 + 1u, vdb_info.frames - 1u);
+    let a = t - f32(f0);
+    let v0 = vdb_value_nearest(f0 * vdb_info.root_len, p);
+    if (a <= 0.0) {
+        return v0;
+    }
+    return mix(v0, vdb_value_nearest(f1 * vdb_info.root_len, p), a);
+}
+
 // A ray in cell space (asset index + 1/2, so voxel `a` is the cell [a, a + 1) and `floor` finds
 // it: `vdbcook_trace::Affine::cells`), p(t) = o + t·d, t in world units (d is the cell-space image
 // of a unit world direction); `per_t` converts t to the length unit (|d| for voxels, else 1).

@@ -7,7 +7,9 @@
 //!
 //! The WGSL lives in `shaders/` (the one source) and is exposed here: [`VOLUME_WGSL`] (bindings,
 //! tree access L1 → L2 → L3 → brick with the node masks, `vdb_value`, the bounded DDA) for an
-//! engine's own shaders, and [`TRACE_WGSL`] (the tracer's compute entry point).
+//! engine's own shaders — [`volume_wgsl`] puts its bindings in the bind group the engine chooses,
+//! and its `vdb_sample(world_to_index, world_pos, time)` ([`world_to_index`]) samples an instance
+//! with a flip-book crossfade — and [`TRACE_WGSL`] (the tracer's compute entry point).
 //!
 //! The images are defined by the CPU reference tracer (`crates/trace`, its crate docs): the GPU
 //! follows the same spaces, DDA rules, skip rules and colour maps in f32, and
@@ -46,6 +48,7 @@ mod error;
 mod render;
 mod timer;
 mod upload;
+mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
@@ -59,6 +62,7 @@ pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };
 pub use vdbcook_asset::Asset;
+pub use wgsl::{volume_wgsl, world_to_index};
 /// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
 /// to be sure of matching versions.
 pub use {glam, wgpu};

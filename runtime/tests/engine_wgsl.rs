@@ -1,0 +1,225 @@
+//! The volume WGSL in an engine's own shader (issue 12, item 5): an engine-style compute
+//! pipeline with its own bind groups 0 and 1 includes `volume_wgsl(2)` and calls
+//! `vdb_sample(world_to_index, world_pos, time)` for an instance placed by a rotated, scaled,
+//! translated `world_from_volume`, at integer and fractional flip-book times. Every sample must
+//! equal the CPU's: the asset's value at OpenVDB's nearest index (`round` of the inverse
+//! transform, computed here in f64) of frames ⌊t⌋ and ⌊t⌋+1, mixed by the fraction. Points within
+//! f32 rounding of a voxel boundary, where f32 and f64 may round to different voxels, are skipped.
+
+mod common;
+
+use common::*;
+use vdbcook_asset::{Asset, PayloadFormat};
+use vdbcook_runtime::glam::{Affine3A, Quat, Vec3};
+use vdbcook_runtime::{volume_wgsl, wgpu, world_to_index, GpuVolume};
+
+const ENGINE_WGSL: &str = r#"
+// The engine's own bindings (groups 0 and 1); the volume is at group 2.
+struct Query { world_to_index: mat4x4<f32>, time: f32, count: u32, _p0: u32, _p1: u32 }
+@group(0) @binding(0) var<uniform> query: Query;
+@group(1) @binding(0) var<storage, read> points: array<vec4<f32>>;
+@group(1) @binding(1) var<storage, read_write> samples: array<f32>;
+
+@compute @workgroup_size(64)
+fn sample_points(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= query.count) {
+        return;
+    }
+    samples[id.x] = vdb_sample(query.world_to_index, points[id.x].xyz, query.time);
+}
+"#;
+
+/// Three frames of blobs at different places, so crossfades mix different values.
+fn asset() -> Asset {
+    let frames = [
+        blob_frame([20.0, 22.0, 18.0], 9.0, 1.0, None),
+        blob_frame([24.0, 20.0, 20.0], 10.0, 0.8, None),
+        blob_frame([18.0, 26.0, 22.0], 8.0, 1.2, None),
+    ];
+    vdbcook_testkit::build(
+        [1, 1, 1],
+        vdbcook_testkit::rotated(0.0, [1.0; 3], [0.0; 3]),
+        0.0,
+        &frames,
+        PayloadFormat::F32,
+    )
+}
+
+fn gpu_samples(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    vol: &GpuVolume,
+    w2i: [f32; 16],
+    time: f32,
+    points: &[[f32; 4]],
+) -> Vec<f32> {
+    use wgpu::util::DeviceExt;
+    let source = format!("{}\n{ENGINE_WGSL}", volume_wgsl(2));
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("engine shader"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let l0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[entry(0, wgpu::BufferBindingType::Uniform)],
+    });
+    let l1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[
+            entry(0, wgpu::BufferBindingType::Storage { read_only: true }),
+            entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
+        ],
+    });
+    let (vol_layout, vol_group) = vol.bind_group();
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(&l0), Some(&l1), Some(vol_layout)],
+        immediate_size: 0,
+    });
+    let constants = vol.pipeline_constants();
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("engine shader"),
+        layout: Some(&layout),
+        module: &module,
+        entry_point: Some("sample_points"),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: &constants,
+            ..Default::default()
+        },
+        cache: None,
+    });
+    let mut q = Vec::with_capacity(20);
+    q.extend(w2i.iter().map(|v| v.to_bits()));
+    q.extend([time.to_bits(), points.len() as u32, 0, 0]);
+    let qbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&q),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let pbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(points),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let size = (points.len() * 4) as u64;
+    let out = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let read = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let g0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &l0,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: qbuf.as_entire_binding(),
+        }],
+    });
+    let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &l1,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: pbuf.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: out.as_entire_binding(),
+            },
+        ],
+    });
+    let mut enc = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &g0, &[]);
+        pass.set_bind_group(1, &g1, &[]);
+        pass.set_bind_group(2, vol_group, &[]);
+        pass.dispatch_workgroups((points.len() as u32).div_ceil(64), 1, 1);
+    }
+    enc.copy_buffer_to_buffer(&out, 0, &read, 0, size);
+    queue.submit([enc.finish()]);
+    read.slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let v: Vec<f32> = bytemuck::cast_slice(&read.slice(..).get_mapped_range().unwrap()).to_vec();
+    v
+}
+
+#[test]
+fn an_engine_shader_samples_an_instance_at_its_own_bind_group() {
+    let Some((device, queue)) = gpu("an_engine_shader_samples_an_instance_at_its_own_bind_group")
+    else {
+        return;
+    };
+    let asset = asset();
+    let vol = GpuVolume::upload(&device, &queue, &asset).unwrap();
+    let world_from_volume = Affine3A::from_scale_rotation_translation(
+        Vec3::new(0.5, 0.7, 0.6),
+        Quat::from_euler(vdbcook_runtime::glam::EulerRot::XYZ, 0.4, -0.7, 0.25),
+        Vec3::new(3.0, -2.0, 5.0),
+    );
+    let w2i = world_to_index(&vol, world_from_volume).expect("invertible");
+    // The CPU's inverse, in f64: world → index.
+    let inv = (vdbcook_runtime::glam::Mat4::from(world_from_volume).as_dmat4()).inverse();
+    // Points: inside the blobs' region (index 5..40), in world space.
+    let mut rng = vdbcook_testkit::XorShift(12);
+    let mut points = Vec::new();
+    let mut index = Vec::new();
+    while points.len() < 4000 {
+        let p = [0, 1, 2].map(|_| rng.range(5.0, 40.0));
+        // Skip points within 1e-3 of a rounding boundary (i + ½).
+        if p.iter().any(|c| ((c + 0.5).fract() - 0.5).abs() > 0.499) {
+            continue;
+        }
+        let w =
+            world_from_volume.transform_point3(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+        // The index the CPU sees for this (f32) world point, from the f64 inverse.
+        let back = inv.transform_point3(w.as_dvec3());
+        if (0..3).any(|a| ((back[a] + 0.5).fract() - 0.5).abs() > 0.499) {
+            continue;
+        }
+        points.push([w.x, w.y, w.z, 1.0]);
+        index.push([0, 1, 2].map(|a| (back[a] + 0.5).floor() as i64));
+    }
+    let mut nonzero = 0;
+    for time in [0.0f32, 1.0, 2.0, 0.25, 1.6, 7.0] {
+        let got = gpu_samples(&device, &queue, &vol, w2i.to_cols_array(), time, &points);
+        let t = time.clamp(0.0, 2.0);
+        let (f0, a) = (t.floor() as usize, t - t.floor());
+        let f1 = (f0 + 1).min(2);
+        for (k, idx) in index.iter().enumerate() {
+            let v0 = asset.value(f0, *idx);
+            let want = if a > 0.0 {
+                v0 + (asset.value(f1, *idx) - v0) * a
+            } else {
+                v0
+            };
+            nonzero += (want != 0.0) as usize;
+            assert!(
+                (got[k] - want).abs() <= 1e-6 * want.abs().max(1.0),
+                "time {time}, point {k} (index {idx:?}): gpu {}, cpu {want}",
+                got[k]
+            );
+        }
+    }
+    assert!(nonzero > 2000, "the points hit the blobs ({nonzero})");
+}
