@@ -962,6 +962,31 @@ fn gpu_timer_brackets_a_render() {
         // Positive, and within the wall time of submit-to-read (plus clock granularity).
         assert!(ms > 0.0 && ms <= wall + 1.0, "GPU {ms} ms, wall {wall} ms");
     }
+    // The engine's way: request after submitting, then non-blocking polls (as an engine's later
+    // frames would) until the time is there; nothing before the request.
+    assert_eq!(timer.try_read_ms(), None, "nothing requested");
+    let start = std::time::Instant::now();
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    timer.begin(&mut enc);
+    r.render_to_buffer(&gpu.queue, &mut enc, &target, 0, &cam, &s)
+        .unwrap();
+    timer.end(&mut enc);
+    gpu.queue.submit([enc.finish()]);
+    timer.request();
+    timer.request(); // a second request while one is under way does nothing
+    let mut ms = None;
+    for _ in 0..60_000 {
+        gpu.device.poll(wgpu::PollType::Poll).unwrap();
+        ms = timer.try_read_ms();
+        if ms.is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let ms = ms.expect("the non-blocking read completes once the device is polled");
+    let wall = start.elapsed().as_secs_f64() * 1e3;
+    assert!(ms > 0.0 && ms <= wall + 1.0, "GPU {ms} ms, wall {wall} ms");
+    assert_eq!(timer.try_read_ms(), None, "read once");
 }
 
 #[test]
