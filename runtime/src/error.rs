@@ -20,6 +20,8 @@ pub enum RuntimeError {
     Target(String),
     /// The mode is not implemented on the GPU yet.
     Unsupported(String),
+    /// A streaming byte budget too small for what was asked (one frame, or a window).
+    Budget(String),
 }
 
 impl fmt::Display for RuntimeError {
@@ -37,6 +39,7 @@ impl fmt::Display for RuntimeError {
             RuntimeError::Limits(m) => write!(f, "asset exceeds the device limits: {m}"),
             RuntimeError::Target(m) => write!(f, "bad render target: {m}"),
             RuntimeError::Unsupported(m) => write!(f, "not supported by the GPU runtime: {m}"),
+            RuntimeError::Budget(m) => write!(f, "streaming budget too small: {m}"),
         }
     }
 }

@@ -58,6 +58,7 @@ pub use draw::{
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
 pub use timer::GpuTimer;
+pub use upload::stream::{StreamingVolume, WindowStats};
 pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };

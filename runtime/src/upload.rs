@@ -30,6 +30,11 @@ use wgpu::util::DeviceExt;
 
 use crate::{Result, RuntimeError};
 
+/// Streaming a window of frames under a byte budget (a child module: it plans and binds its
+/// pool with this module's private pieces).
+#[path = "stream.rs"]
+pub(crate) mod stream;
+
 /// Payload storage buffers the shader binds (`vdb_payload0..3`).
 pub const PAYLOAD_BINDINGS: usize = 4;
 
@@ -538,13 +543,14 @@ struct FullPlan {
     buffers: BufferLayout,
 }
 
+/// `counts`: bricks per format, in [`PayloadFormat::ORDER`] (an asset's `brick_counts`, or the
+/// slots of a streamed pool).
 fn plan_layout(
     device: &wgpu::Device,
-    asset: &Asset,
+    counts: &[u64; 5],
     layout: Layout,
     max_binding: u64,
 ) -> std::result::Result<FullPlan, String> {
-    let counts = asset.header.brick_counts;
     let mut textures = [None; 3];
     if layout != Layout::Buffers {
         for (slot, format) in PayloadFormat::ORDER[..3].iter().enumerate() {
@@ -557,7 +563,7 @@ fn plan_layout(
         }
     }
     let textured: u64 = textures.iter().flatten().map(|p| p.bricks as u64).sum();
-    let buffered = asset.brick_count() as u64 - textured;
+    let buffered = counts.iter().sum::<u64>() - textured;
     let all_f16 = buffered > 0 && counts[PayloadFormat::F16.rank()] == buffered;
     let buffers = plan_buffers(buffered, all_f16, max_binding)?;
     Ok(FullPlan {
@@ -641,14 +647,15 @@ impl GpuVolume {
 
         // Layout: the forced one, or the first that works.
         let plan = match options.force {
-            Some(layout) => plan_layout(device, asset, layout, max_binding).map_err(|e| {
-                RuntimeError::Limits(format!("forced layout {}: {e}", layout.name()))
-            })?,
+            Some(layout) => plan_layout(device, &asset.header.brick_counts, layout, max_binding)
+                .map_err(|e| {
+                    RuntimeError::Limits(format!("forced layout {}: {e}", layout.name()))
+                })?,
             None => {
                 let mut refusals = Vec::new();
                 let mut chosen = None;
                 for layout in Layout::automatic_order(device) {
-                    match plan_layout(device, asset, layout, max_binding) {
+                    match plan_layout(device, &asset.header.brick_counts, layout, max_binding) {
                         Ok(p) => {
                             chosen = Some(p);
                             break;
