@@ -1,6 +1,8 @@
 //! `vdbcook-runtime`: the thin wgpu runtime of the flip-book asset. An engine owns the device,
 //! the queue, the command encoder and the target; this crate uploads an [`Asset`] once
-//! ([`GpuVolume::upload`]: every frame's tree and the whole brick pool), builds a [`Renderer`]
+//! ([`GpuVolume::upload`]: every frame's tree and the whole brick pool; or a window of frames
+//! under a byte budget with [`StreamingVolume`], which uploads only the bricks a moved window
+//! newly uses), builds a [`Renderer`]
 //! once (pipeline, bind groups), and then records one compute dispatch per render of
 //! `(frame, camera, settings)` into the caller's encoder. Switching frames is one uniform
 //! write: nothing is re-uploaded and no pipeline or bind group is created.
