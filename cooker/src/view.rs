@@ -891,7 +891,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             };
             let fps = self.cpu_ms.map(|ms| 1e3 / ms).unwrap_or(0.0);
             g.window.set_title(&format!(
-                "vdbcook view — frame {}/{} — {} — {time} — {fps:.0} fps{} — {}",
+                "vdbcook view — frame {} of {} — {} — {time} — {fps:.0} fps{} — {}",
                 s.frame,
                 s.frames,
                 MODE_NAMES[s.mode],
@@ -1014,5 +1014,34 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             Some(e) => Err(other(format!("{}: {e}", a.input.display()))),
             None => Ok(()),
         }
+    }
+}
+
+#[cfg(all(test, feature = "view"))]
+mod tests {
+    use super::*;
+    use vdbcook_runtime::Camera;
+
+    #[test]
+    fn orbit_reproduces_the_camera_and_turns_about_the_vertical() {
+        let c = Camera {
+            eye: [4.0, 3.0, 5.0],
+            look_at: [1.0, 1.0, 1.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 40.0,
+        };
+        let mut o = Orbit::from_camera(&c);
+        let back = o.camera();
+        for i in 0..3 {
+            assert!((back.eye[i] - c.eye[i]).abs() < 1e-12, "{back:?}");
+        }
+        o.rotate(std::f64::consts::PI, 0.0);
+        let half = o.camera();
+        // Half a turn: the opposite side at the same height and distance.
+        assert!((half.eye[0] - (2.0 - c.eye[0])).abs() < 1e-9, "{half:?}");
+        assert!((half.eye[1] - c.eye[1]).abs() < 1e-9);
+        assert!((half.eye[2] - (2.0 - c.eye[2])).abs() < 1e-9, "{half:?}");
+        o.rotate(0.0, 10.0);
+        assert!(o.pitch <= 1.55);
     }
 }
