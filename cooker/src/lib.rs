@@ -2,7 +2,7 @@
 //! and build tools call. Data flows one way through its stages — read (`vdbcook_vdb`), build
 //! (`build`), dedup (`pool`), cluster (`cluster`), encode (`encode`, `bcenc`), write (`cook`,
 //! `output`) — and each subcommand has its module (`cook`, `info`, `eval`, `inspect`, `render`,
-//! `report`, `report`; `manifest`: batch cooking with a content-addressed cache). `docs/architecture.md` maps the crates and the invariants each keeps.
+//! `report`, `view`; `manifest`: batch cooking with a content-addressed cache). `docs/architecture.md` maps the crates and the invariants each keeps.
 //!
 //! Entry points for programs: [`cook::cook`] (a cook held in memory: the asset, its bytes and the
 //! typed [`cook_report::CookReport`] that `cook --json` prints) with [`cook::Args`] (`Args::defaults` for the plain options). Errors are
@@ -26,3 +26,4 @@ pub mod progress;
 pub mod render;
 pub mod report;
 pub mod size_budget;
+pub mod view;

@@ -4,7 +4,7 @@
 //! exit code.
 
 use clap::{Parser, Subcommand};
-use vdbcook::{cook, errors, eval, gpu, info, inspect, output, progress, render, report};
+use vdbcook::{cook, errors, eval, gpu, info, inspect, output, progress, render, report, view};
 
 /// Largest `--threads`.
 const MAX_THREADS: usize = 1024;
@@ -73,6 +73,13 @@ vdbcook report wdas_cloud.vdb -o wdas-report/ --json\n  \
 vdbcook report 'cache/smoke.####.vdb' -o r/ --tolerances 0.001,0.01 --mode density"
     )]
     Report(report::Args),
+    /// Interactive viewer of an asset (or of VDB sources, cooked in memory) on the GPU runtime:
+    /// orbit camera, flip-book playback, mode switch, frame time in the title; headless with
+    /// --frames N --screenshot OUT.png.
+    #[command(
+        after_help = "Controls: left-drag orbits, wheel zooms, space plays/pauses (--fps), left/right arrows step a frame, m cycles modes (density, depth, first-hit, brick-hue, steps, scatter, delta), r resets the camera, Esc quits.\n\nExamples:\n  vdbcook view smoke.vdbc\n  vdbcook view 'cache/smoke.####.vdb' --mode scatter --fps 30\n  vdbcook view smoke.vdbc --frames 5 --screenshot shot.png --json   (headless, no window)"
+    )]
+    View(view::Args),
 }
 
 fn main() {
@@ -92,8 +99,12 @@ fn main() {
         Command::Eval(a) => a.json,
         Command::Render(a) => a.json,
         Command::Report(a) => a.json,
+        Command::View(a) => a.json,
     };
-    if matches!(cli.command, Command::Render(_) | Command::Report(_)) {
+    if matches!(
+        cli.command,
+        Command::Render(_) | Command::Report(_) | Command::View(_)
+    ) {
         gpu::private_runtime_dir();
     }
     if let Some(n) = cli.threads {
@@ -123,6 +134,7 @@ fn main() {
         Command::Eval(a) => eval::run(a),
         Command::Render(a) => render::run(a),
         Command::Report(a) => report::run(a),
+        Command::View(a) => view::run(a),
     };
     if let Err(e) = result {
         errors::fail(json, &e);

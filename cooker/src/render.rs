@@ -525,6 +525,29 @@ fn near_plane(camera: &Camera) -> f64 {
     1e-3 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
+/// The asset to draw: `input` loaded, or, when it names VDB sources, cooked in memory (f32,
+/// lossless; `grid`, `allow_gaps` and `replace_non_finite` as `cook`'s options, `label` the
+/// path its errors name) with the seconds that took. Shared by `render` and `view`.
+pub fn load_input(
+    input: &Path,
+    label: &Path,
+    grid: Option<String>,
+    allow_gaps: bool,
+    replace_non_finite: Option<f32>,
+) -> Result<(Asset, Option<f64>), CliError> {
+    if looks_like_vdb(input) {
+        let mut c =
+            cook::Args::defaults(vec![input.to_string_lossy().into_owned()], label.to_owned());
+        c.grid = grid;
+        c.allow_gaps = allow_gaps;
+        c.replace_non_finite = replace_non_finite;
+        let t = Instant::now();
+        Ok((cook::cook(&c)?.asset, Some(t.elapsed().as_secs_f64())))
+    } else {
+        Ok((cook::load_asset(input)?, None))
+    }
+}
+
 pub fn run(a: &Args) -> Result<(), CliError> {
     let t0 = Instant::now();
     let format = check_output_format(&a.output)?;
@@ -594,19 +617,13 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "auto" => Gpu::open().ok().filter(|g| !g.is_software()),
         _ => None,
     };
-    let (asset, cooked_from) = if looks_like_vdb(&a.input) {
-        let mut c = cook::Args::defaults(
-            vec![a.input.to_string_lossy().into_owned()],
-            a.output.clone(),
-        );
-        c.grid = a.grid.clone();
-        c.allow_gaps = a.allow_gaps;
-        c.replace_non_finite = a.replace_non_finite;
-        let t = Instant::now();
-        (cook::cook(&c)?.asset, Some(t.elapsed().as_secs_f64()))
-    } else {
-        (cook::load_asset(&a.input)?, None)
-    };
+    let (asset, cooked_from) = load_input(
+        &a.input,
+        &a.output,
+        a.grid.clone(),
+        a.allow_gaps,
+        a.replace_non_finite,
+    )?;
     let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
     let camera = camera(
         a.camera.as_deref(),

@@ -1,0 +1,204 @@
+//! `vdbcook view` as the tests can run it: headless (`--frames N --screenshot OUT.png`, no window,
+//! the same per-frame code as the interactive loop). The screenshot has the asked size, shows the
+//! volume, and equals what `vdbcook render --backend gpu` draws for the final frame, mode and
+//! camera that `--json` reports (so the orbit, the flip-book stepping and the blit onto the
+//! window's format are all checked); bad input is refused with a reason and a non-zero exit.
+//! GPU cases skip without an adapter unless `VDBCOOK_REQUIRE_GPU=1`.
+
+mod common;
+
+use std::path::Path;
+
+use common::vdbcook;
+use serde_json::Value;
+
+fn gpu_required() -> bool {
+    std::env::var_os("VDBCOOK_REQUIRE_GPU").is_some_and(|v| v != "0")
+}
+
+fn cook_smoke(dir: &Path) -> String {
+    let asset = dir.join("smoke5.vdbc").display().to_string();
+    let (code, _, err) = vdbcook(&["cook", "fixtures/seq/smoke5", "-o", &asset]);
+    assert_eq!(code, 0, "{err}");
+    asset
+}
+
+/// Width, height and 8-bit RGBA pixels of a PNG.
+fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    assert_eq!(info.bit_depth, png::BitDepth::Eight);
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+/// Runs a GPU command; `None` (skip) when there is no adapter and a GPU is not required.
+fn gpu_run(args: &[&str]) -> Option<(i32, String, String)> {
+    let (code, out, err) = vdbcook(args);
+    if code != 0 && !gpu_required() && err.contains("no GPU adapter") {
+        eprintln!("skipping: {err}");
+        return None;
+    }
+    Some((code, out, err))
+}
+
+#[test]
+fn headless_screenshot_shows_the_volume_and_matches_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    for mode in ["density", "scatter"] {
+        let shot = dir.path().join(format!("view-{mode}.png"));
+        let Some((code, stdout, err)) = gpu_run(&[
+            "view",
+            &asset,
+            "--frames",
+            "5",
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--width",
+            "160",
+            "--height",
+            "90",
+            "--mode",
+            mode,
+            "--json",
+        ]) else {
+            return;
+        };
+        assert_eq!(code, 0, "{err}");
+        let doc: Value = serde_json::from_str(&stdout).unwrap();
+        // One flip-book frame per rendered frame: 0..4, each timed.
+        let per_frame = doc["per_frame"].as_array().unwrap();
+        assert_eq!(per_frame.len(), 5, "{doc}");
+        for (i, f) in per_frame.iter().enumerate() {
+            assert_eq!(f["frame"], i, "{doc}");
+            assert!(f["cpu_ms"].as_f64().unwrap() > 0.0, "{doc}");
+            if doc["timestamps"] == true {
+                assert!(f["gpu_ms"].as_f64().unwrap() >= 0.0, "{doc}");
+            }
+        }
+        assert_eq!(doc["frame"], 4);
+        assert_eq!(doc["mode"], mode);
+
+        let (w, h, px) = read_png(&shot);
+        assert_eq!((w, h), (160, 90));
+        // The volume is there: many pixels differ from the corner (background), and the centre
+        // region is not all background.
+        let bg = &px[..4];
+        let lit = px.chunks(4).filter(|p| p[..3] != bg[..3]).count();
+        assert!(
+            lit > 160 * 90 / 20,
+            "{mode}: only {lit} pixels differ from the background"
+        );
+        let centre_lit = (30..60)
+            .flat_map(|y| (55..105).map(move |x| (y, x)))
+            .filter(|&(y, x)| {
+                let p = &px[4 * (y * 160 + x)..][..4];
+                p[..3] != bg[..3]
+            })
+            .count();
+        assert!(
+            centre_lit > 30 * 50 / 4,
+            "{mode}: centre mostly background ({centre_lit})"
+        );
+
+        // `render` with the reported camera draws the same picture.
+        let c = &doc["camera"];
+        let num = |v: &Value| v.as_f64().unwrap().to_string();
+        let cam: Vec<String> = (0..3)
+            .map(|i| num(&c["eye"][i]))
+            .chain((0..3).map(|i| num(&c["look_at"][i])))
+            .chain([num(&c["fov_y_deg"])])
+            .collect();
+        let reference = dir.path().join(format!("render-{mode}.png"));
+        let (code, _, err) = vdbcook(&[
+            "render",
+            &asset,
+            "-o",
+            reference.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--frame",
+            "4",
+            "--mode",
+            mode,
+            "--width",
+            "160",
+            "--height",
+            "90",
+            "--camera",
+            &cam.join(","),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let (_, _, want) = read_png(&reference);
+        let worst = px
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| a.abs_diff(*b))
+            .max()
+            .unwrap();
+        assert!(worst <= 2, "{mode}: view and render differ by {worst}/255");
+    }
+}
+
+#[test]
+fn screenshot_alone_renders_one_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let shot = dir.path().join("one.png");
+    let Some((code, stdout, err)) = gpu_run(&[
+        "view",
+        &asset,
+        "--screenshot",
+        shot.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frame",
+        "2",
+        "--json",
+    ]) else {
+        return;
+    };
+    assert_eq!(code, 0, "{err}");
+    let doc: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(doc["per_frame"].as_array().unwrap().len(), 1, "{doc}");
+    assert_eq!(doc["frame"], 2);
+    assert_eq!(read_png(&shot).0, 64);
+}
+
+#[test]
+fn bad_input_is_refused_with_a_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let shot = dir.path().join("x.png");
+    let shot = shot.to_str().unwrap();
+    let missing = dir.path().join("missing.vdbc");
+    let missing = missing.to_str().unwrap();
+    let cases: [(&[&str], i32, &str); 6] = [
+        (&["view", missing, "--frames", "1"], 1, "missing.vdbc"),
+        (&["view", &asset, "--frames", "0"], 2, "--frames 0"),
+        (
+            &["view", &asset, "--mode", "sparkle", "--frames", "1"],
+            2,
+            "sparkle",
+        ),
+        (
+            &["view", &asset, "--frame", "9", "--frames", "1"],
+            2,
+            "--frame 9",
+        ),
+        (&["view", &asset, "--screenshot", "x.jpg"], 2, ".png"),
+        (&["view", &asset, "--json"], 2, "--frames"),
+    ];
+    for (args, want, says) in cases {
+        let (code, _, err) = vdbcook(args);
+        assert_eq!(code, want, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    assert!(!Path::new(shot).exists());
+}
