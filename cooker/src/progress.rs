@@ -166,7 +166,9 @@ impl Progress {
             let stop = stop.clone();
             std::thread::spawn(move || {
                 while !stop.load(Ordering::Relaxed) {
-                    std::thread::sleep(Duration::from_millis(250));
+                    // Parked, not slept: the stage's end unparks it, so ending a stage never
+                    // waits for the next tick.
+                    std::thread::park_timeout(Duration::from_millis(250));
                     if stop.load(Ordering::Relaxed) {
                         break;
                     }
@@ -200,6 +202,7 @@ impl Drop for Stage {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.ticker.take() {
+            t.thread().unpark();
             let _ = t.join();
         }
         if std::thread::panicking() {
