@@ -417,7 +417,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     crate::output::refuse_inputs(&a.output, &frames, &a.inputs, "asset")?;
     let Cooked {
         bytes, mut report, ..
-    } = cook(a)?;
+    } = cook_frames(a, frames)?;
     let t = Instant::now();
     let stage =
         Progress::with(a.progress.clone(), a.json || a.quiet, !a.quiet).stage("write", "bytes");
@@ -497,8 +497,31 @@ pub fn select_frames(frames: Vec<Frame>, spec: &str) -> Result<Vec<Frame>, CliEr
     Ok(picked)
 }
 
+/// The header's record of one source frame: its number, its file name (no folders, so cooks are
+/// reproducible across machines) and its active voxels.
+fn frame_info(frame: &Frame, active_voxels: u64) -> FrameInfo {
+    FrameInfo {
+        number: frame.number,
+        source: frame
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        active_voxels,
+    }
+}
+
 /// Cooks `a.inputs` with the options in `a`, in memory (nothing is written).
 pub fn cook(a: &Args) -> Result<Cooked, CliError> {
+    a.validate()?;
+    let frames = resolve_frames(a)?;
+    cook_frames(a, frames)
+}
+
+/// [`cook`] of frames the caller has already resolved from `a` ([`resolve_frames`]) and whose
+/// options it has validated (`Args::validate`): `run` and the manifest check their outputs
+/// against the frames first, and the frames are not listed twice.
+pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
     let t0 = Instant::now();
     let format = a
         .format
@@ -529,17 +552,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
             )
         })?,
     };
-    if let Some(e) = a.max_error {
-        if !(e.is_finite() && e >= 0.0) {
-            return Err(err(
-                &a.output,
-                ErrorKind::Sequence,
-                "--max-error needs a finite value >= 0",
-            ));
-        }
-    }
     let format = eopts.format;
-    let frames = resolve_frames(a)?;
     let nf = NonFinite {
         replace_with: a.replace_non_finite,
         hint: !a.no_non_finite_flag,
@@ -603,15 +616,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                     } = p.result?;
                     let Some(transform) = transform else {
                         missing.push(frame.path.display().to_string());
-                        infos.push(FrameInfo {
-                            number: frame.number,
-                            source: frame
-                                .path
-                                .file_name()
-                                .map(|n| n.to_string_lossy().into_owned())
-                                .unwrap_or_default(),
-                            active_voxels: 0,
-                        });
+                        infos.push(frame_info(&frame, 0));
                         pool.add_frame(built);
                         crate::progress::advance(1);
                         continue;
@@ -642,15 +647,7 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
                     if let Some(r) = built.value_range {
                         value_range = [value_range[0].min(r[0]), value_range[1].max(r[1])];
                     }
-                    infos.push(FrameInfo {
-                        number: frame.number,
-                        source: frame
-                            .path
-                            .file_name()
-                            .map(|n| n.to_string_lossy().into_owned())
-                            .unwrap_or_default(),
-                        active_voxels: built.active_voxels,
-                    });
+                    infos.push(frame_info(&frame, built.active_voxels));
                     pool.add_frame(built);
                     crate::progress::advance(1);
                 }

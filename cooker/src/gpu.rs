@@ -27,6 +27,17 @@ mod imp {
 
     use super::*;
 
+    /// An adapter's name and backend, marked when it is a software rasterizer (the CLI's one
+    /// wording for `render`, `report` and `view`).
+    pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
+        let soft = if info.device_type == wgpu::DeviceType::Cpu {
+            ", software"
+        } else {
+            ""
+        };
+        format!("{} ({:?}{soft})", info.name, info.backend)
+    }
+
     /// An open device and what it is.
     pub struct Gpu {
         device: wgpu::Device,
@@ -88,13 +99,22 @@ mod imp {
 
         /// The adapter's name and backend, marked when it is a software rasterizer.
         pub fn describe(&self) -> String {
-            let soft = if self.is_software() { ", software" } else { "" };
-            format!("{} ({:?}{soft})", self.info.name, self.info.backend)
+            describe_adapter(&self.info)
         }
 
         /// Whether the adapter runs on the CPU (lavapipe, WARP, SwiftShader).
         pub fn is_software(&self) -> bool {
             self.info.device_type == wgpu::DeviceType::Cpu
+        }
+
+        /// The open device, for work beyond `render` (the engine drawer of `render --depth`).
+        pub fn device(&self) -> &wgpu::Device {
+            &self.device
+        }
+
+        /// The device's queue.
+        pub fn queue(&self) -> &wgpu::Queue {
+            &self.queue
         }
 
         pub fn upload(&self, asset: &Asset) -> Result<Uploaded, String> {
@@ -208,6 +228,8 @@ mod imp {
     }
 }
 
+#[cfg(feature = "gpu")]
+pub use imp::describe_adapter;
 pub use imp::Gpu;
 
 /// Containers usually run without `XDG_RUNTIME_DIR`; the Vulkan loader's window-system probes

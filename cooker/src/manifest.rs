@@ -156,8 +156,13 @@ fn hex128(h: u128) -> String {
     format!("{h:032x}")
 }
 
-/// The content hash of `path`, from `stamps` when its size, mtime and inode are unchanged.
-fn content_hash(path: &Path, stamps: &BTreeMap<String, FileStamp>) -> std::io::Result<FileStamp> {
+/// The content hash of `path` (whose canonical name is `name`), from `stamps` when its size,
+/// mtime and inode are unchanged.
+fn content_hash(
+    path: &Path,
+    name: &str,
+    stamps: &BTreeMap<String, FileStamp>,
+) -> std::io::Result<FileStamp> {
     use std::os::unix::fs::MetadataExt;
     let m = std::fs::metadata(path)?;
     let (size, mtime_ns, inode) = (
@@ -165,8 +170,7 @@ fn content_hash(path: &Path, stamps: &BTreeMap<String, FileStamp>) -> std::io::R
         m.mtime() as i128 * 1_000_000_000 + m.mtime_nsec() as i128,
         m.ino(),
     );
-    let name = canonical(path).to_string_lossy().into_owned();
-    if let Some(s) = stamps.get(&name) {
+    if let Some(s) = stamps.get(name) {
         if s.size == size && s.mtime_ns == mtime_ns && s.inode == inode {
             return Ok(s.clone());
         }
@@ -267,14 +271,15 @@ fn key_of(
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
     h.update(serde_json::to_string(&opts).expect("json").as_bytes());
     for f in frames {
-        let stamp = content_hash(&f.path, stamps)?;
+        let canonical_name = canonical(&f.path).to_string_lossy().into_owned();
+        let stamp = content_hash(&f.path, &canonical_name, stamps)?;
         let name = f
             .path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         h.update(format!("\n{name}\t{:?}\t{}", f.number, stamp.hash).as_bytes());
-        stamps.insert(canonical(&f.path).to_string_lossy().into_owned(), stamp);
+        stamps.insert(canonical_name, stamp);
     }
     Ok(hex128(h.digest128()))
 }
@@ -382,7 +387,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .map(|&i| {
             let j = &jobs[i];
             let t = Instant::now();
-            let c = cook::cook(&j.args).map_err(|err| manifest_err(path, j.line, err))?;
+            let c = cook::cook_frames(&j.args, j.frames.clone())
+                .map_err(|err| manifest_err(path, j.line, err))?;
             crate::output::write(
                 &cache_dir.join(format!("{}.vdbc", j.key)),
                 &c.bytes,

@@ -120,12 +120,6 @@ fn line(name: &str, unit: &str, elapsed: f64, done: u64, total: u64, end: bool) 
 }
 
 impl Progress {
-    /// `silent`: `--json` or an in-memory cook (no stages shown; notes still on stderr unless
-    /// `silent` came from a quiet caller, see [`Progress::with`]).
-    pub fn new(silent: bool) -> Progress {
-        Progress::with(None, silent, true)
-    }
-
     /// Progress into `sink` when given (stages and notes); otherwise [`StderrProgress`] unless
     /// `silent`, and notes on stderr when `print_notes`.
     pub fn with(sink: Option<Arc<dyn ProgressSink>>, silent: bool, print_notes: bool) -> Progress {

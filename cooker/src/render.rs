@@ -640,9 +640,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // `composited`: whether the plate is already under the image (the GPU drawer does it).
     let (mut image, backend, adapter, gpu_ms, composited) = match &gpu {
         #[cfg(feature = "gpu")]
-        Some(_) if scene && s.mode == Mode::Density => {
+        Some(g) if scene && s.mode == Mode::Density => {
             s.validate(asset.frame_count()).map_err(|e| at(&e))?;
-            let (image, adapter, gpu_ms) = drawer::composite(
+            let (image, gpu_ms) = drawer::composite(
+                g,
                 &asset,
                 &s,
                 view_m,
@@ -652,7 +653,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 depth.as_deref(),
             )
             .map_err(|e| at(&e))?;
-            (image, "gpu", Some(adapter), gpu_ms, true)
+            (image, "gpu", Some(g.describe()), gpu_ms, true)
         }
         Some(g) => {
             let up = g.upload(&asset).map_err(|e| at(&e))?;
@@ -777,9 +778,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 #[cfg(feature = "gpu")]
 mod drawer {
     use vdbcook_runtime::glam::Mat4;
-    use vdbcook_runtime::{
-        DrawTarget, GpuTimer, GpuVolume, Instance, Medium, View, VolumeDrawer, OPTIONAL_FEATURES,
-    };
+    use vdbcook_runtime::{DrawTarget, GpuTimer, GpuVolume, Instance, Medium, View, VolumeDrawer};
 
     use super::*;
 
@@ -821,11 +820,12 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         }
     }
 
-    /// The density mode composited by the runtime's engine drawer over `plate` (black without
-    /// one), cut at `depth` (view-axis distances, row 0 at the top): the image (linear RGB,
-    /// the plate's alpha), the adapter, and the GPU time of the drawer's passes.
+    /// The density mode composited by the runtime's engine drawer on `gpu`'s device over
+    /// `plate` (black without one), cut at `depth` (view-axis distances, row 0 at the top): the
+    /// image (linear RGB, the plate's alpha) and the GPU time of the drawer's passes.
     #[allow(clippy::too_many_arguments)]
     pub fn composite(
+        gpu: &crate::gpu::Gpu,
         asset: &Asset,
         s: &RenderSettings,
         view: [[f64; 4]; 4],
@@ -833,26 +833,12 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         near: f64,
         plate: Option<&Plate>,
         depth: Option<&[f32]>,
-    ) -> Result<(Image, String, Option<f64>), String> {
+    ) -> Result<(Image, Option<f64>), String> {
         let (w, h) = (s.width, s.height);
         let n = (w * h) as usize;
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            ..Default::default()
-        }))
-        .map_err(|e| format!("no GPU adapter ({e}); use --backend cpu"))?;
-        let info = adapter.get_info();
-        let wanted = wgpu::Features::TIMESTAMP_QUERY | OPTIONAL_FEATURES;
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("vdbcook render composite"),
-            required_limits: adapter.limits(),
-            required_features: adapter.features() & wanted,
-            ..Default::default()
-        }))
-        .map_err(|e| format!("cannot open the GPU device: {e}"))?;
-        let volume = GpuVolume::upload(&device, &queue, asset).map_err(|e| e.to_string())?;
-        let mut drawer = VolumeDrawer::new(&device, &volume, COLOR).map_err(|e| e.to_string())?;
+        let (device, queue) = (gpu.device(), gpu.queue());
+        let volume = GpuVolume::upload(device, queue, asset).map_err(|e| e.to_string())?;
+        let mut drawer = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| e.to_string())?;
         let m4 = |m: [[f64; 4]; 4]| {
             Mat4::from_cols_array_2d(&m.map(|r| r.map(|v| v as f32))).transpose()
         };
@@ -1000,7 +986,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let timer = GpuTimer::new(&device, &queue);
+        let timer = GpuTimer::new(device, queue);
         let mut encoder = device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -1039,7 +1025,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         };
         drawer
             .record(
-                &device,
+                device,
                 &mut encoder,
                 &DrawTarget {
                     color: &color_view,
@@ -1075,7 +1061,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| format!("GPU: {e}"))?;
-        let gpu_ms = timer.as_ref().and_then(|t| t.read_ms(&device));
+        let gpu_ms = timer.as_ref().and_then(|t| t.read_ms(device));
         let data = readback
             .slice(..)
             .get_mapped_range()
@@ -1088,11 +1074,6 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                     .map(|c| f16_to_f32(u16::from_le_bytes([c[0], c[1]]))),
             );
         }
-        let soft = if info.device_type == wgpu::DeviceType::Cpu {
-            ", software"
-        } else {
-            ""
-        };
         Ok((
             Image {
                 width: w,
@@ -1100,7 +1081,6 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                 rgba,
                 value: vec![0.0; n],
             },
-            format!("{} ({:?}{soft})", info.name, info.backend),
             gpu_ms,
         ))
     }

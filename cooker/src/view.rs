@@ -556,13 +556,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     }
 
     fn describe(adapter: &wgpu::Adapter) -> String {
-        let info = adapter.get_info();
-        let soft = if info.device_type == wgpu::DeviceType::Cpu {
-            ", software"
-        } else {
-            ""
-        };
-        format!("{} ({:?}{soft})", info.name, info.backend)
+        crate::gpu::describe_adapter(&adapter.get_info())
     }
 
     pub fn run(a: &Args) -> Result<(), CliError> {

@@ -11,18 +11,11 @@ mod common;
 
 use std::path::Path;
 
-use common::vdbcook;
+use common::{cook_smoke, vdbcook};
 use serde_json::Value;
 
 const W: u32 = 96;
 const H: u32 = 64;
-
-fn cook_smoke(dir: &Path) -> String {
-    let asset = dir.join("smoke5.vdbc").display().to_string();
-    let (code, _, err) = vdbcook(&["cook", "fixtures/seq/smoke5", "-o", &asset]);
-    assert_eq!(code, 0, "{err}");
-    asset
-}
 
 fn srgb_to_linear(c: u8) -> f32 {
     let c = c as f32 / 255.0;
@@ -91,15 +84,9 @@ fn read_pfm(path: &Path) -> (u32, u32, Vec<f32>) {
 }
 
 fn read_png(path: &Path) -> Vec<u8> {
-    let mut r = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()))
-        .read_info()
-        .unwrap();
-    let mut buf = vec![0; r.output_buffer_size()];
-    let info = r.next_frame(&mut buf).unwrap();
-    assert_eq!((info.width, info.height), (W, H));
-    assert_eq!(info.color_type, png::ColorType::Rgba);
-    buf.truncate(info.buffer_size());
-    buf
+    let (w, h, px) = common::read_png(path);
+    assert_eq!((w, h), (W, H));
+    px
 }
 
 /// `vdbcook render ASSET -o OUT --frame 2 --width W --height H --backend B EXTRA...`: stdout,

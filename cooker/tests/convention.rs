@@ -11,9 +11,12 @@
 //! cell convention (voxel `ijk` filling `[ijk, ijk + 1)`) 444 of the 1,903 judged rays had the
 //! wrong hit or distance, and 69 pixels of the silhouette were wrong.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use common::{gpu_required, read_png};
 use serde_json::Value;
 use vdbcook_asset::Asset;
 use vdbcook_trace::{Camera, Mode, RenderSettings, Scratch, Tracer};
@@ -98,18 +101,8 @@ fn cpu_first_hit_matches_openvdb_voxel_centres_ray_by_ray() {
 }
 
 fn read_alpha(path: &Path) -> (u32, u32, Vec<u8>) {
-    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
-    let mut reader = dec.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!(info.color_type, png::ColorType::Rgba);
-    let alpha = buf[..info.buffer_size()].chunks(4).map(|p| p[3]).collect();
-    (info.width, info.height, alpha)
-}
-
-/// Whether a GPU test must run (CI sets VDBCOOK_REQUIRE_GPU=1) or may skip when there is none.
-fn gpu_required() -> bool {
-    std::env::var_os("VDBCOOK_REQUIRE_GPU").is_some_and(|v| v != "0")
+    let (w, h, px) = read_png(path);
+    (w, h, px.chunks(4).map(|p| p[3]).collect())
 }
 
 #[test]

@@ -5,26 +5,12 @@
 //! hits (keys do not depend on where the files are); bad manifests name their line and write
 //! nothing.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::{root, vdbcook};
 use serde_json::Value;
-
-fn root() -> PathBuf {
-    vdbcook_testkit::repo_root()
-}
-
-fn vdbcook(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_vdbcook"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
 
 fn manifest_run(manifest: &Path, extra: &[&str]) -> Value {
     let mut args = vec!["cook", "--json", "--manifest", manifest.to_str().unwrap()];

@@ -9,31 +9,8 @@ mod common;
 
 use std::path::Path;
 
-use common::vdbcook;
+use common::{cook_smoke, gpu_required, read_png, vdbcook};
 use serde_json::Value;
-
-fn gpu_required() -> bool {
-    std::env::var_os("VDBCOOK_REQUIRE_GPU").is_some_and(|v| v != "0")
-}
-
-fn cook_smoke(dir: &Path) -> String {
-    let asset = dir.join("smoke5.vdbc").display().to_string();
-    let (code, _, err) = vdbcook(&["cook", "fixtures/seq/smoke5", "-o", &asset]);
-    assert_eq!(code, 0, "{err}");
-    asset
-}
-
-/// Width, height and 8-bit RGBA pixels of a PNG.
-fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!(info.color_type, png::ColorType::Rgba);
-    assert_eq!(info.bit_depth, png::BitDepth::Eight);
-    buf.truncate(info.buffer_size());
-    (info.width, info.height, buf)
-}
 
 /// Runs a GPU command; `None` (skip) when there is no adapter and a GPU is not required.
 fn gpu_run(args: &[&str]) -> Option<(i32, String, String)> {

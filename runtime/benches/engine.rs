@@ -50,32 +50,24 @@ fn main() {
     } else {
         &SIZES
     };
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
-        eprintln!("skipping: no GPU adapter");
+    // The test kit's opener: BC textures and timestamps where the adapter has them.
+    let Some((device, queue)) = vdbcook_testkit::gpu::open_device(
+        "engine bench",
+        vdbcook_runtime::OPTIONAL_FEATURES | wgpu::Features::TIMESTAMP_QUERY,
+        None,
+    ) else {
         return;
     };
-    let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        label: Some("engine bench"),
-        required_limits: adapter.limits(),
-        required_features: (adapter.features() & vdbcook_runtime::OPTIONAL_FEATURES)
-            | if timestamps {
-                wgpu::Features::TIMESTAMP_QUERY
-            } else {
-                wgpu::Features::empty()
-            },
-        ..Default::default()
-    }))
-    .expect("device");
+    let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let info = device.adapter_info();
     let volume = GpuVolume::upload(&device, &queue, &asset).expect("upload");
     let format = wgpu::TextureFormat::Rgba8UnormSrgb;
     let mut drawer = VolumeDrawer::new(&device, &volume, format).expect("drawer");
     let timer = GpuTimer::new(&device, &queue);
     println!(
         "adapter: {} ({:?}); timestamp queries: {timestamps}; {}; median of {RUNS}",
-        adapter.get_info().name,
-        adapter.get_info().backend,
+        info.name,
+        info.backend,
         path.display()
     );
 

@@ -59,28 +59,19 @@ fn main() {
         return;
     }
 
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
-        eprintln!("skipping: no GPU adapter");
+    // The test kit's opener: BC textures and timestamps where the adapter has them.
+    let Some((device, queue)) = vdbcook_testkit::gpu::open_device(
+        "gpu bench",
+        vdbcook_runtime::OPTIONAL_FEATURES | wgpu::Features::TIMESTAMP_QUERY,
+        None,
+    ) else {
         return;
     };
-    let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        label: Some("gpu bench"),
-        required_limits: adapter.limits(),
-        required_features: (adapter.features() & vdbcook_runtime::OPTIONAL_FEATURES)
-            | if timestamps {
-                wgpu::Features::TIMESTAMP_QUERY
-            } else {
-                wgpu::Features::empty()
-            },
-        ..Default::default()
-    }))
-    .expect("device");
+    let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let info = device.adapter_info();
     println!(
         "adapter: {} ({:?}); timestamp queries: {timestamps}; median of {RUNS}",
-        adapter.get_info().name,
-        adapter.get_info().backend
+        info.name, info.backend
     );
     println!(
         "| asset | layout | payload bytes on GPU | size | mode | GPU ms (timestamps) | submit+wait ms |"

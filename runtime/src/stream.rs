@@ -310,7 +310,7 @@ impl StreamingVolume {
         let mut views: [Option<wgpu::TextureView>; 3] = Default::default();
         for (slot, p) in plan.textures.iter().enumerate() {
             if let Some(p) = p {
-                let (t, v) = empty_group_texture(device, p);
+                let (t, v) = empty_group_texture(device, p, "vdbcook streamed brick texture");
                 textures[slot] = Some(t);
                 views[slot] = Some(v);
             }
@@ -734,22 +734,8 @@ impl StreamingVolume {
         let local = slot - grp.first + grp.base;
         if grp.kind == KIND_BUFFER {
             let half = matches!(self.buffers, BufferLayout::F16 { .. });
-            let words: Vec<u32> = if format == PayloadFormat::F16 && half {
-                bytes
-                    .chunks_exact(4)
-                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                    .collect()
-            } else if half {
-                values
-                    .chunks_exact(2)
-                    .map(|p| {
-                        half::f16::from_f32(p[0]).to_bits() as u32
-                            | (half::f16::from_f32(p[1]).to_bits() as u32) << 16
-                    })
-                    .collect()
-            } else {
-                values.iter().map(|v| v.to_bits()).collect()
-            };
+            let mut words = Vec::with_capacity(BRICK_VOXELS);
+            push_brick_words(&mut words, format, bytes, values, half);
             let per = self.buffers.bricks_per_buffer();
             let offset = (local % per) as u64 * words.len() as u64 * 4;
             queue.write_buffer(
@@ -905,37 +891,4 @@ fn plan_pool(
          topology do not fit",
         layout.name()
     )))
-}
-
-/// An empty texture for the group `plan` (the slots are written brick by brick).
-fn empty_group_texture(device: &wgpu::Device, plan: &Plan) -> (wgpu::Texture, wgpu::TextureView) {
-    let [w, h, d] = plan.size();
-    let texture = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("vdbcook streamed brick texture"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: d,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: if plan.dim3 {
-            wgpu::TextureDimension::D3
-        } else {
-            wgpu::TextureDimension::D2
-        },
-        format: plan.format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    let view = texture.create_view(&wgpu::TextureViewDescriptor {
-        label: Some("vdbcook streamed brick texture"),
-        dimension: Some(if plan.dim3 {
-            wgpu::TextureViewDimension::D3
-        } else {
-            wgpu::TextureViewDimension::D2Array
-        }),
-        ..Default::default()
-    });
-    (texture, view)
 }

@@ -410,25 +410,8 @@ fn create_group_texture(
     plan: &Plan,
     first_brick: u32,
 ) -> wgpu::TextureView {
-    let [w, h, d] = plan.size();
-    let texture = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("vdbcook brick texture"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: d,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: if plan.dim3 {
-            wgpu::TextureDimension::D3
-        } else {
-            wgpu::TextureDimension::D2
-        },
-        format: plan.format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let [w, h, _] = plan.size();
+    let (texture, view) = empty_group_texture(device, plan, "vdbcook brick texture");
     let ud = plan.unit_dim as usize;
     let (units_x, units_y) = (w as usize / ud, h as usize / ud);
     let tile_units = 8 / ud;
@@ -483,15 +466,69 @@ fn create_group_texture(
             },
         );
     }
-    texture.create_view(&wgpu::TextureViewDescriptor {
-        label: Some("vdbcook brick texture"),
+    view
+}
+
+/// The (empty) texture of `plan` and its view: 3D or a 2D array, written with `COPY_DST`.
+fn empty_group_texture(
+    device: &wgpu::Device,
+    plan: &Plan,
+    label: &str,
+) -> (wgpu::Texture, wgpu::TextureView) {
+    let [w, h, d] = plan.size();
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: d,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: if plan.dim3 {
+            wgpu::TextureDimension::D3
+        } else {
+            wgpu::TextureDimension::D2
+        },
+        format: plan.format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&wgpu::TextureViewDescriptor {
+        label: Some(label),
         dimension: Some(if plan.dim3 {
             wgpu::TextureViewDimension::D3
         } else {
             wgpu::TextureViewDimension::D2Array
         }),
         ..Default::default()
-    })
+    });
+    (texture, view)
+}
+
+/// Appends buffered brick `values` (decoded, voxel order) as payload words: an f16 brick's own
+/// bytes under the f16 layout, other bricks rounded to f16 pairs under it, else f32 bits.
+fn push_brick_words(
+    out: &mut Vec<u32>,
+    format: PayloadFormat,
+    bytes: &[u8],
+    values: &[f32; BRICK_VOXELS],
+    half_layout: bool,
+) {
+    if format == PayloadFormat::F16 && half_layout {
+        out.extend(
+            bytes
+                .chunks_exact(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])),
+        );
+    } else if half_layout {
+        out.extend(values.chunks_exact(2).map(|p| {
+            half::f16::from_f32(p[0]).to_bits() as u32
+                | (half::f16::from_f32(p[1]).to_bits() as u32) << 16
+        }));
+    } else {
+        out.extend(values.iter().map(|v| v.to_bits()));
+    }
 }
 
 /// Bricks in the buffers and how they are stored, or why they do not fit.
@@ -735,20 +772,7 @@ impl GpuVolume {
             let out = &mut payload[(local / per) as usize];
             local += 1;
             let (format, bytes) = asset.brick_bytes(b);
-            if format == PayloadFormat::F16 && half_layout {
-                out.extend(
-                    bytes
-                        .chunks_exact(4)
-                        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])),
-                );
-            } else if half_layout {
-                out.extend(values.chunks_exact(2).map(|p| {
-                    half::f16::from_f32(p[0]).to_bits() as u32
-                        | (half::f16::from_f32(p[1]).to_bits() as u32) << 16
-                }));
-            } else {
-                out.extend(values.iter().map(|v| v.to_bits()));
-            }
+            push_brick_words(out, format, bytes, &values, half_layout);
         }
 
         // Per-frame stored boxes (for the depth mode's range and the default framing).

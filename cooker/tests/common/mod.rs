@@ -1,5 +1,6 @@
-//! Shared by the binary's integration tests: where the repository is, and running `vdbcook`
-//! from it the way a script does (exit code, stdout, stderr).
+//! Shared by the binary's integration tests: where the repository is, running `vdbcook` from it
+//! the way a script does (exit code, stdout, stderr), the samples rule, cooking the default
+//! smoke, reading PNGs, and whether a GPU test may skip.
 
 #![allow(dead_code)]
 
@@ -49,4 +50,29 @@ pub fn json(args: &[&str]) -> Value {
     assert_eq!(code, 0, "vdbcook {args:?} failed: {err}");
     serde_json::from_str(&out)
         .unwrap_or_else(|e| panic!("{args:?}: not one JSON document ({e}): {out}"))
+}
+
+/// Whether a GPU test must run (CI sets VDBCOOK_REQUIRE_GPU=1) or may skip when there is none.
+pub fn gpu_required() -> bool {
+    std::env::var_os("VDBCOOK_REQUIRE_GPU").is_some_and(|v| v != "0")
+}
+
+/// Cooks `fixtures/seq/smoke5` (f32) into `dir/smoke5.vdbc`; its path.
+pub fn cook_smoke(dir: &std::path::Path) -> String {
+    let asset = dir.join("smoke5.vdbc").display().to_string();
+    let (code, _, err) = vdbcook(&["cook", "fixtures/seq/smoke5", "-o", &asset]);
+    assert_eq!(code, 0, "{err}");
+    asset
+}
+
+/// Width, height and 8-bit RGBA pixels of a PNG.
+pub fn read_png(path: &std::path::Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    assert_eq!(info.bit_depth, png::BitDepth::Eight);
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
 }
