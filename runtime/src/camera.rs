@@ -1,17 +1,17 @@
 //! What a render is asked to do — the pinhole camera, the mode and the medium settings — and the
-//! CPU-side math that turns them into the tracer's uniform. The vocabulary and the math are the
-//! CPU reference tracer's (`vdbcook_trace`: `Camera` with its basis and default framing,
-//! `Mode`, `LengthUnit`, `RenderSettings` and its validation, `Affine`, `depth_range`), re-used
-//! here so that there is one definition and the same camera and settings give the same image on
+//! CPU-side math that turns them into the tracer's uniform. The vocabulary and the math are
+//! shared with the CPU reference tracer through `vdbcook_scene` (`Camera` with its basis and
+//! default framing, `Mode`, `LengthUnit`, `RenderSettings` and its validation, `Affine`,
+//! `depth_range`), so that there is one definition and the same camera and settings give the same image on
 //! both. This module adds only what is the GPU's own: which modes it implements.
 
-pub use vdbcook_trace::{Camera, LengthUnit, Mode};
+pub use vdbcook_scene::{Camera, LengthUnit, Mode};
 
 use crate::RuntimeError;
 
-/// Everything but the camera: `vdbcook_trace::RenderSettings`. The runtime ignores its `width`,
+/// Everything but the camera: `vdbcook_scene::RenderSettings`. The runtime ignores its `width`,
 /// `height` and `frame`: the target gives the image size and each render call the frame.
-pub type Settings = vdbcook_trace::RenderSettings;
+pub type Settings = vdbcook_scene::RenderSettings;
 
 /// The modes the GPU tracer implements (all of `Mode::ALL`; a mode missing here would be refused
 /// with [`RuntimeError::Unsupported`]), in the order of the shader's mode numbers.

@@ -16,7 +16,7 @@
 //!   `(L, T)` in an `Rgba16Float` texture) and a render pass (`shaders/composite.wgsl`: the
 //!   blend unit computes `out = L + T·scene` on the colour target, any blendable format).
 //!
-//! The density march is the CPU tracer's Density mode (`vdbcook_trace::Tracer::optical_depth`
+//! The density march is the CPU tracer's Density mode (`vdbcook_scene::Tracer::optical_depth`
 //! is its reference): `T = exp(−absorb·scale·τ)` with `τ` the exact sum of voxel values times
 //! segment lengths; the volume is flat-lit: `L = tint·(1 − T)`. A crossfade samples the per-voxel
 //! lerp of the two frames, which for this march is the lerp of their optical depths.
@@ -26,9 +26,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
-use vdbcook_trace::{Affine, MAX_SIDE};
+use vdbcook_scene::{Affine, MAX_SIDE};
 
-use crate::upload::GpuVolume;
+use crate::upload::{Bound, GpuVolume};
 use crate::{LengthUnit, Result, RuntimeError, VOLUME_WGSL};
 
 /// The engine drawer's compute shader (needs [`VOLUME_WGSL`](crate::VOLUME_WGSL) before it).
@@ -377,7 +377,7 @@ pub struct Medium {
 
 impl Default for Medium {
     fn default() -> Self {
-        let s = vdbcook_trace::RenderSettings::default();
+        let s = vdbcook_scene::RenderSettings::default();
         Medium {
             absorb: s.absorb,
             unit: s.unit,
@@ -438,15 +438,10 @@ pub struct VolumeDrawer {
     draw_layout: wgpu::BindGroupLayout,
     composite_pipeline: wgpu::RenderPipeline,
     composite_layout: wgpu::BindGroupLayout,
-    volume_group: wgpu::BindGroup,
+    vol: Bound,
     color_format: wgpu::TextureFormat,
     dummy_depth: wgpu::TextureView,
     lt: Option<LtTexture>,
-    index_to_world: [[f64; 4]; 4],
-    frames: usize,
-    root_len: usize,
-    /// Per frame: the cell-space box outside which every value is ≤ 0.
-    content: Vec<Option<([f64; 3], [f64; 3])>>,
 }
 
 impl VolumeDrawer {
@@ -515,7 +510,7 @@ impl VolumeDrawer {
                 ),
             ],
         });
-        let (volume_layout, volume_group) = volume.bind_group();
+        let (volume_layout, _) = volume.bind_group();
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("vdbcook draw"),
             bind_group_layouts: &[Some(volume_layout), Some(&draw_layout)],
@@ -609,21 +604,24 @@ impl VolumeDrawer {
                 view_formats: &[],
             })
             .create_view(&Default::default());
-        let frames = volume.frame_count();
         Ok(VolumeDrawer {
             draw_pipeline,
             draw_layout,
             composite_pipeline,
             composite_layout,
-            volume_group: volume_group.clone(),
+            vol: Bound::of(volume),
             color_format,
             dummy_depth,
             lt: None,
-            index_to_world: *volume.index_to_world(),
-            frames,
-            root_len: volume.root_len(),
-            content: (0..frames).map(|f| volume.content_box(f)).collect(),
         })
+    }
+
+    /// Draws from `volume` from now on, keeping the pipelines: for a [`crate::StreamingVolume`]
+    /// after its window moved (`stream.volume()`; instance times are then window-local).
+    /// Refuses ([`RuntimeError::Rebind`]) a volume laid out differently from the one this
+    /// drawer was built for. Work recorded before still reads the old window's topology.
+    pub fn rebind(&mut self, volume: &GpuVolume) -> Result<()> {
+        self.vol.rebind(volume)
     }
 
     /// The colour format this drawer blends onto.
@@ -730,10 +728,10 @@ impl VolumeDrawer {
         for (i, inst) in instances.iter().enumerate() {
             inst.validate()
                 .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
-            let (f0, f1, a) = inst.frames(self.frames)?;
-            let xf = Affine::cells(&inst.index_to_world(&self.index_to_world))
+            let (f0, f1, a) = inst.frames(self.vol.frames())?;
+            let xf = Affine::cells(&inst.index_to_world(&self.vol.index_to_world))
                 .map_err(|e| RuntimeError::Transform(format!("instance {i}: {e}")))?;
-            let boxes = [self.content[f0], self.content[f1]];
+            let boxes = [self.vol.content[f0], self.vol.content[f1]];
             let Some((lo, hi)) = boxes.into_iter().flatten().reduce(|x, y| {
                 (
                     [0, 1, 2].map(|k| x.0[k].min(y.0[k])),
@@ -760,8 +758,8 @@ impl VolumeDrawer {
                     tint_absorb: [t.x, t.y, t.z, absorb],
                     box_lo: v4(lo, a),
                     box_hi: v4(hi, 0.0),
-                    frame_root0: (f0 * self.root_len) as u32,
-                    frame_root1: (f1 * self.root_len) as u32,
+                    frame_root0: (f0 * self.vol.root_len) as u32,
+                    frame_root1: (f1 * self.vol.root_len) as u32,
                     _pad: [0; 2],
                 },
             ));
@@ -857,7 +855,7 @@ impl VolumeDrawer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&self.draw_pipeline);
-            pass.set_bind_group(0, &self.volume_group, &[]);
+            pass.set_bind_group(0, &self.vol.group, &[]);
             pass.set_bind_group(1, &group, &[]);
             pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
         }

@@ -1,6 +1,7 @@
 //! Why the runtime refused something: a frame out of range, settings or a camera that would make
 //! a loop unbounded or a pixel NaN, a transform it cannot invert, an asset beyond the adapter's
-//! limits, a target it cannot draw into, or a mode not implemented on the GPU yet.
+//! limits, a target it cannot draw into, a mode not implemented on the GPU yet, a budget too small, or a
+//! volume swapped into pipelines built for another layout.
 
 use std::fmt;
 
@@ -22,6 +23,8 @@ pub enum RuntimeError {
     Unsupported(String),
     /// A streaming byte budget too small for what was asked (one frame, or a window).
     Budget(String),
+    /// `rebind` was given a volume the renderer's pipelines cannot read.
+    Rebind(String),
 }
 
 impl fmt::Display for RuntimeError {
@@ -40,6 +43,7 @@ impl fmt::Display for RuntimeError {
             RuntimeError::Target(m) => write!(f, "bad render target: {m}"),
             RuntimeError::Unsupported(m) => write!(f, "not supported by the GPU runtime: {m}"),
             RuntimeError::Budget(m) => write!(f, "streaming budget too small: {m}"),
+            RuntimeError::Rebind(m) => write!(f, "cannot rebind: {m}"),
         }
     }
 }
@@ -47,9 +51,9 @@ impl fmt::Display for RuntimeError {
 impl std::error::Error for RuntimeError {}
 
 /// The CPU tracer's refusals (settings, camera, transform, frame) are the runtime's too.
-impl From<vdbcook_trace::TraceError> for RuntimeError {
-    fn from(e: vdbcook_trace::TraceError) -> Self {
-        use vdbcook_trace::TraceError as T;
+impl From<vdbcook_scene::TraceError> for RuntimeError {
+    fn from(e: vdbcook_scene::TraceError) -> Self {
+        use vdbcook_scene::TraceError as T;
         match e {
             T::Frame { frame, frames } => RuntimeError::Frame { frame, frames },
             T::Setting(m) => RuntimeError::Setting(m),

@@ -6,9 +6,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use vdbcook_trace::{depth_range, Affine, MAX_SIDE};
+use vdbcook_scene::{depth_range, Affine, MAX_SIDE};
 
-use crate::upload::GpuVolume;
+use crate::upload::{Bound, GpuVolume};
 use crate::{Camera, LengthUnit, Result, RuntimeError, Settings, TRACE_WGSL, VOLUME_WGSL};
 
 /// The `Params` uniform of `trace.wgsl`.
@@ -66,7 +66,7 @@ pub struct TextureTarget {
 }
 
 /// A storage buffer target: `width·height` RGBA (f32 × 4) followed by `width·height` raw values
-/// (the mode's quantity, as `vdbcook_trace::Image::value`).
+/// (the mode's quantity, as `vdbcook_scene::Image::value`).
 pub struct BufferTarget {
     bind_group: wgpu::BindGroup,
     buffer: wgpu::Buffer,
@@ -120,18 +120,12 @@ pub struct Renderer {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     params_group: wgpu::BindGroup,
-    volume_group: wgpu::BindGroup,
     target_layout: wgpu::BindGroupLayout,
     format: wgpu::TextureFormat,
     dummy_texture_view: wgpu::TextureView,
     dummy_buffer: wgpu::Buffer,
     xf: Affine,
-    frames: usize,
-    root_len: usize,
-    extent: [f64; 3],
-    bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
-    content: Vec<Option<([f64; 3], [f64; 3])>>,
-    frame_max: Vec<f32>,
+    vol: Bound,
 }
 
 /// The WGSL name of a storage-texture format the renderer can write.
@@ -204,7 +198,7 @@ impl Renderer {
                 },
             ],
         });
-        let (volume_layout, volume_group) = volume.bind_group();
+        let (volume_layout, _) = volume.bind_group();
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("vdbcook trace"),
             bind_group_layouts: &[
@@ -264,25 +258,21 @@ impl Renderer {
             pipeline,
             params,
             params_group,
-            volume_group: volume_group.clone(),
             target_layout,
             format,
             dummy_texture_view,
             dummy_buffer,
             xf,
-            frames: volume.frame_count(),
-            root_len: volume.root_len(),
-            extent: volume.root_extent(),
-            bboxes: (0..volume.frame_count())
-                .map(|f| volume.frame_bbox(f))
-                .collect(),
-            content: (0..volume.frame_count())
-                .map(|f| volume.content_box(f))
-                .collect(),
-            frame_max: (0..volume.frame_count())
-                .map(|f| volume.frame_max(f))
-                .collect(),
+            vol: Bound::of(volume),
         })
+    }
+
+    /// Draws from `volume` from now on, keeping the pipeline: for a [`crate::StreamingVolume`]
+    /// after its window moved (`stream.volume()`; frames are then window-local). Refuses
+    /// ([`RuntimeError::Rebind`]) a volume laid out differently from the one this renderer was
+    /// built for. Work recorded before still reads the old window's topology.
+    pub fn rebind(&mut self, volume: &GpuVolume) -> Result<()> {
+        self.vol.rebind(volume)
     }
 
     /// The texture format this renderer writes.
@@ -452,7 +442,7 @@ impl Renderer {
             timestamp_writes: None,
         });
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.volume_group, &[]);
+        pass.set_bind_group(0, &self.vol.group, &[]);
         pass.set_bind_group(1, &self.params_group, &[]);
         pass.set_bind_group(2, target, &[]);
         pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
@@ -469,16 +459,16 @@ impl Renderer {
         camera: &Camera,
         settings: &Settings,
     ) -> Result<Params> {
-        let mode = crate::camera::validate(settings, width, height, frame, self.frames)?;
+        let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
         let basis = camera.basis(width, height)?;
         let eye = self.xf.index_of(camera.eye);
         // Depth range: nearest and farthest corner of the frame's stored box (0 inside it).
-        let bbox = self.bboxes[frame].unwrap_or(([0.0; 3], self.extent));
+        let bbox = self.vol.bboxes[frame].unwrap_or(([0.0; 3], self.vol.extent));
         let [near, far] = depth_range(&self.xf, bbox, camera.eye);
-        let vmax = self.frame_max[frame];
+        let vmax = self.vol.frame_max[frame];
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let inv = self.xf.inv_a;
-        // As `vdbcook_trace::Tracer::new`: the light in index space, extinction and albedo in f64.
+        // As `vdbcook_scene::Tracer::new`: the light in index space, extinction and albedo in f64.
         let l = settings.light_dir.map(|c| c as f64);
         let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
         let light_index = self.xf.dir_to_index(l.map(|c| c / ln));
@@ -497,15 +487,15 @@ impl Renderer {
             inv_a0: v4(inv[0]),
             inv_a1: v4(inv[1]),
             inv_a2: v4(inv[2]),
-            extent: v4(self.extent),
+            extent: v4(self.vol.extent),
             light_index: v4(light_index),
             light_color: [c[0], c[1], c[2], 0.0],
-            content_lo: self.content[frame].map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
-            content_hi: self.content[frame].map_or([0.0; 4], |b| v4(b.1)),
+            content_lo: self.vol.content[frame].map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
+            content_hi: self.vol.content[frame].map_or([0.0; 4], |b| v4(b.1)),
             width,
             height,
             mode,
-            frame_root: (frame * self.root_len) as u32,
+            frame_root: (frame * self.vol.root_len) as u32,
             absorb: settings.absorb,
             cutoff: settings.cutoff,
             near: near as f32,

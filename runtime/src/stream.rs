@@ -26,9 +26,9 @@
 //! window that needs more slots of a format, or more topology bytes, than the budget left it.
 //!
 //! Frames inside the streamed [`GpuVolume`] are *window-local* (`frame − first`,
-//! [`StreamingVolume::local_frame`]); a [`crate::Renderer`] or [`crate::VolumeDrawer`] copies the
-//! volume's bind group and per-frame boxes when created, so create them again after each window
-//! change (their cost is the pipeline's creation). Submit the work recorded against the old
+//! [`StreamingVolume::local_frame`]); a [`crate::Renderer`] or [`crate::VolumeDrawer`] keeps the
+//! volume's bind group and per-frame boxes, so call its `rebind(stream.volume())` after each
+//! window change (the pipelines stay: every window has the pool's layout). Submit the work recorded against the old
 //! window before moving it: the slot writes take effect at the next submission.
 
 use std::collections::{BTreeSet, HashMap, HashSet};
@@ -526,7 +526,7 @@ impl StreamingVolume {
             if self.frame_boxes[f].is_none() {
                 self.frame_boxes[f] = Some(FrameBoxes {
                     stored: frame_box(&asset, f, &self.brick_boxes),
-                    content: vdbcook_trace::content_box(&asset, f),
+                    content: vdbcook_scene::content_box(&asset, f),
                 });
             }
         }

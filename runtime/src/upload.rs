@@ -234,9 +234,9 @@ pub struct GpuVolume {
     root_len: usize,
     root_dims: [u32; 3],
     index_to_world: [[f64; 4]; 4],
-    /// Per frame, the index-space box `[lo, hi)` of what it stores (`vdbcook_trace::stored_bbox`).
+    /// Per frame, the index-space box `[lo, hi)` of what it stores (`vdbcook_scene::stored_bbox`).
     bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
-    /// Per frame: `vdbcook_trace::content_box` (the sampling modes clip their rays to it).
+    /// Per frame: `vdbcook_scene::content_box` (the sampling modes clip their rays to it).
     content: Vec<Option<([f64; 3], [f64; 3])>>,
     frame_max: Vec<f32>,
     gpu_bytes: u64,
@@ -781,7 +781,7 @@ impl GpuVolume {
             .collect();
         let frame_max = asset.frame_ranges.iter().map(|r| r[1]).collect();
         let content = (0..asset.frame_count())
-            .map(|f| vdbcook_trace::content_box(asset, f))
+            .map(|f| vdbcook_scene::content_box(asset, f))
             .collect();
 
         let info = VolumeInfo {
@@ -978,13 +978,10 @@ impl GpuVolume {
     pub fn index_to_world(&self) -> &[[f64; 4]; 4] {
         &self.index_to_world
     }
-    pub(crate) fn root_len(&self) -> usize {
-        self.root_len
-    }
     pub(crate) fn root_extent(&self) -> [f64; 3] {
         self.root_dims.map(|d| d as f64 * 128.0)
     }
-    /// The box the sampling modes clip their rays to (`vdbcook_trace::content_box`).
+    /// The box the sampling modes clip their rays to (`vdbcook_scene::content_box`).
     pub(crate) fn content_box(&self, frame: usize) -> Option<([f64; 3], [f64; 3])> {
         self.content.get(frame).copied().flatten()
     }
@@ -1004,6 +1001,63 @@ impl GpuVolume {
                     wgpu::TextureFormat::Bc4RUnorm | wgpu::TextureFormat::Bc7RgbaUnorm
                 )
             })
+    }
+}
+
+/// What a [`crate::Renderer`] or [`crate::VolumeDrawer`] keeps of the volume it draws: its bind
+/// group and the CPU-side per-frame boxes that go into each dispatch's uniform. A renderer is
+/// built for one bind-group layout and one set of pipeline constants; [`Bound::rebind`] takes
+/// another volume with the same ones (a [`crate::StreamingVolume`]'s next window) without
+/// rebuilding any pipeline.
+pub(crate) struct Bound {
+    pub layout: wgpu::BindGroupLayout,
+    pub group: wgpu::BindGroup,
+    constants: Vec<(&'static str, f64)>,
+    pub index_to_world: [[f64; 4]; 4],
+    pub root_len: usize,
+    pub extent: [f64; 3],
+    /// Per frame: `GpuVolume::frame_bbox`, `content_box`, `frame_max`.
+    pub bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
+    pub content: Vec<Option<([f64; 3], [f64; 3])>>,
+    pub frame_max: Vec<f32>,
+}
+
+impl Bound {
+    pub fn of(volume: &GpuVolume) -> Bound {
+        let frames = 0..volume.frame_count();
+        Bound {
+            layout: volume.bind_group_layout.clone(),
+            group: volume.bind_group.clone(),
+            constants: volume.pipeline_constants(),
+            index_to_world: volume.index_to_world,
+            root_len: volume.root_len,
+            extent: volume.root_extent(),
+            bboxes: frames.clone().map(|f| volume.frame_bbox(f)).collect(),
+            content: frames.clone().map(|f| volume.content_box(f)).collect(),
+            frame_max: frames.map(|f| volume.frame_max(f)).collect(),
+        }
+    }
+
+    pub fn frames(&self) -> usize {
+        self.content.len()
+    }
+
+    /// Binds `volume` instead, if the pipelines built for the current one can read it: the same
+    /// bind-group layout object, pipeline constants, transform and root extent.
+    pub fn rebind(&mut self, volume: &GpuVolume) -> Result<()> {
+        if volume.bind_group_layout != self.layout
+            || volume.pipeline_constants() != self.constants
+            || volume.index_to_world != self.index_to_world
+            || volume.root_extent() != self.extent
+        {
+            return Err(RuntimeError::Rebind(
+                "the volume is not laid out like the one the pipelines were built for (a \
+                 StreamingVolume's windows can be swapped in; another volume needs a new renderer)"
+                    .into(),
+            ));
+        }
+        *self = Bound::of(volume);
+        Ok(())
     }
 }
 
@@ -1088,7 +1142,7 @@ fn volume_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     })
 }
 
-/// `vdbcook_trace::stored_bbox` from per-brick boxes: tiled regions, tile leaves, and the brick
+/// `vdbcook_scene::stored_bbox` from per-brick boxes: tiled regions, tile leaves, and the brick
 /// voxels that differ from the background.
 fn frame_box(
     asset: &Asset,

@@ -1,5 +1,6 @@
 //! Streaming a window of frames under a byte budget (`StreamingVolume`): frames rendered through a
-//! window are bit-identical to the full upload's (density mode, every layout lavapipe offers,
+//! window are bit-identical to the full upload's in the same layout (density mode; every layout
+//! the adapter offers, the native BC texture layouts included where it has the BC features;
 //! checked against the CPU tracer too), moving the window writes exactly the bricks it newly
 //! uses (counted here from the asset's leaves) and evicts those it no longer uses, and a budget
 //! under one frame, or a window outside the sequence, is a clear error.
@@ -103,6 +104,10 @@ fn bricks_of(asset: &Asset, first: usize, last: usize) -> BTreeSet<u32> {
     s
 }
 
+fn renderer(device: &wgpu::Device, vol: &GpuVolume) -> Renderer {
+    Renderer::new(device, vol, wgpu::TextureFormat::Rgba8Unorm).expect("renderer")
+}
+
 fn render(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
@@ -110,7 +115,16 @@ fn render(
     frame: usize,
     cam: &vdbcook_trace::Camera,
 ) -> Readback {
-    let r = Renderer::new(device, vol, wgpu::TextureFormat::Rgba8Unorm).expect("renderer");
+    render_with(device, queue, &renderer(device, vol), frame, cam)
+}
+
+fn render_with(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    r: &Renderer,
+    frame: usize,
+    cam: &vdbcook_trace::Camera,
+) -> Readback {
     let target = r.buffer_target(device, W, H).unwrap();
     let s = settings(frame);
     let mut enc = device.create_command_encoder(&Default::default());
@@ -131,15 +145,19 @@ fn settings(frame: usize) -> RenderSettings {
 }
 
 /// Bytes the whole pool would take in a streamed pool under `layout` (slot bytes plus 16 bytes
-/// of ranges per brick; the test assets always have f32 bricks, so buffered bricks are f32).
+/// of ranges per brick): native BC keeps a BC4 brick in 256 bytes and a BC7 brick (z in its
+/// four channels) in 128, the decoded textures hold a quantized brick in 1 byte per voxel, and buffers hold f32 (the test assets
+/// always have f32 bricks, so the buffered pool is f32).
 fn pool_bytes(asset: &Asset, layout: Layout) -> u64 {
+    let native = matches!(layout, Layout::Bc3d | Layout::Bc2dArray);
     (0..asset.brick_count() as u32)
         .map(|b| {
             let f = asset.brick_format(b).0;
-            16 + if layout != Layout::Buffers && f.is_quantized() {
-                512
-            } else {
-                2048
+            16 + match f {
+                _ if layout == Layout::Buffers || !f.is_quantized() => 2048,
+                PayloadFormat::Bc4 if native => 256,
+                PayloadFormat::Bc7 if native => 128,
+                _ => 512,
             }
         })
         .sum()
@@ -160,7 +178,20 @@ fn streamed_frames_render_like_the_full_upload_in_every_layout() {
     ]));
     assert!(asset.header.brick_counts.iter().all(|&c| c > 0));
     let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
-    for layout in [Layout::Decoded3d, Layout::Decoded2dArray, Layout::Buffers] {
+    // Every layout this device can hold: the native BC ones need its BC features.
+    let f = device.features();
+    let bc = f.contains(wgpu::Features::TEXTURE_COMPRESSION_BC);
+    let bc3d = bc && f.contains(wgpu::Features::TEXTURE_COMPRESSION_BC_SLICED_3D);
+    let layouts: Vec<Layout> = Layout::ALL
+        .into_iter()
+        .filter(|l| match l {
+            Layout::Bc3d => bc3d,
+            Layout::Bc2dArray => bc,
+            _ => true,
+        })
+        .collect();
+    println!("layouts streamed: {layouts:?}");
+    for layout in layouts {
         // Two thirds of the pool: a window of 2 frames fits, the whole sequence does not.
         let budget = pool_bytes(&asset, layout) * 2 / 3;
         let options = UploadOptions {
@@ -175,13 +206,21 @@ fn streamed_frames_render_like_the_full_upload_in_every_layout() {
             "{layout:?}: the budget should hold fewer slots than bricks: {:?}",
             s.slots()
         );
+        // One renderer for the whole stream, rebound after each window change; the full
+        // upload's layout differs (its pool holds every brick), so it cannot be swapped in.
+        let mut streamed = renderer(&device, s.volume());
+        assert!(matches!(
+            streamed.rebind(&full),
+            Err(RuntimeError::Rebind(_))
+        ));
         for k in 0..FRAMES {
             if k > 1 {
                 s.advance(&device, &queue).expect("advance");
+                streamed.rebind(s.volume()).expect("rebind");
             }
             let want = render(&device, &queue, &full, k, &cam);
             let local = s.local_frame(k).unwrap();
-            let got = render(&device, &queue, s.volume(), local, &cam);
+            let got = render_with(&device, &queue, &streamed, local, &cam);
             assert_eq!(
                 got,
                 want,

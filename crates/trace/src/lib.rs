@@ -1,8 +1,9 @@
 //! `vdbcook-trace`: the CPU reference tracer of the flip-book asset. `vdbcook render --backend
 //! cpu` draws with it on any machine, and the GPU runtime's images are tested against it, so
-//! every definition below is a contract the WGSL must follow. The runtime depends on this crate
-//! for the shared vocabulary and its CPU-side math (camera and framing, settings and their
-//! validation, the affine transform, the depth range): one definition for both.
+//! every definition below is a contract the WGSL must follow. The vocabulary both share (camera
+//! and framing, settings and their validation, the affine transform, the depth range, the
+//! content box) lives in the small `vdbcook-scene` crate, re-exported here; the runtime depends
+//! on that crate, not on this one.
 //!
 //! # Spaces
 //! - **Voxel positions follow OpenVDB**: the value of voxel `i` (asset index; the asset's
@@ -78,7 +79,6 @@
 // `!(a > b)` is how this crate refuses NaN along with the ordered case; keep that form.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-mod camera;
 mod color;
 mod dda;
 mod delta;
@@ -87,7 +87,6 @@ mod image;
 mod render;
 mod rng;
 mod scatter;
-mod settings;
 mod space;
 pub mod vdb_render;
 mod walk;
@@ -97,7 +96,6 @@ mod walk;
 #[path = "../tests/common/mod.rs"]
 mod test_common;
 
-pub use camera::{stored_bbox, Basis, Camera};
 pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
@@ -105,6 +103,10 @@ pub use image::Image;
 pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng};
 pub use scatter::MAX_MARCH_SAMPLES;
-pub use settings::{LengthUnit, Mode, RenderSettings, TraceError, MAX_SIDE, MAX_SPP, MIN_STEP};
-pub use space::{depth_range, Affine};
-pub use walk::{content_box, Holder};
+pub use space::IndexRay;
+pub use walk::Holder;
+// The shared view and parameter maths (one definition for this tracer and the GPU runtime).
+pub use vdbcook_scene::{
+    content_box, depth_range, stored_bbox, Affine, Basis, Camera, LengthUnit, Mode, RenderSettings,
+    TraceError, MAX_SIDE, MAX_SPP, MIN_STEP,
+};

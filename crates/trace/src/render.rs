@@ -5,15 +5,18 @@
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
 
-use crate::camera::{stored_bbox, Camera};
 use crate::color::{brick_color, heat, STEPS_FULL_SCALE};
 use crate::delta::{Path, MAX_EVENTS};
 use crate::exact::{Density, FirstHit};
 use crate::rng::Rng;
 use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
-use crate::space::{depth_range, normalize, Affine, IndexRay};
+use crate::space::IndexRay;
 use crate::walk::{extent, walk, BrickCache, Grid, Holder};
-use crate::{Image, LengthUnit, Mode, RenderSettings, TraceError};
+use crate::Image;
+use vdbcook_scene::{
+    depth_range, normalize, stored_bbox, Affine, Camera, LengthUnit, Mode, RenderSettings,
+    TraceError,
+};
 
 /// What one primary ray produced.
 #[derive(Debug, Clone, Copy, PartialEq)]

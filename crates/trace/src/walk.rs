@@ -7,6 +7,7 @@ use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, L2_SPAN, TILE_BIT};
 
 use crate::dda::{walk_cells, Flow};
 use crate::space::IndexRay;
+use vdbcook_scene::content_box;
 
 /// What a constant-valued span belongs to (for the brick-hue mode).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -142,29 +143,11 @@ impl<'a> Grid<'a> {
         let mut block_of = vec![u32::MAX; asset.l2_count()];
         let mut block_max = Vec::new();
         let background = asset.header.background;
-        let d = asset.header.root_dims.map(|d| d as usize);
-        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
-        // Grows the content box by the cube of edge `size` at `o` if its max `m` is not `≤ 0`.
-        let mut grow = |o: [i64; 3], size: i64, m: f32| {
-            if !(m <= 0.0) {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(o[a]);
-                    hi[a] = hi[a].max(o[a] + size);
-                }
-            }
-        };
-        for (i, &e) in asset.frame_roots(frame).iter().enumerate() {
-            let r = [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])];
-            let o = r.map(|c| c as i64 * L2_SPAN as i64);
-            if e == EMPTY {
-                grow(o, L2_SPAN as i64, background);
+        for &e in asset.frame_roots(frame) {
+            // Unstored and tiled regions have no blocks; a node met twice has them already.
+            if e == EMPTY || e & TILE_BIT != 0 || block_of[e as usize] != u32::MAX {
                 continue;
             }
-            if e & TILE_BIT != 0 {
-                grow(o, L2_SPAN as i64, asset.tiles[(e & !TILE_BIT) as usize]);
-                continue;
-            }
-            let known = block_of[e as usize] != u32::MAX;
             let mut m = [f32::NEG_INFINITY; 64];
             // A NaN slot max counts as +∞: skip rules pass over NaN (`!(NaN >= c)`), so a NaN
             // block max would pass over the block's other slots too, which the fine walk visits.
@@ -186,21 +169,6 @@ impl<'a> Grid<'a> {
                         put(&mut m[bx + 4 * (yb + 4 * (z / 4))], background);
                     }
                 }
-                let leaf_origin = |bit: usize| {
-                    let (x, y) = (bit % 16, 4 * yb + bit / 16);
-                    [
-                        o[0] + 8 * x as i64,
-                        o[1] + 8 * y as i64,
-                        o[2] + 8 * z as i64,
-                    ]
-                };
-                if !(background <= 0.0) {
-                    let mut empty = !word;
-                    while empty != 0 {
-                        grow(leaf_origin(empty.trailing_zeros() as usize), 8, background);
-                        empty &= empty - 1;
-                    }
-                }
                 let mut bits = word;
                 while bits != 0 {
                     let bit = bits.trailing_zeros() as usize;
@@ -212,31 +180,21 @@ impl<'a> Grid<'a> {
                     } else {
                         asset.brick_ranges[r as usize][1]
                     };
-                    grow(leaf_origin(bit), 8, v);
                     put(&mut m[bit % 16 / 4 + 4 * (yb + 4 * (z / 4))], v);
                 }
             }
-            if !known {
-                block_of[e as usize] = block_max.len() as u32;
-                block_max.push(m);
-            }
+            block_of[e as usize] = block_max.len() as u32;
+            block_max.push(m);
         }
         Grid {
             asset,
             frame,
             block_of,
             block_max,
-            content: (lo.map(|c| c as f64), hi.map(|c| c as f64)),
+            // An empty box (`lo = hi`) when nothing is content: every clip to it is empty.
+            content: content_box(asset, frame).unwrap_or(([0.0; 3], [0.0; 3])),
         }
     }
-}
-
-/// The box `[lo, hi)` (index units) outside which every leaf of `frame` holds values `≤ 0`, or
-/// `None` when there is no such leaf: what the sampling modes (scatter, delta tracking and their
-/// shadow rays) clip their rays to. The GPU tracer clips to the same box.
-pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> {
-    let (lo, hi) = Grid::new(asset, frame).content;
-    (0..3).all(|a| lo[a] < hi[a]).then_some((lo, hi))
 }
 
 /// Walks the grid's frame along `ray` for `t ∈ [t0, t1]` (already clipped to the root extent).
@@ -395,9 +353,9 @@ mod tests {
     //! The coarse walk (blocks, content box) against the fine one on random content: the same
     //! spans, bit for bit; and `Grid`'s precomputation against a per-slot reference.
     use super::*;
-    use crate::space::normalize;
     use crate::test_common::*;
     use vdbcook_asset::PayloadFormat;
+    use vdbcook_scene::normalize;
 
     /// Records every span and brick handed over, as bits; passes over what single scatter
     /// passes over (its cutoff is positive, so `max ≥ cutoff` implies `max > 0`).

@@ -162,8 +162,10 @@ impl Camera {
 }
 
 impl Basis {
+    /// The unit world direction of pixel `(i, j)` of a `width`×`height` image (the camera
+    /// contract in `vdbcook-trace`'s docs: row 0 at the top, through the pixel centre).
     #[inline]
-    pub(crate) fn dir(&self, i: u32, j: u32, width: u32, height: u32) -> [f64; 3] {
+    pub fn dir(&self, i: u32, j: u32, width: u32, height: u32) -> [f64; 3] {
         let x = 2.0 * (i as f64 + 0.5) / width as f64 - 1.0;
         let y = 1.0 - 2.0 * (j as f64 + 0.5) / height as f64;
         normalize([0, 1, 2].map(|a| self.forward[a] + x * self.right[a] + y * self.up[a]))

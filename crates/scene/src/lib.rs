@@ -1,0 +1,22 @@
+//! `vdbcook-scene`: the view and parameter maths that the CPU reference tracer (`vdbcook-trace`)
+//! and the GPU runtime (`vdbcook-runtime`) share, and nothing else: the pinhole camera and its
+//! default framing, the render settings and the checks that refuse unusable ones, the map from
+//! world to the walks' cell space (OpenVDB's voxel-centre convention), the depth range, and the
+//! stored and content boxes of a frame. It depends on the asset crate only (no thread pool, no
+//! GPU), so an engine that links the runtime pulls in these definitions and not the tracer.
+//!
+//! The exact meaning of every mode and setting is `vdbcook-trace`'s crate documentation: the
+//! GPU shaders follow the same definitions.
+
+// `!(a > b)` is how this crate refuses NaN along with the ordered case; keep that form.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod camera;
+mod content;
+mod settings;
+mod space;
+
+pub use camera::{stored_bbox, Basis, Camera};
+pub use content::content_box;
+pub use settings::{LengthUnit, Mode, RenderSettings, TraceError, MAX_SIDE, MAX_SPP, MIN_STEP};
+pub use space::{depth_range, length, mul3, normalize, Affine};
