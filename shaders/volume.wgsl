@@ -36,9 +36,9 @@ struct VdbGroup {
     kind: u32,
     tiles_x: u32,
     tiles_y: u32,
-    _p0: u32,
-    _p1: u32,
-    _p2: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 struct VolumeInfo {

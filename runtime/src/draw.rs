@@ -50,6 +50,13 @@ pub const DRAW_COLOR_FORMATS: [wgpu::TextureFormat; 6] = [
     wgpu::TextureFormat::Rgb10a2Unorm,
 ];
 
+/// The depth formats the drawer reads (as `texture_depth_2d`: the stored depth in [0, 1] either
+/// way; `Depth24Plus` may be 24-bit unorm or f32, whichever the adapter keeps).
+pub const DRAW_DEPTH_FORMATS: [wgpu::TextureFormat; 2] = [
+    wgpu::TextureFormat::Depth32Float,
+    wgpu::TextureFormat::Depth24Plus,
+];
+
 /// The engine's camera for one draw: its view matrix (world → view space), projection (view
 /// space → clip space, wgpu's NDC: depth in [0, 1]), viewport in pixels (the size of the colour
 /// and depth targets) and sub-pixel jitter in pixels (TAA), added to every pixel centre.
@@ -387,7 +394,7 @@ impl Default for Medium {
 
 /// Where a draw lands: the engine's colour target (a view of mip 0 of a 2D texture of the
 /// drawer's format, `RENDER_ATTACHMENT` usage, single-sampled, the view's viewport size) and
-/// optionally its depth (a view of a `Depth32Float` 2D texture of the same size with
+/// optionally its depth (a view of a [`DRAW_DEPTH_FORMATS`] 2D texture of the same size with
 /// `TEXTURE_BINDING` usage, written with the same projection). Without depth rays run to the
 /// volume's end.
 #[derive(Debug, Clone, Copy)]
@@ -654,9 +661,10 @@ impl VolumeDrawer {
         }
         if let Some(d) = target.depth {
             let d = d.texture();
-            if d.format() != wgpu::TextureFormat::Depth32Float {
+            if !DRAW_DEPTH_FORMATS.contains(&d.format()) {
                 return Err(RuntimeError::Target(format!(
-                    "depth format {:?} (the drawer reads Depth32Float)",
+                    "depth format {:?} (the drawer reads {DRAW_DEPTH_FORMATS:?}; a depth-stencil \
+                     format needs its depth copied out)",
                     d.format()
                 )));
             }
@@ -887,18 +895,39 @@ mod tests {
     use super::*;
     use glam::Vec4;
 
-    /// The Rust mirrors of `draw.wgsl`'s structs have the WGSL sizes (std140/std430 rules:
-    /// `DrawView` = 2 mat4x4 + vec4 + 2 vec2 + 4 scalars = 176 bytes; `DrawInstance` = 6 vec4 +
-    /// 4 u32 = 112, a multiple of its 16-byte alignment, so the array stride is 112). The
-    /// bindings' `min_binding_size` makes pipeline creation fail if the WGSL grows past them.
+    /// The Rust mirrors of `draw.wgsl`'s structs have the WGSL layouts (laid out by naga).
     #[test]
-    fn mirrored_struct_sizes() {
-        assert_eq!(std::mem::size_of::<DrawView>(), 176);
-        assert_eq!(std::mem::size_of::<DrawInstance>(), 112);
-        for (name, size) in [("DrawView", 176usize), ("DrawInstance", 112)] {
-            assert!(DRAW_WGSL.contains(&format!("struct {name} {{")), "{name}");
-            assert_eq!(size % 16, 0);
-        }
+    fn draw_structs_mirror_the_wgsl() {
+        use crate::layout_check::{assert_mirrors, rust_layout};
+        let source = format!("{VOLUME_WGSL}\n{DRAW_WGSL}");
+        assert_mirrors(
+            &source,
+            "DrawView",
+            rust_layout!(DrawView {
+                view_from_clip,
+                world_from_view,
+                forward,
+                viewport,
+                jitter,
+                near_ndc,
+                instance_count,
+                has_depth,
+                voxel_units,
+            }),
+        );
+        assert_mirrors(
+            &source,
+            "DrawInstance",
+            rust_layout!(DrawInstance {
+                cell_from_world,
+                tint_absorb,
+                box_lo,
+                box_hi,
+                frame_root0,
+                frame_root1,
+                _pad,
+            }),
+        );
     }
 
     #[test]

@@ -47,6 +47,8 @@
 mod camera;
 mod draw;
 mod error;
+#[cfg(test)]
+mod layout_check;
 mod render;
 mod timer;
 mod upload;
@@ -55,7 +57,7 @@ mod wgsl;
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
     DrawTarget, Instance, Medium, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS,
-    DRAW_WGSL,
+    DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};

@@ -515,3 +515,54 @@ impl Renderer {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout_check::{assert_mirrors, rust_layout};
+
+    #[test]
+    fn params_mirror_the_wgsl() {
+        assert_mirrors(
+            &format!(
+                "{VOLUME_WGSL}\n{}",
+                TRACE_WGSL.replace("{{TARGET_FORMAT}}", "rgba8unorm")
+            ),
+            "Params",
+            rust_layout!(Params {
+                eye_index,
+                forward,
+                right,
+                up,
+                inv_a0,
+                inv_a1,
+                inv_a2,
+                extent,
+                light_index,
+                light_color,
+                content_lo,
+                content_hi,
+                width,
+                height,
+                mode,
+                frame_root,
+                absorb,
+                cutoff,
+                near,
+                far,
+                value_max,
+                voxel_units,
+                out_flags,
+                extinction,
+                albedo,
+                step,
+                shadow_step,
+                gain,
+                spp,
+                first_sample,
+                seed,
+                _pad,
+            }),
+        );
+    }
+}

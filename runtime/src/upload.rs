@@ -1173,3 +1173,46 @@ fn frame_box(
     });
     (lo[0] <= hi[0]).then_some((lo, hi))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout_check::{assert_mirrors, rust_layout};
+
+    #[test]
+    fn volume_info_mirrors_the_wgsl() {
+        assert_mirrors(
+            crate::VOLUME_WGSL,
+            "VdbGroup",
+            rust_layout!(GroupInfo {
+                first,
+                base,
+                kind,
+                tiles_x,
+                tiles_y,
+                _pad
+            }),
+        );
+        assert_mirrors(
+            crate::VOLUME_WGSL,
+            "VolumeInfo",
+            rust_layout!(VolumeInfo {
+                root_dims,
+                root_len,
+                off_masks,
+                off_base,
+                off_prefix,
+                off_l2_ranges,
+                off_refs,
+                off_tiles,
+                off_brick_ranges,
+                bricks_per_binding,
+                background,
+                payload_layout,
+                frames,
+                off_brick_quant,
+                groups,
+            }),
+        );
+    }
+}
