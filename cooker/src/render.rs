@@ -41,7 +41,8 @@ pub struct Args {
     frame: usize,
     /// What pixels show.
     #[arg(long, default_value = "density",
-          value_parser = ["density", "depth", "first-hit", "brick-hue", "steps", "scatter", "delta"])]
+          value_parser = ["density", "depth", "first-hit", "brick-hue", "steps", "scatter", "delta",
+                          "reference"])]
     mode: String,
     /// Renderer: cpu (the reference tracer), gpu (the wgpu runtime on the default adapter), or
     /// auto: gpu on a hardware adapter, else cpu.
@@ -91,10 +92,20 @@ pub struct Args {
     /// Shadow falloff: shadow extinction at distance s is divided by 1 + gain·s.
     #[arg(long, default_value_t = 0.2)]
     gain: f32,
-    /// Samples per pixel (delta).
+    /// Samples per pixel (delta, reference).
     #[arg(long, default_value_t = 16)]
     spp: u32,
-    /// Random seed (delta).
+    /// Constant sky radiance R,G,B (reference: paths that scatter and leave see it).
+    #[arg(long, default_value = "0.04,0.05,0.065")]
+    sky: String,
+    /// Henyey–Greenstein phase of the reference mode: G (one lobe) or G0,G1,W (W·HG(G0) +
+    /// (1 − W)·HG(G1)); each G in -0.99..=0.99, positive forward.
+    #[arg(long, default_value = "0.6,-0.3,0.8", allow_hyphen_values = true)]
+    phase: String,
+    /// Most scattering events per reference path (more count as absorbed).
+    #[arg(long, default_value_t = 256)]
+    bounces: u32,
+    /// Random seed (delta, reference).
     #[arg(long, default_value_t = 1)]
     seed: u32,
     /// Length unit of absorb, scatter, step, shadow-step and gain: voxel (as vdb_render) or world.
@@ -182,6 +193,20 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         ),
         n => return Err(other(format!("--light takes 3 or 6 numbers, got {n}"))),
     };
+    let sky = match numbers("sky", &a.sky)?[..] {
+        [r, g, b] => [r as f32, g as f32, b as f32],
+        ref v => return Err(other(format!("--sky takes 3 numbers, got {}", v.len()))),
+    };
+    let (phase_g, phase_w) = match numbers("phase", &a.phase)?[..] {
+        [g] => ([g as f32; 2], 1.0),
+        [g0, g1, w] => ([g0 as f32, g1 as f32], w as f32),
+        ref v => {
+            return Err(other(format!(
+                "--phase takes 1 or 3 numbers, got {}",
+                v.len()
+            )))
+        }
+    };
     Ok(RenderSettings {
         width: a.width,
         height: a.height,
@@ -203,6 +228,10 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         } else {
             LengthUnit::Voxel
         },
+        sky,
+        phase_g,
+        phase_w,
+        bounces: a.bounces,
     })
 }
 
@@ -614,6 +643,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // Open the GPU first: a missing adapter is reported before any cooking.
     let gpu = match a.backend.as_str() {
         "gpu" => Some(Gpu::open().map_err(other)?),
+        // The reference path tracer is CPU only: `auto` takes the CPU for it.
+        "auto" if s.mode == Mode::Reference => None,
         "auto" => Gpu::open().ok().filter(|g| !g.is_software()),
         _ => None,
     };

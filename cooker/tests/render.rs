@@ -22,6 +22,7 @@ fn every_mode_renders_a_png_of_the_asked_size() {
         "steps",
         "scatter",
         "delta",
+        "reference",
     ] {
         let out = dir.path().join(format!("{mode}.png"));
         let (code, stdout, err) = vdbcook(&[
@@ -128,11 +129,18 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let out = dir.path().join("x.png").display().to_string();
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["--frame", "5"], "frame 5"),
         (&["--camera", "1,2,3"], "--camera takes 7 numbers"),
         (&["--step", "0"], "step"),
         (&["--light", "0,0,0"], "light"),
+        (&["--mode", "reference", "--phase", "1.2"], "phase g"),
+        (
+            &["--mode", "reference", "--phase", "0.5,0.1"],
+            "--phase takes 1 or 3",
+        ),
+        (&["--mode", "reference", "--sky", "1,1"], "--sky takes 3"),
+        (&["--mode", "reference", "--bounces", "0"], "bounces"),
     ];
     for (extra, want) in cases {
         let mut args = vec!["render", asset.as_str(), "-o", out.as_str()];

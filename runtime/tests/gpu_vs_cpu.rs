@@ -404,9 +404,19 @@ fn volume_fills_the_frame_frames_switch_and_bad_frame_is_an_error() {
             frames: 2
         }
     );
-    // Every mode of the CPU tracer is implemented on the GPU.
-    assert_eq!(GPU_MODES, Mode::ALL);
-    for mode in Mode::ALL {
+    // Every mode of the CPU tracer but the reference path tracer is implemented on the GPU;
+    // the reference is refused as unsupported.
+    let cpu_only = [Mode::Reference];
+    let gpu_modes: Vec<Mode> = Mode::ALL
+        .into_iter()
+        .filter(|m| !cpu_only.contains(m))
+        .collect();
+    assert_eq!(GPU_MODES.to_vec(), gpu_modes);
+    let e = gpu
+        .render(&r, &target, &cam, &small(Mode::Reference, 0))
+        .unwrap_err();
+    assert!(matches!(e, RuntimeError::Unsupported(_)), "{e}");
+    for mode in GPU_MODES {
         let mut s = small(mode, 0);
         s.spp = 1;
         gpu.render(&r, &target, &cam, &s).unwrap();

@@ -18,5 +18,8 @@ mod space;
 
 pub use camera::{stored_bbox, Basis, Camera};
 pub use content::content_box;
-pub use settings::{LengthUnit, Mode, RenderSettings, TraceError, MAX_SIDE, MAX_SPP, MIN_STEP};
+pub use settings::{
+    LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
+    MIN_STEP,
+};
 pub use space::{depth_range, length, mul3, normalize, Affine};

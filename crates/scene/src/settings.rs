@@ -21,10 +21,14 @@ pub enum Mode {
     SingleScatter,
     /// The same single-scattering medium estimated without bias by delta tracking (seeded).
     DeltaTracking,
+    /// The physically based reference: a path tracer with multiple scattering (delta tracking,
+    /// a dual-lobe Henyey–Greenstein phase, the sun by ratio-tracked next-event estimation, a
+    /// constant sky on escape), no `gain` hack. CPU only; what approximations are judged by.
+    Reference,
 }
 
 impl Mode {
-    pub const ALL: [Mode; 7] = [
+    pub const ALL: [Mode; 8] = [
         Mode::Density,
         Mode::Depth,
         Mode::FirstHitDensity,
@@ -32,6 +36,7 @@ impl Mode {
         Mode::Steps,
         Mode::SingleScatter,
         Mode::DeltaTracking,
+        Mode::Reference,
     ];
     /// The name the CLI uses.
     pub fn name(self) -> &'static str {
@@ -43,6 +48,7 @@ impl Mode {
             Mode::Steps => "steps",
             Mode::SingleScatter => "scatter",
             Mode::DeltaTracking => "delta",
+            Mode::Reference => "reference",
         }
     }
     pub fn parse(s: &str) -> Option<Mode> {
@@ -91,6 +97,16 @@ pub struct RenderSettings {
     pub first_sample: u32,
     pub seed: u32,
     pub unit: LengthUnit,
+    /// Constant sky radiance (linear RGB) seen by paths that scatter and then leave the volume
+    /// (`Reference`; a primary ray that leaves unscattered counts in the transmittance instead,
+    /// so the image composites as `L + T·background`).
+    pub sky: [f32; 3],
+    /// Dual-lobe Henyey–Greenstein phase of `Reference`: `w·HG(g₀) + (1 − w)·HG(g₁)`, each
+    /// `g` in `[−MAX_PHASE_G, MAX_PHASE_G]` (positive: forward), `w = phase_w ∈ [0, 1]`.
+    pub phase_g: [f32; 2],
+    pub phase_w: f32,
+    /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
+    pub bounces: u32,
 }
 
 impl Default for RenderSettings {
@@ -113,6 +129,10 @@ impl Default for RenderSettings {
             first_sample: 0,
             seed: 1,
             unit: LengthUnit::Voxel,
+            sky: [0.04, 0.05, 0.065],
+            phase_g: [0.6, -0.3],
+            phase_w: 0.8,
+            bounces: 256,
         }
     }
 }
@@ -123,6 +143,10 @@ pub const MAX_SIDE: u32 = 16384;
 pub const MIN_STEP: f32 = 1e-3;
 /// Most samples per pixel accepted in one call.
 pub const MAX_SPP: u32 = 1 << 16;
+/// Largest `|g|` of a phase lobe (closer to 1 the lobe is a near-delta no sampler resolves).
+pub const MAX_PHASE_G: f32 = 0.99;
+/// Most scattering events per `Reference` path accepted.
+pub const MAX_BOUNCES: u32 = 1 << 12;
 
 /// Why a render was refused.
 #[derive(Debug, Clone, PartialEq)]
@@ -198,6 +222,21 @@ impl RenderSettings {
         let n = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
         if !(n.is_finite() && n > 1e-6) {
             return bad(format!("light direction {l:?} has no direction"));
+        }
+        if self.sky.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+            return bad(format!("sky {:?} (finite and ≥ 0)", self.sky));
+        }
+        if self.phase_g.iter().any(|g| !(g.abs() <= MAX_PHASE_G)) {
+            return bad(format!(
+                "phase g {:?} (each in -{MAX_PHASE_G}..={MAX_PHASE_G})",
+                self.phase_g
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.phase_w) {
+            return bad(format!("phase weight {} (0..=1)", self.phase_w));
+        }
+        if self.bounces == 0 || self.bounces > MAX_BOUNCES {
+            return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
         }
         if self.spp == 0 || self.spp > MAX_SPP {
             return bad(format!("spp = {} (1..={MAX_SPP})", self.spp));

@@ -20,7 +20,7 @@ pub const MIN_SHADOW_WEIGHT: f64 = 1e-6;
 /// Free flight over `[ta, tb]` against majorant `mu_bar` (per length unit): calls `at(s, p, rng)`
 /// at each tentative collision (`s` in length units from the ray origin) until it says stop, the
 /// span ends (`Go`) or the event budget runs out (`Stop`).
-fn track(
+pub(crate) fn track(
     ray: &IndexRay,
     mu_bar: f64,
     ta: f64,
@@ -77,7 +77,7 @@ impl Path<'_, '_> {
                 return Flow::Go; // null collision
             }
             if rng.uniform() < tracer.albedo {
-                lum = tracer.ratio_shadow(p, rng, cache);
+                lum = tracer.ratio_shadow(p, tracer.settings.gain as f64, rng, cache);
             }
             Flow::Stop
         });
@@ -104,6 +104,8 @@ impl SpanSampler for Path<'_, '_> {
 /// Ratio tracking toward the light.
 struct Ratio<'a, 't> {
     tracer: &'t Tracer<'a>,
+    /// Shadow extinction at distance `s` is divided by `1 + gain·s` (0: physical).
+    gain: f64,
     ray: IndexRay,
     rng: Rng,
     weight: f64,
@@ -113,7 +115,7 @@ struct Ratio<'a, 't> {
 impl Ratio<'_, '_> {
     fn flight(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
         let ext = self.tracer.extinction;
-        let gain = self.tracer.settings.gain as f64;
+        let gain = self.gain;
         let mu_bar = ext * max as f64;
         let ray = self.ray;
         let mut rng = self.rng;
@@ -146,14 +148,22 @@ impl SpanSampler for Ratio<'_, '_> {
 }
 
 impl Tracer<'_> {
-    /// Ratio-tracking estimate of the transmittance from index point `p` toward the light.
-    fn ratio_shadow(&self, p: [f64; 3], rng: &mut Rng, cache: &mut BrickCache) -> f64 {
+    /// Ratio-tracking estimate of the transmittance from index point `p` toward the light, the
+    /// extinction at distance `s` divided by `1 + gain·s`.
+    pub(crate) fn ratio_shadow(
+        &self,
+        p: [f64; 3],
+        gain: f64,
+        rng: &mut Rng,
+        cache: &mut BrickCache,
+    ) -> f64 {
         let ray = self.light_ray(p);
         let Some((t0, t1)) = ray.clip(self.extent) else {
             return 1.0;
         };
         let mut v = Ratio {
             tracer: self,
+            gain,
             ray,
             rng: *rng,
             weight: 1.0,

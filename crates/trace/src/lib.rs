@@ -71,6 +71,19 @@
 //!   (its mean is Density's `T` with `absorb+scatter` as the absorption). Unbiased except: at
 //!   most 2¹⁶ events per path (then absorbed) and shadow weights below 1e-6 end as 0.
 //!
+//! - **Reference** (physically based; module `reference`): per sample a path with the stream
+//!   `Rng::new(seed, y·W + x, k)`: free flights by delta tracking (as above, extinction
+//!   `μ = (absorb+scatter)·σ`); at a real collision the throughput is multiplied by the albedo,
+//!   the sun adds `throughput · p(d·l) · light_color · T_sun` (`T_sun` by ratio tracking, no
+//!   `gain`), then Russian roulette when the throughput is below 1 and a new direction from the
+//!   dual-lobe Henyey–Greenstein phase `p = w·HG(g₀) + (1−w)·HG(g₁)` (`phase_g`, `phase_w`;
+//!   `HG(g, μ) = (1−g²)/(4π(1+g²−2gμ)^{3/2})`, `μ` the cosine between the path direction and
+//!   the next one, forward for `g > 0`). A path that scattered and leaves adds
+//!   `throughput · sky`; a primary ray that leaves unscattered adds nothing. rgb = mean
+//!   radiance `L` (premultiplied), alpha = `1 − T`, value = `T` (the escaped fraction), so
+//!   `L + T·background` composites. Unbiased except: at most `bounces` scattering events and
+//!   2¹⁶ tentative collisions per flight (then absorbed), shadow weights below 1e-6 end as 0.
+//!
 //! `step`, `shadow_step`, `cutoff` and `gain` follow `vdb_render`'s `-step`, `-shadowstep`,
 //! `-cutoff` and `-gain` (defaults 1, 3, 0.005, 0.2; `absorb` 0.1, `scatter` 1.5, light
 //! direction (0.3, 0.3, 0) toward the light, colour 0.7), but `vdb_render` samples trilinearly;
@@ -84,6 +97,7 @@ mod dda;
 mod delta;
 mod exact;
 mod image;
+mod reference;
 mod render;
 mod rng;
 mod scatter;
@@ -100,6 +114,7 @@ pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
 pub use image::Image;
+pub use reference::phase;
 pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng};
 pub use scatter::MAX_MARCH_SAMPLES;
@@ -108,5 +123,5 @@ pub use walk::Holder;
 // The shared view and parameter maths (one definition for this tracer and the GPU runtime).
 pub use vdbcook_scene::{
     content_box, depth_range, stored_bbox, Affine, Basis, Camera, LengthUnit, Mode, RenderSettings,
-    TraceError, MAX_SIDE, MAX_SPP, MIN_STEP,
+    TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };

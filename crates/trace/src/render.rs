@@ -32,8 +32,8 @@ pub struct Sample {
 /// Per-thread scratch: decoded-brick caches for primary and shadow rays.
 #[derive(Default)]
 pub struct Scratch {
-    primary: BrickCache,
-    shadow: BrickCache,
+    pub(crate) primary: BrickCache,
+    pub(crate) shadow: BrickCache,
 }
 
 /// Everything fixed for one render of one asset frame from one camera.
@@ -263,6 +263,29 @@ impl<'a> Tracer<'a> {
                 let n = s.spp as f64;
                 let trans = escaped as f64 / n;
                 let c = s.light_color.map(|c| (c as f64 * lum / n) as f32);
+                Sample {
+                    rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
+                    value: trans as f32,
+                    steps: 0,
+                }
+            }
+            Mode::Reference => {
+                if clip.is_none() {
+                    return miss(1.0, 0.0);
+                }
+                let d = normalize(dir);
+                let (mut l, mut escaped) = ([0.0f64; 3], 0u32);
+                for k in 0..s.spp {
+                    let mut rng = Rng::new(s.seed, pixel, s.first_sample.wrapping_add(k));
+                    let (li, esc) = self.reference_path(ray.o, d, &mut rng, scratch);
+                    for (a, b) in l.iter_mut().zip(li) {
+                        *a += b;
+                    }
+                    escaped += esc as u32;
+                }
+                let n = s.spp as f64;
+                let trans = escaped as f64 / n;
+                let c = l.map(|c| (c / n) as f32);
                 Sample {
                     rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
                     value: trans as f32,

@@ -1,0 +1,194 @@
+//! The reference path tracer (`Mode::Reference`) against closed forms and conservation, on a box
+//! of constant density (tiles, constant and partial bricks, across two root regions):
+//! - **white furnace**: albedo 1, no sun, a uniform sky: every path leaves the box again, so
+//!   every pixel is exactly the sky (`L + T·sky = sky`) however dense the medium and whatever
+//!   the phase; with albedo 0.9 it must not be;
+//! - **single scattering** (`bounces = 1`, no sky) along the box's axis with the sun straight
+//!   behind the camera and straight ahead: `L = α·p(μ)·E·(1 − e^{−2κD})/2` and
+//!   `L = α·p(μ)·E·κD·e^{−κD}` (κ extinction per voxel, D the depth in voxels), which also pins
+//!   the phase function's direction convention (forward-peaked `g > 0` differs 27× between the
+//!   two conventions at `g = 0.5`);
+//! - the settings it refuses.
+
+mod common;
+
+use common::*;
+use vdbcook_asset::{Asset, PayloadFormat};
+use vdbcook_trace::*;
+
+const LO: [i64; 3] = [100, 6, 20];
+const HI: [i64; 3] = [150, 37, 53];
+const SIGMA: f32 = 1.0;
+/// index = (world − T) / S.
+const S: f64 = 0.5;
+const T: [f64; 3] = [1.0, 2.0, 3.0];
+
+fn box_asset() -> Asset {
+    let xf = [
+        [S, 0.0, 0.0, T[0]],
+        [0.0, S, 0.0, T[1]],
+        [0.0, 0.0, S, T[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let mut f = FrameSpec::default();
+    box_leaves(LO, HI, SIGMA, &mut f.leaves);
+    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+}
+
+/// Cell point → world (voxel `i` is the cell `[i, i+1)`, centred on world `S·i + T`).
+fn w(p: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|a| (p[a] - 0.5) * S + T[a])
+}
+
+fn centre() -> [f64; 3] {
+    [0, 1, 2].map(|a| (LO[a] + HI[a]) as f64 / 2.0)
+}
+
+/// A camera in front of the box (−z side) looking at its centre.
+fn camera() -> Camera {
+    let c = w(centre());
+    Camera {
+        eye: [c[0], c[1], c[2] - 40.0],
+        look_at: c,
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 40.0,
+    }
+}
+
+fn reference(absorb: f32, scatter: f32) -> RenderSettings {
+    RenderSettings {
+        mode: Mode::Reference,
+        width: 24,
+        height: 16,
+        absorb,
+        scatter,
+        light_color: [0.0; 3],
+        sky: [0.3, 0.5, 0.9],
+        phase_g: [0.7, -0.4],
+        phase_w: 0.6,
+        bounces: MAX_BOUNCES,
+        spp: 8,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn white_furnace_the_medium_disappears_against_the_sky() {
+    let asset = box_asset();
+    // κ = 0.3 per voxel: 33 voxels deep is an optical depth of 10, the paths scatter ~100 times.
+    let s = reference(0.0, 0.3);
+    let img = render(&asset, &camera(), &s).unwrap();
+    let mut covered = 0;
+    for (k, px) in img.rgba.chunks_exact(4).enumerate() {
+        let t = img.value[k];
+        covered += (t < 0.5) as usize;
+        for (c, (l, sky)) in px.iter().zip(s.sky).enumerate() {
+            let total = l + t * sky;
+            assert!(
+                (total - sky).abs() <= 1e-5,
+                "pixel {k} channel {c}: L + T·sky = {total}, sky {sky} (T {t})"
+            );
+        }
+    }
+    assert!(
+        covered > 100,
+        "the box covers the picture ({covered} pixels)"
+    );
+
+    // Not a test that cannot fail: absorb a tenth and the covered pixels darken.
+    let dark = render(&asset, &camera(), &reference(0.03, 0.27)).unwrap();
+    let lost = dark
+        .rgba
+        .chunks_exact(4)
+        .zip(&dark.value)
+        .filter(|(px, t)| **t < 0.5 && px[2] + **t * s.sky[2] < 0.8 * s.sky[2])
+        .count();
+    assert!(lost > 100, "albedo 0.9 should lose energy ({lost} pixels)");
+}
+
+/// The mean radiance of `4·spp` single-scattering paths along the box's axis with the sun
+/// along `l` (toward the light) and one phase lobe `g`.
+fn single(g: f32, l: [f32; 3], spp: u32) -> (f64, RenderSettings) {
+    let asset = box_asset();
+    let s = RenderSettings {
+        mode: Mode::Reference,
+        absorb: 0.01,
+        scatter: 0.04,
+        light_dir: l,
+        light_color: [2.0; 3],
+        sky: [0.0; 3],
+        phase_g: [g, g],
+        phase_w: 1.0,
+        bounces: 1,
+        spp,
+        ..Default::default()
+    };
+    let cam = camera();
+    let tracer = Tracer::new(&asset, &cam, &s).unwrap();
+    // Four pixels' random streams along the same ray: 4·spp paths.
+    let mean = (0..4)
+        .map(|pixel| {
+            let px = tracer.trace(cam.eye, [0.0, 0.0, 1.0], pixel, &mut Scratch::default());
+            px.rgba[0] as f64
+        })
+        .sum::<f64>()
+        / 4.0;
+    (mean, s)
+}
+
+fn hg(g: f64, mu: f64) -> f64 {
+    (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
+}
+
+#[test]
+fn single_scattering_matches_the_closed_forms_and_the_phase_convention() {
+    let depth = (HI[2] - LO[2]) as f64; // voxels along z
+    let spp = MAX_SPP;
+    for g in [0.0f32, 0.5, -0.5] {
+        // Sun behind the camera (light travels along +z with the view): the scattering cosine
+        // d·l is −1 and the shadow path from depth s is s.
+        let (got, s) = single(g, [0.0, 0.0, -1.0], spp);
+        let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
+        let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
+        let e = s.light_color[0] as f64;
+        let want = albedo * hg(g as f64, -1.0) * e * (1.0 - (-2.0 * kappa * depth).exp()) / 2.0;
+        assert!(
+            (got - want).abs() < 0.02 * want,
+            "g {g}, sun behind: {got} want {want}"
+        );
+        // Sun ahead: cosine +1, shadow path D − s.
+        let (got, _) = single(g, [0.0, 0.0, 1.0], spp);
+        let want = albedo * hg(g as f64, 1.0) * e * kappa * depth * (-kappa * depth).exp();
+        assert!(
+            (got - want).abs() < 0.02 * want,
+            "g {g}, sun ahead: {got} want {want}"
+        );
+    }
+}
+
+#[test]
+fn reference_settings_out_of_range_are_refused() {
+    let asset = box_asset();
+    let ok = reference(0.0, 0.3);
+    for bad in [
+        RenderSettings {
+            phase_g: [1.0, 0.0],
+            ..ok.clone()
+        },
+        RenderSettings {
+            phase_w: 1.5,
+            ..ok.clone()
+        },
+        RenderSettings {
+            bounces: 0,
+            ..ok.clone()
+        },
+        RenderSettings {
+            sky: [f32::NAN, 0.0, 0.0],
+            ..ok.clone()
+        },
+    ] {
+        let e = render(&asset, &camera(), &bad).unwrap_err();
+        assert!(matches!(e, TraceError::Setting(_)), "{e}");
+    }
+}
