@@ -773,6 +773,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "step": short(s.step), "shadow_step": short(s.shadow_step),
                 "cutoff": short(s.cutoff), "gain": short(s.gain), "spp": s.spp, "seed": s.seed,
                 "units": a.units,
+                "sky": s.sky.map(short), "phase_g": s.phase_g.map(short),
+                "phase_w": short(s.phase_w), "bounces": s.bounces,
             },
         });
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));

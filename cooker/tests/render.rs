@@ -118,6 +118,10 @@ fn render_json_reports_settings_camera_and_timing() {
         "shadow_step",
         "cutoff",
         "gain",
+        "sky",
+        "phase_g",
+        "phase_w",
+        "bounces",
     ] {
         assert!(!doc["settings"][k].is_null(), "missing settings.{k}");
     }

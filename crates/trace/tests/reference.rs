@@ -8,6 +8,7 @@
 //!   `L = α·p(μ)·E·κD·e^{−κD}` (κ extinction per voxel, D the depth in voxels), which also pins
 //!   the phase function's direction convention (forward-peaked `g > 0` differs 27× between the
 //!   two conventions at `g = 0.5`);
+//! - the transmittance is the density march's exact one; batches add up (`stochastic.rs`);
 //! - the settings it refuses.
 
 mod common;
@@ -191,4 +192,40 @@ fn reference_settings_out_of_range_are_refused() {
         let e = render(&asset, &camera(), &bad).unwrap_err();
         assert!(matches!(e, TraceError::Setting(_)), "{e}");
     }
+}
+
+/// The reference's transmittance (the fraction of primary rays that leave unscattered) is the
+/// density march's exact `exp(−(absorb+scatter)·∫σ)`, per pixel within 5 binomial σ.
+#[test]
+fn primary_escape_is_the_exact_transmittance() {
+    let asset = box_asset();
+    let s = RenderSettings {
+        absorb: 0.01,
+        scatter: 0.05,
+        spp: 256,
+        ..reference(0.0, 0.0)
+    };
+    let exact = render(
+        &asset,
+        &camera(),
+        &RenderSettings {
+            mode: Mode::Density,
+            absorb: s.absorb + s.scatter,
+            ..s.clone()
+        },
+    )
+    .unwrap();
+    let img = render(&asset, &camera(), &s).unwrap();
+    let mut partial = 0;
+    for (k, (&got, &want)) in img.value.iter().zip(&exact.value).enumerate() {
+        let (got, want) = (got as f64, want as f64);
+        partial += (want > 0.05 && want < 0.95) as usize;
+        let sd = (want * (1.0 - want) / s.spp as f64).sqrt();
+        assert!(
+            (got - want).abs() <= 5.0 * sd + 1e-3,
+            "pixel {k}: escaped {got} vs T {want}"
+        );
+        assert!((img.rgba[4 * k + 3] as f64 - (1.0 - got)).abs() < 1e-6);
+    }
+    assert!(partial > 50, "pixels with partial transmittance: {partial}");
 }

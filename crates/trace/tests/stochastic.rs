@@ -198,46 +198,52 @@ fn delta_tracking_radiance_converges_to_small_step_single_scatter() {
 
 #[test]
 fn progressive_batches_add_up_to_one_render() {
-    let a = box_asset();
-    let cam = camera();
-    let s = RenderSettings {
-        spp: 64,
-        seed: 3,
-        absorb: 0.01,
-        scatter: 0.04,
-        ..settings(Mode::DeltaTracking)
-    };
-    let all = render(&a, &cam, &s).unwrap();
-    assert!(
-        all.rgba.chunks(4).all(|p| p[0] > 0.0 && p[3] > 0.5),
-        "a lit, dense image"
-    );
-    let first = render(
-        &a,
-        &cam,
-        &RenderSettings {
-            spp: 24,
-            ..s.clone()
-        },
-    )
-    .unwrap();
-    let rest = render(
-        &a,
-        &cam,
-        &RenderSettings {
-            spp: 40,
-            first_sample: 24,
-            ..s.clone()
-        },
-    )
-    .unwrap();
-    for k in 0..all.rgba.len() {
-        let merged = (24.0 * first.rgba[k] as f64 + 40.0 * rest.rgba[k] as f64) / 64.0;
-        assert!((merged - all.rgba[k] as f64).abs() < 1e-5, "channel {k}");
+    // Both stochastic modes: delta tracking and the reference path tracer.
+    for mode in [Mode::DeltaTracking, Mode::Reference] {
+        let a = box_asset();
+        let cam = camera();
+        let s = RenderSettings {
+            spp: 64,
+            seed: 3,
+            absorb: 0.01,
+            scatter: 0.04,
+            ..settings(mode)
+        };
+        let all = render(&a, &cam, &s).unwrap();
+        assert!(
+            all.rgba.chunks(4).all(|p| p[0] > 0.0 && p[3] > 0.5),
+            "{mode:?}: a lit, dense image"
+        );
+        let first = render(
+            &a,
+            &cam,
+            &RenderSettings {
+                spp: 24,
+                ..s.clone()
+            },
+        )
+        .unwrap();
+        let rest = render(
+            &a,
+            &cam,
+            &RenderSettings {
+                spp: 40,
+                first_sample: 24,
+                ..s.clone()
+            },
+        )
+        .unwrap();
+        for k in 0..all.rgba.len() {
+            let merged = (24.0 * first.rgba[k] as f64 + 40.0 * rest.rgba[k] as f64) / 64.0;
+            assert!(
+                (merged - all.rgba[k] as f64).abs() < 1e-5,
+                "{mode:?}: channel {k}"
+            );
+        }
+        // Another seed gives another image; the same seed the same one.
+        let again = render(&a, &cam, &s).unwrap();
+        assert_eq!(again, all);
+        let other = render(&a, &cam, &RenderSettings { seed: 4, ..s }).unwrap();
+        assert_ne!(other, all);
     }
-    // Another seed gives another image; the same seed the same one.
-    let again = render(&a, &cam, &s).unwrap();
-    assert_eq!(again, all);
-    let other = render(&a, &cam, &RenderSettings { seed: 4, ..s }).unwrap();
-    assert_ne!(other, all);
 }
