@@ -259,17 +259,9 @@ fn written_and_loaded_f16_asset_matches_and_uploads_exactly() {
     );
     assert!(vol.exact());
     check_modes(&gpu, &asset, "f16 file", 0, |_| {});
-    // The runtime's stored boxes and default framing equal the CPU tracer's.
+    // The runtime's stored boxes (its depth range) equal the CPU tracer's.
     for f in 0..asset.frame_count() {
         assert_eq!(vol.frame_bbox(f), vdbcook_trace::stored_bbox(&asset, f));
-        let c = vdbcook_trace::Camera::framing(&asset, f, 1.5).unwrap();
-        let g = vdbcook_runtime::Camera::framing_box(
-            &asset.header.index_to_world,
-            vol.frame_bbox(f).unwrap(),
-            1.5,
-        )
-        .unwrap();
-        assert_eq!(c, g);
     }
 }
 

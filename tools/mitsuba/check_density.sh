@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Geometry check: vdbcook's density mode (1 - T, exact per voxel) vs Mitsuba's T (albedo 0,
-# constant sky 1, emitters visible). See README.md.
+# constant sky 1, emitters visible), and both vs an exact float64 voxel walk
+# (exact_transmittance.py). See README.md.
 #
 #   tools/mitsuba/check_density.sh OUTDIR NAME VDB GRID ABSORB EX,EY,EZ,LX,LY,LZ,FOV W H SPP
 #
@@ -23,9 +24,13 @@ cat >"$OUT/$NAME.density.json" <<EOF
  "extinction": $ABSORB, "albedo": 0.0, "phase_g": 0.0, "sun": null, "sky": [1, 1, 1],
  "spp": $SPP, "max_depth": 2, "hide_emitters": false}
 EOF
-common=(--mode density --units world --absorb "$ABSORB" --scatter 0 --camera "$CAM" --backend cpu --grid "$GRID")
+common=(--mode density --units world --absorb "$ABSORB" --scatter 0 --camera="$CAM" --backend cpu --grid "$GRID")
 "$VDBCOOK" render "$VDB" "${common[@]}" --width "$W" --height "$H" -o "$OUT/$NAME.ours.pfm"
 "$VDBCOOK" render "$VDB" "${common[@]}" --width $((W * SS)) --height $((H * SS)) -o "$OUT/$NAME.ours_ss.pfm"
+"$MI_PY" "$HERE/exact_transmittance.py" "$OUT/$NAME.density.json" -o "$OUT/$NAME.exact.pfm"
+echo "== $NAME: vdbcook vs exact float64 voxel walk (pixel centres; deterministic)"
+"$MI_PY" "$HERE/compare.py" "$OUT/$NAME.ours.pfm" "$OUT/$NAME.exact.pfm" --one-minus-a \
+    --mask-from "$OUT/$NAME.ours.pfm"
 "$MI_PY" "$HERE/render_mitsuba.py" "$OUT/$NAME.density.json" -o "$OUT/$NAME.mi_sensor.pfm" \
     --stderr-out "$OUT/$NAME.mi_sensor_err.pfm" --variant scalar_rgb
 echo "== $NAME: vdbcook ${SS}x supersampled vs Mitsuba sensor (pixel area)"
@@ -36,6 +41,9 @@ if "$MI_PY" -c 'import mitsuba as mi, drjit as dr; mi.set_variant("llvm_ad_rgb")
         --stderr-out "$OUT/$NAME.mi_centres_err.pfm" --variant llvm_ad_rgb --rays centres
     echo "== $NAME: vdbcook vs Mitsuba on vdbcook's own pixel-centre rays"
     "$MI_PY" "$HERE/compare.py" "$OUT/$NAME.ours.pfm" "$OUT/$NAME.mi_centres.pfm" --one-minus-a \
+        --mask-from "$OUT/$NAME.ours.pfm" --stderr-b "$OUT/$NAME.mi_centres_err.pfm"
+    echo "== $NAME: exact float64 voxel walk vs Mitsuba (pixel-centre rays)"
+    "$MI_PY" "$HERE/compare.py" "$OUT/$NAME.exact.pfm" "$OUT/$NAME.mi_centres.pfm" \
         --mask-from "$OUT/$NAME.ours.pfm" --stderr-b "$OUT/$NAME.mi_centres_err.pfm"
 else
     echo "(llvm_ad_rgb unavailable: centres comparison skipped)"

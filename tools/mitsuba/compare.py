@@ -2,7 +2,7 @@
 """Compare two linear PFMs (A = vdbcook, B = Mitsuba, usually).
 
     python3 tools/mitsuba/compare.py A.pfm B.pfm [--one-minus-a] [--downsample-a K]
-        [--mask-from X.pfm] [--threshold 1e-3] [--stderr-b ERR.pfm] [--diff D.pfm]
+        [--mask-from X.pfm] [--threshold 1e-3] [--stderr-b ERR.pfm] [--diff D.pfm] [--a2 A2.pfm]
 
 --one-minus-a   compare 1 - A with B (vdbcook's density mode writes 1 - T; Mitsuba with albedo 0,
                 sky 1 and hide_emitters false renders T).
@@ -14,11 +14,14 @@
                 exceeds it.
 --stderr-b E    per-pixel standard error of B (render_mitsuba.py --stderr-out): reports the
                 RMSE that B's noise alone would give, relative like the RMSE
-                (noise_rel_rmse_b), and excess_rel_rmse = sqrt(RMSE^2 - noise^2) / mean(b).
+                (noise_rel_rmse_b).
 
 Prints one JSON object: pixels judged, rel_rmse = sqrt(mean((a-b)^2)) / mean(b), max_abs,
 mean_a, mean_b, mean_ratio = mean_a / mean_b (all over the judged pixels and the 3 channels),
-per-channel mean ratios, and the noise-only rel RMSE when --stderr-b is given.
+per-channel mean ratios; with --stderr-b and/or --a2 (a second render of A with another
+seed: A is taken as the mean of the two, and half their difference estimates its noise) the
+noise-only rel RMSE of each side and excess_rel_rmse = sqrt(RMSE^2 - noise_a^2 - noise_b^2) /
+mean(b), the part of the difference that noise does not explain.
 """
 import argparse
 import json
@@ -47,6 +50,8 @@ def main():
     ap.add_argument("--mask-from")
     ap.add_argument("--threshold", type=float, default=1e-3)
     ap.add_argument("--stderr-b")
+    ap.add_argument("--a2", help="a second render of A with another seed: A becomes (A + A2)/2 and"
+                    " (A - A2)/2 estimates its noise")
     ap.add_argument("--diff", help="write A - B (after the transforms) as a PFM")
     args = ap.parse_args()
 
@@ -56,9 +61,18 @@ def main():
         a_raw = np.repeat(a_raw, 3, axis=2)
     if b.shape[2] == 1:
         b = np.repeat(b, 3, axis=2)
+    a_half_diff = None
+    if args.a2:
+        a2 = read_pfm(args.a2).astype(np.float64)
+        if a2.shape[2] == 1:
+            a2 = np.repeat(a2, 3, axis=2)
+        a_half_diff = (a_raw - a2) / 2
+        a_raw = (a_raw + a2) / 2
     k = args.downsample_a
     if k > 1:
         a_raw = downsample(a_raw, k)
+        if a_half_diff is not None:
+            a_half_diff = downsample(a_half_diff, k)
     if a_raw.shape != b.shape:
         sys.exit(f"size mismatch: A {a_raw.shape} vs B {b.shape}")
     a = 1.0 - a_raw if args.one_minus_a else a_raw
@@ -87,13 +101,20 @@ def main():
         "channel_ratio": [float(am[:, c].mean() / bm[:, c].mean()) for c in range(3)],
         "mean_diff": float(d.mean()),
     }
+    noise2 = None
+    if a_half_diff is not None:
+        na2 = float(np.mean(a_half_diff[mask] ** 2))
+        out["noise_rel_rmse_a"] = float(np.sqrt(na2) / np.mean(bm))
+        noise2 = na2
     if args.stderr_b:
         e = read_pfm(args.stderr_b).astype(np.float64)
         if e.shape[2] == 1:
             e = np.repeat(e, 3, axis=2)
-        out["noise_rel_rmse_b"] = float(np.sqrt(np.mean(e[mask] ** 2)) / np.mean(bm))
-        noise2 = np.mean(e[mask] ** 2)
-        # What is left of the RMSE once B's expected noise is taken out (systematic part).
+        nb2 = float(np.mean(e[mask] ** 2))
+        out["noise_rel_rmse_b"] = float(np.sqrt(nb2) / np.mean(bm))
+        noise2 = nb2 + (noise2 or 0.0)
+    if noise2 is not None:
+        # What is left of the RMSE once the expected noise is taken out (systematic part).
         out["excess_rel_rmse"] = float(np.sqrt(max(np.mean(d * d) - noise2, 0.0)) / np.mean(bm))
     if args.diff:
         write_pfm(args.diff, np.where(mask[:, :, None], a - b, 0.0))

@@ -153,7 +153,8 @@ def build_scene(mi, sc, data, meta):
 
 
 def centre_rays(mi, dr, sc, spp):
-    """vdbcook's camera contract: pixel (i, j), row 0 at the top, spp copies of each ray."""
+    """vdbcook's camera contract: pixel (i, j), row 0 at the top, spp copies of each ray
+    (lane = pixel * spp + sample), directions computed in float64."""
     cam = sc["camera"]
     W, H = int(sc["width"]), int(sc["height"])
     eye, look, up = (np.array(cam[k], dtype=np.float64) for k in ("eye", "look", "up"))
@@ -161,16 +162,17 @@ def centre_rays(mi, dr, sc, spp):
     r = normalize(np.cross(f, up))
     u = np.cross(r, f)
     th = math.tan(math.radians(float(cam["fov_y_deg"])) / 2)
-    i = np.arange(W, dtype=np.float64)
-    j = np.arange(H, dtype=np.float64)
-    sx = (2 * (i + 0.5) / W - 1) * th * (W / H)
+    F64 = dr.float64_array_t(mi.Float)
+    U32 = mi.UInt32
+    pix = dr.arange(U32, W * H * spp) // spp
+    i = F64(pix % W)
+    j = F64(pix // W)
+    sx = (2 * (i + 0.5) / W - 1) * (th * W / H)
     sy = (1 - 2 * (j + 0.5) / H) * th
-    d = f[None, None, :] + sx[None, :, None] * r + sy[:, None, None] * u  # [H, W, 3]
-    d /= np.linalg.norm(d, axis=2, keepdims=True)
-    d = np.repeat(d.reshape(-1, 3), spp, axis=0)
-    o = np.broadcast_to(eye, d.shape)
-    return mi.RayDifferential3f(o=mi.Point3f(*[mi.Float(np.ascontiguousarray(o[:, a])) for a in range(3)]),
-                                d=mi.Vector3f(*[mi.Float(np.ascontiguousarray(d[:, a])) for a in range(3)]))
+    d = [float(f[a]) + sx * float(r[a]) + sy * float(u[a]) for a in range(3)]
+    inv = dr.rsqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return mi.RayDifferential3f(o=mi.Point3f(*[float(v) for v in eye]),
+                                d=mi.Vector3f(*[mi.Float(c * inv) for c in d]))
 
 
 def main():
@@ -227,8 +229,8 @@ def main():
             sampler = mi.load_dict({"type": "independent", "sample_count": n})
             sampler.seed(seed, W * H * n)
             L, _, _ = integrator.sample(scene, sampler, ray, None, True)
-            L = np.stack([np.array(L[a]) for a in range(3)], axis=1).astype(np.float64)
-            img = L.reshape(H, W, n, 3).mean(axis=2)
+            L = np.array(L, dtype=np.float64)  # [3, W*H*n]; evaluates all channels in one kernel
+            img = L.reshape(3, H, W, n).mean(axis=3).transpose(1, 2, 0)
         acc += img * n
         acc2 += img * img * n
     t_render = time.perf_counter() - t0

@@ -77,11 +77,13 @@ impl Camera {
         Ok(self.basis(width, height)?.dir(i, j, width, height))
     }
 
-    /// The default view of `frame`: the world bounding box of its stored content (of all frames
-    /// when it stores none, of the root extent when no frame does), seen from the direction
-    /// (1, 0.6, 1.4) off its centre (Y up) with a 40° vertical field of view, just far enough
-    /// that every corner of the box projects within 80% of the image's half-width and
-    /// half-height.
+    /// The default view of `frame`: seen from the direction (1, 0.6, 1.4) off the centre of
+    /// the world bounding box of its stored content (Y up) with a 40° vertical field of view,
+    /// just far enough that every corner of every stored box ([`stored_boxes`]: tiled regions,
+    /// tile leaves, each brick's non-background voxels) projects within 80% of the image's
+    /// half-width and half-height — so the content, not its bounding box, fills the frame.
+    /// A frame that stores nothing is framed as the content of all frames, or the root extent
+    /// when no frame stores anything.
     pub fn framing(asset: &Asset, frame: usize, aspect: f64) -> Result<Camera, TraceError> {
         if frame >= asset.frame_count() {
             return Err(TraceError::Frame {
@@ -89,34 +91,42 @@ impl Camera {
                 frames: asset.frame_count(),
             });
         }
-        let bbox = stored_bbox(asset, frame)
-            .or_else(|| {
-                (0..asset.frame_count())
-                    .filter_map(|f| stored_bbox(asset, f))
-                    .reduce(|a, b| (min3(a.0, b.0), max3(a.1, b.1)))
-            })
-            .unwrap_or(([0.0; 3], asset.header.root_dims.map(|d| d as f64 * 128.0)));
-        Camera::framing_box(&asset.header.index_to_world, bbox, aspect)
+        let mut boxes = stored_boxes(asset, frame);
+        if boxes.is_empty() {
+            boxes = (0..asset.frame_count())
+                .flat_map(|f| stored_boxes(asset, f))
+                .collect();
+        }
+        if boxes.is_empty() {
+            boxes.push(([0.0; 3], asset.header.root_dims.map(|d| d as f64 * 128.0)));
+        }
+        let xf = Affine::cells(&asset.header.index_to_world)?;
+        let points: Vec<[f64; 3]> = boxes
+            .iter()
+            .flat_map(|b| corners(*b))
+            .map(|p| xf.world_of(p))
+            .collect();
+        Camera::framing_points(&points, aspect)
     }
 
-    /// The default view of the index-space box `bbox` (`[lo, hi)`) under `index_to_world`, as
-    /// [`Camera::framing`] describes (which applies it to the box it chooses).
+    /// The default view of the index-space box `bbox` (`[lo, hi)`) under `index_to_world`: as
+    /// [`Camera::framing`] with the box's eight corners as the content.
     pub fn framing_box(
         index_to_world: &[[f64; 4]; 4],
         bbox: ([f64; 3], [f64; 3]),
         aspect: f64,
     ) -> Result<Camera, TraceError> {
         let xf = Affine::cells(index_to_world)?;
+        let points: Vec<[f64; 3]> = corners(bbox).map(|p| xf.world_of(p)).collect();
+        Camera::framing_points(&points, aspect)
+    }
+
+    /// The default view of world points: looking at the centre of their bounding box from the
+    /// direction (1, 0.6, 1.4) (Y up, 40° vertical field of view), just far enough that each
+    /// point projects within 80% of the image's half-extents and lies in front of the eye.
+    fn framing_points(points: &[[f64; 3]], aspect: f64) -> Result<Camera, TraceError> {
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for c in 0..8 {
-            let p = [0, 1, 2].map(|a| {
-                if c >> a & 1 == 0 {
-                    bbox.0[a]
-                } else {
-                    bbox.1[a]
-                }
-            });
-            let w = xf.world_of(p);
+        for &w in points {
             lo = min3(lo, w);
             hi = max3(hi, w);
         }
@@ -129,9 +139,9 @@ impl Camera {
         };
         let half_y = (fov_y_deg.to_radians() * 0.5).tan();
         let half = [half_y * aspect, half_y].map(|h| FILL * h);
-        // The eye looks at the centre from `dir`; put it just far enough that each corner of
-        // the world box projects within FILL of the image half-extents: for a corner at
-        // (x, y) across and z along the view (from the centre), |x| ≤ half·(dist + z).
+        // The eye looks at the centre from `dir`; put it just far enough that each point
+        // projects within FILL of the image half-extents: for a point at (x, y) across and z
+        // along the view (from the centre), |x| ≤ half·(dist + z).
         let dir = normalize([1.0, 0.6, 1.4]);
         let probe = Camera {
             eye: [0, 1, 2].map(|a| centre[a] + dir[a]),
@@ -143,13 +153,13 @@ impl Camera {
         let (r, u) = (normalize(b.right), normalize(b.up));
         let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
         let mut dist = 1e-9f64;
-        for c in 0..8 {
-            let p = [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] } - centre[a]);
+        for &w in points {
+            let p = [0, 1, 2].map(|a| w[a] - centre[a]);
             let z = dot(p, b.forward);
             dist = dist
                 .max(dot(p, r).abs() / half[0] - z)
                 .max(dot(p, u).abs() / half[1] - z)
-                // Keep the eye outside the box.
+                // Every point in front of the eye.
                 .max(-z * 1.01);
         }
         Ok(Camera {
@@ -159,6 +169,11 @@ impl Camera {
             fov_y_deg,
         })
     }
+}
+
+/// The eight corners of a box.
+fn corners((lo, hi): ([f64; 3], [f64; 3])) -> impl Iterator<Item = [f64; 3]> {
+    (0..8).map(move |c| [0, 1, 2].map(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] }))
 }
 
 impl Basis {
@@ -182,18 +197,25 @@ fn max3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| a[i].max(b[i]))
 }
 
-/// Index-space box `[lo, hi)` of what `frame` stores: tiled regions, tile leaves and the brick
-/// voxels that differ from the background, found through `root_entry` / `leaf_at` (16³ probes
-/// per L2 node) and `decode_brick`; `None` for an empty frame.
+/// Cell-space box `[lo, hi)` of what `frame` stores: the union of [`stored_boxes`]; `None` for
+/// an empty frame.
 pub fn stored_bbox(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> {
+    stored_boxes(asset, frame)
+        .into_iter()
+        .reduce(|a, b| (min3(a.0, b.0), max3(a.1, b.1)))
+}
+
+/// Cell-space boxes `[lo, hi)` of what `frame` stores other than the background: each tiled
+/// region and tile leaf whose value is not the background, and per brick the box of its voxels
+/// that differ from the background, found through
+/// `root_entry` / `leaf_at` (16³ probes per L2 node) and `decode_brick`.
+pub fn stored_boxes(asset: &Asset, frame: usize) -> Vec<([f64; 3], [f64; 3])> {
     let d = asset.header.root_dims.map(|x| x as i64);
     let span = L2_SPAN as i64;
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    let background = asset.header.background;
+    let mut boxes = Vec::new();
     let mut values = [0.0f32; BRICK_VOXELS];
-    let mut add = |o: [i64; 3], size: i64| {
-        lo = min3(lo, o.map(|c| c as f64));
-        hi = max3(hi, o.map(|c| (c + size) as f64));
-    };
+    let cube = |o: [i64; 3], size: i64| (o.map(|c| c as f64), o.map(|c| (c + size) as f64));
     for z in 0..d[2] {
         for y in 0..d[1] {
             for x in 0..d[0] {
@@ -203,7 +225,9 @@ pub fn stored_bbox(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
                     continue;
                 }
                 if e & TILE_BIT != 0 {
-                    add(o, span);
+                    if asset.tiles[(e & !TILE_BIT) as usize] != background {
+                        boxes.push(cube(o, span));
+                    }
                     continue;
                 }
                 for s in 0..16 * 16 * 16i64 {
@@ -214,15 +238,22 @@ pub fn stored_bbox(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
                     ];
                     match asset.leaf_at(frame, l) {
                         LeafRef::Empty => {}
-                        LeafRef::Tile(_) => add(l, 8),
+                        LeafRef::Tile(v) if v != background => boxes.push(cube(l, 8)),
+                        LeafRef::Tile(_) => {}
                         LeafRef::Brick(b) => {
                             // Voxels holding something other than the background.
                             asset.decode_brick(b, &mut values);
+                            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
                             for (i, v) in values.iter().enumerate() {
-                                if *v != asset.header.background {
+                                if *v != background {
                                     let x = [i as i64 / 64, i as i64 / 8 % 8, i as i64 % 8];
-                                    add([0, 1, 2].map(|a| l[a] + x[a]), 1);
+                                    let (a, b) = cube([0, 1, 2].map(|k| l[k] + x[k]), 1);
+                                    lo = min3(lo, a);
+                                    hi = max3(hi, b);
                                 }
+                            }
+                            if lo[0] <= hi[0] {
+                                boxes.push((lo, hi));
                             }
                         }
                     }
@@ -230,5 +261,5 @@ pub fn stored_bbox(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
             }
         }
     }
-    (lo[0] <= hi[0]).then_some((lo, hi))
+    boxes
 }

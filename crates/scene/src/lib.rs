@@ -16,7 +16,7 @@ mod content;
 mod settings;
 mod space;
 
-pub use camera::{stored_bbox, Basis, Camera};
+pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::content_box;
 pub use settings::{
     LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP,

@@ -122,6 +122,6 @@ pub use space::IndexRay;
 pub use walk::Holder;
 // The shared view and parameter maths (one definition for this tracer and the GPU runtime).
 pub use vdbcook_scene::{
-    content_box, depth_range, stored_bbox, Affine, Basis, Camera, LengthUnit, Mode, RenderSettings,
-    TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    content_box, depth_range, stored_bbox, stored_boxes, Affine, Basis, Camera, LengthUnit, Mode,
+    RenderSettings, TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };
