@@ -148,6 +148,12 @@ impl Args {
     /// flag and its range.
     pub fn validate(&self) -> Result<(), CliError> {
         let bad = |m: String| Err(CliError::Usage(m));
+        if Bc7Quality::parse(&self.bc7_quality).is_none() {
+            return bad(format!(
+                "unknown --bc7-quality '{}' (ultra-fast, very-fast, fast, basic, slow)",
+                self.bc7_quality
+            ));
+        }
         if let Some(k) = self.clusters {
             if !(1..=MAX_CLUSTERS).contains(&k) {
                 return bad(format!(

@@ -414,6 +414,10 @@ fn numeric_flags_are_checked_with_their_range() {
         (&["--max-error", "-1"], &["--max-error", "> 0"]),
         (&["--max-error", "nan"], &["--max-error"]),
         (&["--replace-non-finite", "inf"], &["--replace-non-finite"]),
+        (
+            &["--bc7-quality", "best"],
+            &["--bc7-quality 'best'", "slow"],
+        ),
     ];
     for (extra, want) in cases {
         let mut args = vec!["cook", FOG, "-o", &out];
