@@ -39,7 +39,6 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
         // Mask word `w` holds slots `x + 16·(y + 16·z)` with `z = w / 4`, `y / 4 = w % 4`, bit
         // `x + 16·(y % 4)`; its refs follow in slot order from `l2_base + l2_prefix[w]`.
         let node = e as usize;
-        let mut k = asset.l2_base[node] as usize;
         for (w, &word) in asset.l2_mask(node).iter().enumerate() {
             let (z, yb) = (w / 4, w % 4);
             let leaf_origin = |bit: usize| {
@@ -57,22 +56,42 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
                     empty &= empty - 1;
                 }
             }
-            let mut bits = word;
-            while bits != 0 {
-                let bit = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let r = asset.l3_refs[k];
-                k += 1;
-                let v = if r & TILE_BIT != 0 {
-                    asset.tiles[(r & !TILE_BIT) as usize]
-                } else {
-                    asset.brick_ranges[r as usize][1]
-                };
-                grow(leaf_origin(bit), 8, v);
-            }
         }
+        for_each_slot_max(asset, node, |w, bit, v| {
+            let (z, yb) = (w / 4, w % 4);
+            let (x, y) = (bit % 16, 4 * yb + bit / 16);
+            let l = [
+                o[0] + 8 * x as i64,
+                o[1] + 8 * y as i64,
+                o[2] + 8 * z as i64,
+            ];
+            grow(l, 8, v);
+        });
     }
     (0..3)
         .all(|a| lo[a] < hi[a])
         .then(|| (lo.map(|c| c as f64), hi.map(|c| c as f64)))
+}
+
+/// Calls `f(w, bit, max)` for every present leaf slot of L2 node `node`, in slot order: its mask
+/// word `w`, its bit in that word, and its value bound (a tile's value, a brick's
+/// `brick_ranges` max). Mask word `w` holds slots `x + 16·(y + 16·z)` with `z = w / 4`,
+/// `y / 4 = w % 4`, bit `x + 16·(y % 4)`; the refs follow in slot order from `l2_base[node]`.
+pub fn for_each_slot_max(asset: &Asset, node: usize, mut f: impl FnMut(usize, usize, f32)) {
+    let mut k = asset.l2_base[node] as usize;
+    for (w, &word) in asset.l2_mask(node).iter().enumerate() {
+        let mut bits = word;
+        while bits != 0 {
+            let bit = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let r = asset.l3_refs[k];
+            k += 1;
+            let v = if r & TILE_BIT != 0 {
+                asset.tiles[(r & !TILE_BIT) as usize]
+            } else {
+                asset.brick_ranges[r as usize][1]
+            };
+            f(w, bit, v);
+        }
+    }
 }

@@ -17,7 +17,7 @@ mod settings;
 mod space;
 
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
-pub use content::content_box;
+pub use content::{content_box, for_each_slot_max};
 pub use settings::{
     LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
     MIN_STEP,

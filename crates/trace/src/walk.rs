@@ -7,7 +7,7 @@ use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, L2_SPAN, TILE_BIT};
 
 use crate::dda::{walk_cells, Flow};
 use crate::space::IndexRay;
-use vdbcook_scene::content_box;
+use vdbcook_scene::{content_box, for_each_slot_max};
 
 /// What a constant-valued span belongs to (for the brick-hue mode).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -157,10 +157,8 @@ impl<'a> Grid<'a> {
                     *m = v;
                 }
             };
-            // Mask word `w` holds slots `x + 16·(y + 16·z)` with `z = w / 4`, `y / 4 = w % 4`, bit
-            // `x + 16·(y % 4)`; its refs follow in slot order from `l2_base + l2_prefix[w]`.
+            // Slots missing from a 4³ block hold the background (mask layout: `for_each_slot_max`).
             let node = e as usize;
-            let mut k = asset.l2_base[node] as usize;
             for (w, &word) in asset.l2_mask(node).iter().enumerate() {
                 let (z, yb) = (w / 4, w % 4);
                 for bx in 0..4 {
@@ -169,20 +167,11 @@ impl<'a> Grid<'a> {
                         put(&mut m[bx + 4 * (yb + 4 * (z / 4))], background);
                     }
                 }
-                let mut bits = word;
-                while bits != 0 {
-                    let bit = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let r = asset.l3_refs[k];
-                    k += 1;
-                    let v = if r & TILE_BIT != 0 {
-                        asset.tiles[(r & !TILE_BIT) as usize]
-                    } else {
-                        asset.brick_ranges[r as usize][1]
-                    };
-                    put(&mut m[bit % 16 / 4 + 4 * (yb + 4 * (z / 4))], v);
-                }
             }
+            for_each_slot_max(asset, node, |w, bit, v| {
+                let (z, yb) = (w / 4, w % 4);
+                put(&mut m[bit % 16 / 4 + 4 * (yb + 4 * (z / 4))], v);
+            });
             block_of[e as usize] = block_max.len() as u32;
             block_max.push(m);
         }
