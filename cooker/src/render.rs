@@ -96,7 +96,7 @@ pub struct Args {
     #[arg(long, default_value_t = 16)]
     spp: u32,
     /// Constant sky radiance R,G,B (reference: paths that scatter and leave see it).
-    #[arg(long, default_value = "0.04,0.05,0.065")]
+    #[arg(long, default_value = "0.04,0.05,0.065", allow_hyphen_values = true)]
     sky: String,
     /// Henyey–Greenstein phase of the reference mode: G (one lobe) or G0,G1,W (W·HG(G0) +
     /// (1 − W)·HG(G1)); each G in -0.99..=0.99, positive forward.
@@ -640,6 +640,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         None => None,
     };
+    if a.backend == "gpu" && s.mode == Mode::Reference {
+        return Err(CliError::Usage(
+            "--mode reference is the CPU path tracer: use --backend cpu (or auto)".into(),
+        ));
+    }
     // Open the GPU first: a missing adapter is reported before any cooking.
     let gpu = match a.backend.as_str() {
         "gpu" => Some(Gpu::open().map_err(other)?),

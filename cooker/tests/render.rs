@@ -153,6 +153,19 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         assert_eq!(code, 1, "{extra:?}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
+    // The reference is CPU only: asking the GPU for it is a usage error, before any work.
+    let (code, _, err) = vdbcook(&[
+        "render",
+        &asset,
+        "-o",
+        &out,
+        "--mode",
+        "reference",
+        "--backend",
+        "gpu",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--backend cpu"), "{err}");
     // VDB input that does not read: the reader's error, naming the file.
     let (code, _, err) = vdbcook(&["render", "fixtures/nope.vdb", "-o", &out]);
     assert_eq!(code, 1);

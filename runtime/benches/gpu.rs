@@ -145,6 +145,8 @@ fn main() {
                 .texture_target(&device, &texture, &view)
                 .expect("target");
             let bbox = volume.frame_bbox(0).expect("frame 0 stores something");
+            // The stored bounding box's framing (not `Camera::framing`'s tighter fit since
+            // 2026-11-23), so figures stay comparable with those in docs/.
             let camera = Camera::framing_box(volume.index_to_world(), bbox, w as f64 / h as f64)
                 .expect("camera");
             for &mode in &modes {

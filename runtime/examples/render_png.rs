@@ -69,10 +69,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     });
     let view = texture.create_view(&Default::default());
     let target = renderer.texture_target(&device, &texture, &view)?;
-    let bbox = volume
-        .frame_bbox(frame)
-        .ok_or_else(|| format!("frame {frame} stores nothing (or is not in the asset)"))?;
-    let camera = Camera::framing_box(volume.index_to_world(), bbox, w as f64 / h as f64)?;
+    if volume.frame_bbox(frame).is_none() {
+        return Err(format!("frame {frame} stores nothing (or is not in the asset)").into());
+    }
+    // The default view, as `vdbcook render` frames it.
+    let camera = Camera::framing(&asset, frame, w as f64 / h as f64)?;
 
     let row =
         (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;

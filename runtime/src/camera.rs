@@ -13,8 +13,9 @@ use crate::RuntimeError;
 /// `height` and `frame`: the target gives the image size and each render call the frame.
 pub type Settings = vdbcook_scene::RenderSettings;
 
-/// The modes the GPU tracer implements (all of `Mode::ALL`; a mode missing here would be refused
-/// with [`RuntimeError::Unsupported`]), in the order of the shader's mode numbers.
+/// The modes the GPU tracer implements (all of `Mode::ALL` but the CPU-only `Mode::Reference`,
+/// which is refused with [`RuntimeError::Unsupported`]), in the order of the shader's mode
+/// numbers.
 pub const GPU_MODES: [Mode; 7] = [
     Mode::Density,
     Mode::Depth,

@@ -16,7 +16,7 @@
 //!   `(L, T)` in an `Rgba16Float` texture) and a render pass (`shaders/composite.wgsl`: the
 //!   blend unit computes `out = L + T·scene` on the colour target, any blendable format).
 //!
-//! The density march is the CPU tracer's Density mode (`vdbcook_scene::Tracer::optical_depth`
+//! The density march is the CPU tracer's Density mode (`vdbcook_trace::Tracer::optical_depth`
 //! is its reference): `T = exp(−absorb·scale·τ)` with `τ` the exact sum of voxel values times
 //! segment lengths; the volume is flat-lit: `L = tint·(1 − T)`. A crossfade samples the per-voxel
 //! lerp of the two frames, which for this march is the lerp of their optical depths.

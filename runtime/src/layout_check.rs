@@ -3,7 +3,8 @@
 //! shader compiler) parses the WGSL and lays the struct out by WGSL's rules; every WGSL member
 //! must sit inside the Rust field of its name (`x0`, `x1`, … inside an array field `x`), at the
 //! same offset for a plain field, every Rust field must start where a member starts, and the
-//! sizes must be equal. A field added, dropped, reordered or resized on one side only fails.
+//! sizes must be equal. A field added, dropped, reordered or resized on one side only fails
+//! (the scalar kinds are not compared: a `u32` and an `f32` at the same place pass).
 //! Test-only: the structs stay hand-written next to the code that fills them.
 
 use naga::proc::Layouter;
@@ -11,10 +12,12 @@ use naga::proc::Layouter;
 /// One field: name, byte offset, byte size.
 pub type Field = (&'static str, usize, usize);
 
-/// The layout of a `#[repr(C)]` struct: `rust_layout!(T { a, b, c })` lists every field.
+/// The layout of a `#[repr(C)]` struct: `rust_layout!(T { a, b, c })` lists every field (the
+/// exhaustive pattern below does not compile if one is left out).
 macro_rules! rust_layout {
-    ($t:ty { $($f:ident),* $(,)? }) => {{
+    ($t:ident { $($f:ident),* $(,)? }) => {{
         let z: $t = bytemuck::Zeroable::zeroed();
+        let $t { $($f: _),* } = z;
         let fields: Vec<$crate::layout_check::Field> = vec![$((
             stringify!($f),
             std::mem::offset_of!($t, $f),

@@ -66,7 +66,7 @@ pub struct TextureTarget {
 }
 
 /// A storage buffer target: `width·height` RGBA (f32 × 4) followed by `width·height` raw values
-/// (the mode's quantity, as `vdbcook_scene::Image::value`).
+/// (the mode's quantity, as `vdbcook_trace::Image::value`).
 pub struct BufferTarget {
     bind_group: wgpu::BindGroup,
     buffer: wgpu::Buffer,
@@ -468,7 +468,7 @@ impl Renderer {
         let vmax = self.vol.frame_max[frame];
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let inv = self.xf.inv_a;
-        // As `vdbcook_scene::Tracer::new`: the light in index space, extinction and albedo in f64.
+        // As `vdbcook_trace::Tracer::new`: the light in index space, extinction and albedo in f64.
         let l = settings.light_dir.map(|c| c as f64);
         let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
         let light_index = self.xf.dir_to_index(l.map(|c| c / ln));

@@ -1142,8 +1142,8 @@ fn volume_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     })
 }
 
-/// `vdbcook_scene::stored_bbox` from per-brick boxes: tiled regions, tile leaves, and the brick
-/// voxels that differ from the background.
+/// `vdbcook_scene::stored_bbox` from per-brick boxes: tiled regions and tile leaves whose value
+/// is not the background, and the brick voxels that differ from the background.
 fn frame_box(
     asset: &Asset,
     frame: usize,
@@ -1158,6 +1158,7 @@ fn frame_box(
     };
     asset.for_each_leaf(frame, |o, r, region| match r {
         LeafRef::Empty => {}
+        LeafRef::Tile(v) if v == asset.header.background => {}
         LeafRef::Tile(_) => {
             let size = if region { 128 } else { 8 };
             add(o, o.map(|c| c + size));

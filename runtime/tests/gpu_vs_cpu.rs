@@ -259,10 +259,29 @@ fn written_and_loaded_f16_asset_matches_and_uploads_exactly() {
     );
     assert!(vol.exact());
     check_modes(&gpu, &asset, "f16 file", 0, |_| {});
-    // The runtime's stored boxes (its depth range) equal the CPU tracer's.
+    // The runtime's stored boxes (its depth range) equal the CPU tracer's, also with tiles
+    // that hold the background (they store nothing: a leaf tile far from the blob and a
+    // tiled region, both of value 0).
     for f in 0..asset.frame_count() {
         assert_eq!(vol.frame_bbox(f), vdbcook_trace::stored_bbox(&asset, f));
     }
+    let mut frame = blob_frame([120.0, 100.0, 40.0], 34.0, 1.2, None);
+    frame.leaves.insert([200, 8, 232], Leaf::Tile(0.0));
+    frame.regions.insert([0, 1, 1], 0.0);
+    let padded = build(
+        [2, 2, 2],
+        rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
+        0.0,
+        &[frame],
+        PayloadFormat::F32,
+    );
+    let (vol, _) = gpu.setup(&padded);
+    let cpu = vdbcook_trace::stored_bbox(&padded, 0).unwrap();
+    assert_eq!(vol.frame_bbox(0), Some(cpu));
+    assert!(
+        cpu.1[2] < 128.0,
+        "the background tiles are not stored content: {cpu:?}"
+    );
 }
 
 #[test]

@@ -14,6 +14,7 @@ use common::*;
 use vdbcook_asset::{Asset, LeafRef, PayloadFormat};
 use vdbcook_runtime::{
     GpuVolume, Layout, Readback, Renderer, RuntimeError, StreamingVolume, UploadOptions,
+    VolumeDrawer,
 };
 use vdbcook_trace::{Mode, RenderSettings};
 
@@ -213,10 +214,16 @@ fn streamed_frames_render_like_the_full_upload_in_every_layout() {
             streamed.rebind(&full),
             Err(RuntimeError::Rebind(_))
         ));
+        // The engine drawer keeps the same binding (`rebind` is one shared implementation;
+        // its pixels are the engine tests').
+        let mut drawer =
+            VolumeDrawer::new(&device, s.volume(), wgpu::TextureFormat::Rgba16Float).unwrap();
+        assert!(matches!(drawer.rebind(&full), Err(RuntimeError::Rebind(_))));
         for k in 0..FRAMES {
             if k > 1 {
                 s.advance(&device, &queue).expect("advance");
                 streamed.rebind(s.volume()).expect("rebind");
+                drawer.rebind(s.volume()).expect("drawer rebind");
             }
             let want = render(&device, &queue, &full, k, &cam);
             let local = s.local_frame(k).unwrap();

@@ -82,8 +82,8 @@ impl Camera {
     /// just far enough that every corner of every stored box ([`stored_boxes`]: tiled regions,
     /// tile leaves, each brick's non-background voxels) projects within 80% of the image's
     /// half-width and half-height — so the content, not its bounding box, fills the frame.
-    /// A frame that stores nothing is framed as the content of all frames, or the root extent
-    /// when no frame stores anything.
+    /// A frame that stores nothing is framed by the stored bounding boxes of all frames, or the
+    /// root extent when no frame stores anything.
     pub fn framing(asset: &Asset, frame: usize, aspect: f64) -> Result<Camera, TraceError> {
         if frame >= asset.frame_count() {
             return Err(TraceError::Frame {
@@ -93,20 +93,16 @@ impl Camera {
         }
         let mut boxes = stored_boxes(asset, frame);
         if boxes.is_empty() {
+            // One box per frame (their stored bounding boxes): a long sequence's every brick
+            // would be a large list for a fallback.
             boxes = (0..asset.frame_count())
-                .flat_map(|f| stored_boxes(asset, f))
+                .filter_map(|f| stored_bbox(asset, f))
                 .collect();
         }
         if boxes.is_empty() {
             boxes.push(([0.0; 3], asset.header.root_dims.map(|d| d as f64 * 128.0)));
         }
-        let xf = Affine::cells(&asset.header.index_to_world)?;
-        let points: Vec<[f64; 3]> = boxes
-            .iter()
-            .flat_map(|b| corners(*b))
-            .map(|p| xf.world_of(p))
-            .collect();
-        Camera::framing_points(&points, aspect)
+        Camera::framing_boxes(&asset.header.index_to_world, &boxes, aspect)
     }
 
     /// The default view of the index-space box `bbox` (`[lo, hi)`) under `index_to_world`: as
@@ -116,17 +112,27 @@ impl Camera {
         bbox: ([f64; 3], [f64; 3]),
         aspect: f64,
     ) -> Result<Camera, TraceError> {
-        let xf = Affine::cells(index_to_world)?;
-        let points: Vec<[f64; 3]> = corners(bbox).map(|p| xf.world_of(p)).collect();
-        Camera::framing_points(&points, aspect)
+        Camera::framing_boxes(index_to_world, &[bbox], aspect)
     }
 
-    /// The default view of world points: looking at the centre of their bounding box from the
-    /// direction (1, 0.6, 1.4) (Y up, 40° vertical field of view), just far enough that each
-    /// point projects within 80% of the image's half-extents and lies in front of the eye.
-    fn framing_points(points: &[[f64; 3]], aspect: f64) -> Result<Camera, TraceError> {
+    /// The default view of the corners of cell-space boxes under `index_to_world`: looking at
+    /// the centre of their world bounding box from the direction (1, 0.6, 1.4) (Y up, 40°
+    /// vertical field of view), just far enough that each corner projects within 80% of the
+    /// image's half-extents and lies in front of the eye.
+    fn framing_boxes(
+        index_to_world: &[[f64; 4]; 4],
+        boxes: &[([f64; 3], [f64; 3])],
+        aspect: f64,
+    ) -> Result<Camera, TraceError> {
+        let xf = Affine::cells(index_to_world)?;
+        let points = || {
+            boxes
+                .iter()
+                .flat_map(|b| corners(*b))
+                .map(|p| xf.world_of(p))
+        };
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for &w in points {
+        for w in points() {
             lo = min3(lo, w);
             hi = max3(hi, w);
         }
@@ -153,7 +159,7 @@ impl Camera {
         let (r, u) = (normalize(b.right), normalize(b.up));
         let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
         let mut dist = 1e-9f64;
-        for &w in points {
+        for w in points() {
             let p = [0, 1, 2].map(|a| w[a] - centre[a]);
             let z = dot(p, b.forward);
             dist = dist

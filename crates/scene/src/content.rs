@@ -36,8 +36,7 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
             grow(o, span, asset.tiles[(e & !TILE_BIT) as usize]);
             continue;
         }
-        // Mask word `w` holds slots `x + 16·(y + 16·z)` with `z = w / 4`, `y / 4 = w % 4`, bit
-        // `x + 16·(y % 4)`; its refs follow in slot order from `l2_base + l2_prefix[w]`.
+        // Missing slots hold the background (mask layout: `for_each_slot_max`).
         let node = e as usize;
         for (w, &word) in asset.l2_mask(node).iter().enumerate() {
             let (z, yb) = (w / 4, w % 4);

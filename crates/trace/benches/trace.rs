@@ -61,8 +61,8 @@ fn main() {
             .collect();
         let t = median(times);
         let rays = (w * h) as f64
-            * if mode == Mode::DeltaTracking {
-                16.0
+            * if matches!(mode, Mode::DeltaTracking | Mode::Reference) {
+                s.spp as f64 // one primary path per sample
             } else {
                 1.0
             };

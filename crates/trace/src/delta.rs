@@ -6,7 +6,7 @@
 //! continuous limit of `SingleScatter` (step → 0, no cutoffs).
 
 use crate::dda::Flow;
-use crate::rng::Rng;
+use crate::rng::{Rng, Uniform};
 use crate::space::IndexRay;
 use crate::walk::{walk, BrickCache, SpanSampler};
 use crate::Tracer;
@@ -20,14 +20,14 @@ pub const MIN_SHADOW_WEIGHT: f64 = 1e-6;
 /// Free flight over `[ta, tb]` against majorant `mu_bar` (per length unit): calls `at(s, p, rng)`
 /// at each tentative collision (`s` in length units from the ray origin) until it says stop, the
 /// span ends (`Go`) or the event budget runs out (`Stop`).
-pub(crate) fn track(
+pub(crate) fn track<R: Uniform>(
     ray: &IndexRay,
     mu_bar: f64,
     ta: f64,
     tb: f64,
-    rng: &mut Rng,
+    rng: &mut R,
     events: &mut u32,
-    mut at: impl FnMut(f64, [f64; 3], &mut Rng) -> Flow,
+    mut at: impl FnMut(f64, [f64; 3], &mut R) -> Flow,
 ) -> Flow {
     if !(mu_bar > 0.0) {
         return Flow::Go;
@@ -102,17 +102,17 @@ impl SpanSampler for Path<'_, '_> {
 }
 
 /// Ratio tracking toward the light.
-struct Ratio<'a, 't> {
+struct Ratio<'a, 't, R> {
     tracer: &'t Tracer<'a>,
     /// Shadow extinction at distance `s` is divided by `1 + gain·s` (0: physical).
     gain: f64,
     ray: IndexRay,
-    rng: Rng,
+    rng: R,
     weight: f64,
     events: u32,
 }
 
-impl Ratio<'_, '_> {
+impl<R: Uniform + Copy> Ratio<'_, '_, R> {
     fn flight(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
         let ext = self.tracer.extinction;
         let gain = self.gain;
@@ -138,7 +138,7 @@ impl Ratio<'_, '_> {
     }
 }
 
-impl SpanSampler for Ratio<'_, '_> {
+impl<R: Uniform + Copy> SpanSampler for Ratio<'_, '_, R> {
     fn skip_max(&self, max: f32) -> bool {
         !(max > 0.0) || self.tracer.extinction == 0.0
     }
@@ -150,11 +150,11 @@ impl SpanSampler for Ratio<'_, '_> {
 impl Tracer<'_> {
     /// Ratio-tracking estimate of the transmittance from index point `p` toward the light, the
     /// extinction at distance `s` divided by `1 + gain·s`.
-    pub(crate) fn ratio_shadow(
+    pub(crate) fn ratio_shadow<R: Uniform + Copy>(
         &self,
         p: [f64; 3],
         gain: f64,
-        rng: &mut Rng,
+        rng: &mut R,
         cache: &mut BrickCache,
     ) -> f64 {
         let ray = self.light_ray(p);

@@ -72,7 +72,7 @@
 //!   most 2¹⁶ events per path (then absorbed) and shadow weights below 1e-6 end as 0.
 //!
 //! - **Reference** (physically based; module `reference`): per sample a path with the stream
-//!   `Rng::new(seed, y·W + x, k)`: free flights by delta tracking (as above, extinction
+//!   `Rng64::new(seed, y·W + x, k)` (SplitMix64: CPU only, period 2⁶⁴): free flights by delta tracking (as above, extinction
 //!   `μ = (absorb+scatter)·σ`); at a real collision the throughput is multiplied by the albedo,
 //!   the sun adds `throughput · p(d·l) · light_color · T_sun` (`T_sun` by ratio tracking, no
 //!   `gain`), then Russian roulette when the throughput is below 1 and a new direction from the
@@ -116,7 +116,7 @@ pub use exact::OPAQUE_DEPTH;
 pub use image::Image;
 pub use reference::phase;
 pub use render::{render, Sample, Scratch, Tracer};
-pub use rng::{pcg_hash, Rng};
+pub use rng::{pcg_hash, Rng, Rng64};
 pub use scatter::MAX_MARCH_SAMPLES;
 pub use space::IndexRay;
 pub use walk::Holder;

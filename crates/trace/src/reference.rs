@@ -21,7 +21,7 @@
 
 use crate::dda::Flow;
 use crate::delta::{track, MAX_EVENTS};
-use crate::rng::Rng;
+use crate::rng::Rng64;
 use crate::space::IndexRay;
 use crate::walk::{walk, SpanSampler};
 use crate::{Scratch, Tracer};
@@ -65,7 +65,7 @@ fn around(d: [f64; 3], mu: f64, phi: f64) -> [f64; 3] {
 struct Flight {
     ray: IndexRay,
     extinction: f64,
-    rng: Rng,
+    rng: Rng64,
     events: u32,
     /// The collision point (cell space), once found.
     hit: Option<[f64; 3]>,
@@ -109,7 +109,7 @@ impl Tracer<'_> {
         &self,
         mut o: [f64; 3],
         mut d: [f64; 3],
-        rng: &mut Rng,
+        rng: &mut Rng64,
         scratch: &mut Scratch,
     ) -> ([f64; 3], bool) {
         let s = &self.settings;
@@ -192,7 +192,7 @@ mod tests {
                 })
                 .sum();
             assert!((integral - 1.0).abs() < 1e-4, "{g:?}: ∫ = {integral}");
-            let mut rng = Rng::new(7, 0, 0);
+            let mut rng = Rng64::new(7, 0, 0);
             let bins = 20;
             let mut hist = vec![0u32; bins];
             let draws = 400_000;
@@ -226,7 +226,7 @@ mod tests {
     /// `around` gives unit vectors at the asked cosine, for axes along every sign.
     #[test]
     fn around_keeps_the_cosine() {
-        let mut rng = Rng::new(3, 1, 2);
+        let mut rng = Rng64::new(3, 1, 2);
         for _ in 0..1000 {
             let d = normalize([0, 1, 2].map(|_| rng.uniform() * 2.0 - 1.0));
             let mu = rng.uniform() * 2.0 - 1.0;

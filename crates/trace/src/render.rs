@@ -8,7 +8,7 @@ use vdbcook_asset::Asset;
 use crate::color::{brick_color, heat, STEPS_FULL_SCALE};
 use crate::delta::{Path, MAX_EVENTS};
 use crate::exact::{Density, FirstHit};
-use crate::rng::Rng;
+use crate::rng::{Rng, Rng64};
 use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
 use crate::space::IndexRay;
 use crate::walk::{extent, walk, BrickCache, Grid, Holder};
@@ -276,7 +276,7 @@ impl<'a> Tracer<'a> {
                 let d = normalize(dir);
                 let (mut l, mut escaped) = ([0.0f64; 3], 0u32);
                 for k in 0..s.spp {
-                    let mut rng = Rng::new(s.seed, pixel, s.first_sample.wrapping_add(k));
+                    let mut rng = Rng64::new(s.seed, pixel, s.first_sample.wrapping_add(k));
                     let (li, esc) = self.reference_path(ray.o, d, &mut rng, scratch);
                     for (a, b) in l.iter_mut().zip(li) {
                         *a += b;

@@ -3,7 +3,7 @@
 
 use vdbcook_scene::length;
 
-/// A ray in cell space (index + ½, see [`Affine::cells`]), `p(t) = o + t·d`, where `t` is the
+/// A ray in cell space (index + ½, see `vdbcook_scene::Affine::cells`), `p(t) = o + t·d`, where `t` is the
 /// distance travelled in *world* units (the world direction was unit length); `per_t` converts
 /// `t` to the chosen length unit.
 #[derive(Debug, Clone, Copy)]
