@@ -58,6 +58,10 @@ struct Params {
     first_sample: u32,
     seed: u32,
     _pad: u32,
+    // Emission (`vdbcook_scene::Emission`): x, y the range in Kelvin, z the intensity, w 1 when
+    // on; the blackbody colours over the range (`vdbcook_scene::blackbody_table`).
+    emission: vec4<f32>,
+    emit_table: array<vec4<f32>, 32>,
 }
 
 @group(1) @binding(0) var<uniform> params: Params;
@@ -86,6 +90,7 @@ const VOXEL_ITERS: i32 = 27;
 var<private> v_density: bool;
 var<private> v_per_t: f32;
 var<private> v_tau: f32;
+var<private> v_emit: vec3<f32>;
 var<private> v_steps: u32;
 var<private> v_hit: bool;
 var<private> v_hit_t: f32;
@@ -100,12 +105,38 @@ fn vis_skip(m: f32) -> bool {
     return !(m > params.cutoff);
 }
 
+// The radiance per unit length emitted by value `v` (`vdbcook_scene::Emission::radiance`).
+fn emit_radiance(v: f32) -> vec3<f32> {
+    let lo = params.emission.x;
+    let hi = params.emission.y;
+    if (!(v > lo)) {
+        return vec3<f32>(0.0);
+    }
+    let s = min((v - lo) / (hi - lo), 1.0);
+    let x = s * 31.0;
+    let i = min(u32(x), 30u);
+    let f = x - f32(i);
+    let b = params.emission.z * s * s * s * s;
+    let c0 = params.emit_table[i].xyz;
+    return b * (c0 + f * (params.emit_table[i + 1u].xyz - c0));
+}
+
 // A span [ta, tb] of constant value `v`; true: stop the walk.
 fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
     if (vis_skip(v)) {
         return false;
     }
     if (v_density) {
+        if (params.emission.w != 0.0) {
+            // Emitted light reaching the eye: T_before · E(v) · ℓ · (1 − e^{−x})/x, x = absorb·v·ℓ.
+            let r = emit_radiance(v);
+            if (any(r != vec3<f32>(0.0))) {
+                let len = (tb - ta) * v_per_t;
+                let x = params.absorb * v * len;
+                let phi = select((1.0 - exp(-x)) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
+                v_emit += exp(-params.absorb * v_tau) * len * phi * r;
+            }
+        }
         v_tau += v * (tb - ta) * v_per_t;
         return params.absorb * v_tau >= OPAQUE_DEPTH;
     }
@@ -608,6 +639,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     v_density = params.mode == MODE_DENSITY || params.mode == MODE_STEPS;
     v_per_t = ray.per_t;
     v_tau = 0.0;
+    v_emit = vec3<f32>(0.0);
     v_steps = 0u;
     v_hit = false;
 
@@ -646,7 +678,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     } else if (v_density) {
         let t = exp(-params.absorb * v_tau);
         if (params.mode == MODE_DENSITY) {
-            rgba = vec4<f32>(vec3<f32>(1.0 - t), 1.0);
+            rgba = vec4<f32>(vec3<f32>(1.0 - t) + v_emit, 1.0);
             value = t;
         } else {
             rgba = vec4<f32>(heat(f32(v_steps) / 256.0), 1.0);

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use serde_json::json;
 use vdbcook_asset::Asset;
-use vdbcook_trace::{Camera, Image, LengthUnit, Mode, RenderSettings, Scratch, Tracer};
+use vdbcook_trace::{Camera, Emission, Image, LengthUnit, Mode, RenderSettings, Scratch, Tracer};
 
 use crate::cook;
 use crate::errors::CliError;
@@ -105,6 +105,14 @@ pub struct Args {
     /// Most scattering events per reference path (more count as absorbed).
     #[arg(long, default_value_t = 256)]
     bounces: u32,
+    /// Blackbody emission (density mode): the grid's values are Kelvin; LO,HI is the range over
+    /// which the glow rises as ((T − LO)/(HI − LO))⁴ to full brightness (none at or below LO),
+    /// coloured by Planck's law. E.g. `--grid temperature --emission 800,2000 --absorb 0`.
+    #[arg(long, value_name = "LO,HI")]
+    emission: Option<String>,
+    /// Brightness of the emission at HI Kelvin (radiance per unit length in --units).
+    #[arg(long, default_value_t = 1.0)]
+    emission_intensity: f32,
     /// Random seed (delta, reference).
     #[arg(long, default_value_t = 1)]
     seed: u32,
@@ -197,6 +205,21 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         [r, g, b] => [r as f32, g as f32, b as f32],
         ref v => return Err(other(format!("--sky takes 3 numbers, got {}", v.len()))),
     };
+    let emission = match &a.emission {
+        None => None,
+        Some(r) => match numbers("emission", r)?[..] {
+            [lo, hi] => Some(Emission {
+                range: [lo as f32, hi as f32],
+                intensity: a.emission_intensity,
+            }),
+            ref v => {
+                return Err(other(format!(
+                    "--emission takes LO,HI in Kelvin, got {} numbers",
+                    v.len()
+                )))
+            }
+        },
+    };
     let (phase_g, phase_w) = match numbers("phase", &a.phase)?[..] {
         [g] => ([g as f32; 2], 1.0),
         [g0, g1, w] => ([g0 as f32, g1 as f32], w as f32),
@@ -232,6 +255,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         phase_g,
         phase_w,
         bounces: a.bounces,
+        emission,
     })
 }
 
@@ -780,6 +804,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "units": a.units,
                 "sky": s.sky.map(short), "phase_g": s.phase_g.map(short),
                 "phase_w": short(s.phase_w), "bounces": s.bounces,
+                "emission": s.emission.map(|e| json!({
+                    "range_kelvin": e.range.map(short), "intensity": short(e.intensity),
+                })),
             },
         });
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));

@@ -153,6 +153,21 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         assert_eq!(code, 1, "{extra:?}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
+    // Emission is drawn by the density mode; a bad range is refused.
+    for (extra, want) in [
+        (
+            &["--emission", "800,2000", "--mode", "scatter"][..],
+            "density mode only",
+        ),
+        (&["--emission", "2000,800"][..], "emission range"),
+        (&["--emission", "800"][..], "--emission takes LO,HI"),
+    ] {
+        let mut args = vec!["render", asset.as_str(), "-o", out.as_str()];
+        args.extend_from_slice(extra);
+        let (code, _, err) = vdbcook(&args);
+        assert_eq!(code, 1, "{extra:?}: {err}");
+        assert!(err.contains(want), "{extra:?}: {err}");
+    }
     // The reference is CPU only: asking the GPU for it is a usage error, before any work.
     let (code, _, err) = vdbcook(&[
         "render",

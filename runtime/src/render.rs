@@ -6,7 +6,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use vdbcook_scene::{depth_range, Affine, MAX_SIDE};
+use vdbcook_scene::{blackbody_table, depth_range, Affine, BLACKBODY_TABLE_LEN, MAX_SIDE};
 
 use crate::upload::{Bound, GpuVolume};
 use crate::{Camera, LengthUnit, Result, RuntimeError, Settings, TRACE_WGSL, VOLUME_WGSL};
@@ -52,6 +52,11 @@ struct Params {
     first_sample: u32,
     seed: u32,
     _pad: u32,
+    /// Emission (`vdbcook_scene::Emission`): low and high end of the range (Kelvin),
+    /// intensity, and 1 when on (0: off).
+    emission: [f32; 4],
+    /// `vdbcook_scene::blackbody_table` of the emission's range.
+    emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
 }
 
 const WORKGROUP: u32 = 8;
@@ -512,6 +517,14 @@ impl Renderer {
             first_sample: settings.first_sample,
             seed: settings.seed,
             _pad: 0,
+            emission: settings
+                .emission
+                .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 1.0]),
+            emit_table: settings
+                .emission
+                .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
+                    blackbody_table(e.range)
+                }),
         })
     }
 }
@@ -562,6 +575,8 @@ mod tests {
                 first_sample,
                 seed,
                 _pad,
+                emission,
+                emit_table,
             }),
         );
     }

@@ -1175,3 +1175,42 @@ fn cooked_assets_from_the_environment_read_back_in_every_layout() {
         }
     }
 }
+
+/// Blackbody emission in the density march: the GPU's image is the CPU's (the same table, the
+/// same per-voxel closed form), on a blob whose values are temperatures (peak 2000 K) under a
+/// rotated transform; the glow is there (warm pixels: red over green over blue).
+#[test]
+fn emission_matches_the_cpu() {
+    let Some(gpu) = Gpu::new("emission_matches_the_cpu") else {
+        return;
+    };
+    let asset = build(
+        [2, 2, 2],
+        rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
+        0.0,
+        &[blob_frame([120.0, 100.0, 40.0], 34.0, 2000.0, None)],
+        PayloadFormat::F32,
+    );
+    let (_vol, r) = gpu.setup(&asset);
+    let target = r.buffer_target(&gpu.device, W, H).unwrap();
+    let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let s = RenderSettings {
+        absorb: 2e-5,
+        emission: Some(vdbcook_trace::Emission {
+            range: [800.0, 2500.0],
+            intensity: 0.5,
+        }),
+        ..small(Mode::Density, 0)
+    };
+    let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
+    let g = gpu.render(&r, &target, &cam, &s).unwrap();
+    let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Density);
+    eprintln!("emission: {bad} pixels differ (max diff {max_diff:.2e}) {first}");
+    assert_eq!(bad, 0, "{first}");
+    let glowing = cpu
+        .rgba
+        .chunks(4)
+        .filter(|p| p[0] > 0.05 && p[0] > p[1] && p[1] > p[2])
+        .count();
+    assert!(glowing * 20 > cpu.value.len(), "only {glowing} warm pixels");
+}

@@ -13,11 +13,13 @@
 
 mod camera;
 mod content;
+mod emission;
 mod settings;
 mod space;
 
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::{content_box, for_each_slot_max};
+pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use settings::{
     LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
     MIN_STEP,

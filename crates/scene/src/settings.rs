@@ -107,6 +107,8 @@ pub struct RenderSettings {
     pub phase_w: f32,
     /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
     pub bounces: u32,
+    /// Blackbody emission of the rendered grid read as Kelvin (`Density` mode only so far).
+    pub emission: Option<crate::Emission>,
 }
 
 impl Default for RenderSettings {
@@ -133,6 +135,7 @@ impl Default for RenderSettings {
             phase_g: [0.6, -0.3],
             phase_w: 0.8,
             bounces: 256,
+            emission: None,
         }
     }
 }
@@ -237,6 +240,26 @@ impl RenderSettings {
         }
         if self.bounces == 0 || self.bounces > MAX_BOUNCES {
             return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
+        }
+        if let Some(e) = self.emission {
+            if self.mode != Mode::Density {
+                return bad(format!(
+                    "emission is drawn by the density mode only so far (mode {})",
+                    self.mode.name()
+                ));
+            }
+            let [lo, hi] = e.range;
+            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
+                return bad(format!(
+                    "emission range {lo},{hi} (Kelvin: 0 ≤ lo < hi, finite)"
+                ));
+            }
+            if !(e.intensity.is_finite() && e.intensity >= 0.0) {
+                return bad(format!(
+                    "emission intensity {} (finite and ≥ 0)",
+                    e.intensity
+                ));
+            }
         }
         if self.spp == 0 || self.spp > MAX_SPP {
             return bad(format!("spp = {} (1..={MAX_SPP})", self.spp));

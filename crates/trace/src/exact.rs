@@ -4,20 +4,36 @@
 
 use crate::dda::Flow;
 use crate::walk::{Holder, Visitor};
+use vdbcook_scene::{Emission, BLACKBODY_TABLE_LEN};
 
 /// Optical depth (`absorb · τ`) beyond which a density ray stops: `T < 2.1e-9`.
 pub const OPAQUE_DEPTH: f64 = 20.0;
 
-/// Sums `τ = Σ max(v, 0) · length` over the voxels a ray crosses; counts traversal steps.
-pub(crate) struct Density {
+/// Sums `τ = Σ max(v, 0) · length` over the voxels a ray crosses; counts traversal steps. With
+/// emission, also the emitted light that reaches the eye: over a voxel segment of length `ℓ`
+/// with value `v`, `T_before · E(v) · ℓ · φ(absorb·v·ℓ)`, `φ(x) = (1 − e^{−x})/x` (exact for a
+/// constant segment).
+pub(crate) struct Density<'e> {
     /// Length units per unit of `t`.
     pub per_t: f64,
     pub absorb: f64,
     pub tau: f64,
     pub steps: u32,
+    pub emission: Option<(Emission, &'e [[f32; 4]; BLACKBODY_TABLE_LEN])>,
+    /// Emitted radiance gathered so far.
+    pub light: [f64; 3],
 }
 
-impl Visitor for Density {
+/// `(1 − e^{−x})/x`, its series below 1e-3 (where the quotient loses digits).
+pub fn phi(x: f64) -> f64 {
+    if x < 1e-3 {
+        1.0 - x / 2.0 + x * x / 6.0
+    } else {
+        (1.0 - (-x).exp()) / x
+    }
+}
+
+impl Visitor for Density<'_> {
     fn skip(&self, max: f32) -> bool {
         // NaN never reaches here (the loader refuses it); `!(max > 0)` would skip it anyway.
         !(max > 0.0)
@@ -26,7 +42,17 @@ impl Visitor for Density {
         true
     }
     fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
-        self.tau += v as f64 * (tb - ta) * self.per_t;
+        let len = (tb - ta) * self.per_t;
+        if let Some((e, table)) = &self.emission {
+            let r = e.radiance(table, v);
+            if r != [0.0; 3] {
+                let w = (-self.absorb * self.tau).exp() * len * phi(self.absorb * v as f64 * len);
+                for (l, r) in self.light.iter_mut().zip(r) {
+                    *l += w * r as f64;
+                }
+            }
+        }
+        self.tau += v as f64 * len;
         if self.absorb * self.tau >= OPAQUE_DEPTH {
             Flow::Stop
         } else {

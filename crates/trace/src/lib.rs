@@ -44,7 +44,11 @@
 //! # Modes (`Sample::rgba` display colour, `Sample::value` raw quantity)
 //! - **Density**: `τ = Σ max(v, 0)·ℓ` over the voxels crossed (`ℓ` = segment length in the
 //!   unit) — exact, no step error — stopping once `absorb·τ ≥ 20`; `T = exp(−absorb·τ)`;
-//!   rgba = `(1−T, 1−T, 1−T, 1)`, value = `T`.
+//!   rgba = `(1−T, 1−T, 1−T, 1)`, value = `T`. With `emission` (the voxel values read as Kelvin,
+//!   `vdbcook_scene::Emission`), rgb also gains the emitted light that reaches the eye: over a
+//!   segment of length `ℓ` with value `v`, `T_before · E(v) · ℓ · (1 − e^{−x})/x`,
+//!   `x = absorb·v·ℓ` (exact for the constant segment), `E` read from the blackbody table of the
+//!   range (`blackbody_table`, linear interpolation) in f32 on both tracers.
 //! - **Depth**: the first voxel (or constant span) with value `> cutoff`, entered at world
 //!   distance `t`: value = `t`, rgb = `1 − clamp((t − near)/(far − near), 0, 1)`, alpha 1, where
 //!   near/far are the nearest/farthest world corner distances of the frame's stored box from the
@@ -122,6 +126,7 @@ pub use space::IndexRay;
 pub use walk::Holder;
 // The shared view and parameter maths (one definition for this tracer and the GPU runtime).
 pub use vdbcook_scene::{
-    content_box, depth_range, stored_bbox, stored_boxes, Affine, Basis, Camera, LengthUnit, Mode,
-    RenderSettings, TraceError, MAX_BOUNCES, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    blackbody_rgb, blackbody_table, content_box, depth_range, stored_bbox, stored_boxes, Affine,
+    Basis, Camera, Emission, LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES,
+    MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };

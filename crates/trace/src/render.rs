@@ -14,8 +14,8 @@ use crate::space::IndexRay;
 use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
-    depth_range, normalize, stored_bbox, Affine, Camera, LengthUnit, Mode, RenderSettings,
-    TraceError,
+    blackbody_table, depth_range, normalize, stored_bbox, Affine, Camera, LengthUnit, Mode,
+    RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -53,6 +53,8 @@ pub struct Tracer<'a> {
     pub depth_range: [f64; 2],
     /// The frame's max value (`FirstHitDensity` maps it to white).
     pub value_max: f32,
+    /// The blackbody table of `settings.emission`'s range.
+    emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
 }
 
 impl<'a> Tracer<'a> {
@@ -89,6 +91,10 @@ impl<'a> Tracer<'a> {
             albedo,
             depth_range,
             value_max: if value_max > 0.0 { value_max } else { 1.0 },
+            emit_table: settings
+                .emission
+                .map(|e| blackbody_table(e.range))
+                .unwrap_or([[0.0; 4]; BLACKBODY_TABLE_LEN]),
         })
     }
 
@@ -134,6 +140,8 @@ impl<'a> Tracer<'a> {
             absorb: self.settings.absorb as f64,
             tau: 0.0,
             steps: 0,
+            emission: None,
+            light: [0.0; 3],
         };
         if let Some((t0, t1)) = ray.clip(self.extent) {
             let t1 = t1.min(t_max);
@@ -166,15 +174,18 @@ impl<'a> Tracer<'a> {
                     absorb: s.absorb as f64,
                     tau: 0.0,
                     steps: 0,
+                    emission: s.emission.map(|e| (e, &self.emit_table)),
+                    light: [0.0; 3],
                 };
                 if let Some((t0, t1)) = clip {
                     walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 }
                 let t = (-(s.absorb as f64) * v.tau).exp() as f32;
                 if s.mode == Mode::Density {
-                    let g = 1.0 - t;
+                    // Flat-lit grey `1 − T`, plus the emitted light.
+                    let g = [0, 1, 2].map(|c| (1.0 - t) + v.light[c] as f32);
                     Sample {
-                        rgba: [g, g, g, 1.0],
+                        rgba: [g[0], g[1], g[2], 1.0],
                         value: t,
                         steps: v.steps,
                     }

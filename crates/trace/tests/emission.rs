@@ -1,0 +1,140 @@
+//! Emission in the density march against its closed form: a box of constant temperature `V`
+//! (Kelvin) with absorption `a` per unit value per voxel; along a ray crossing `L` voxels of it
+//! the emitted light reaching the eye is `E(V) · (1 − e^{−aVL}) / (aV)` (`E(V)·L` without
+//! absorption), `E` the blackbody radiance of the settings (its colours are checked against the
+//! CIE's Planckian locus in `vdbcook-scene`). Rays that miss the box, and a box at or below the
+//! range's low end, emit nothing; the transmittance is unchanged by emission.
+
+mod common;
+
+use common::*;
+use vdbcook_asset::PayloadFormat;
+use vdbcook_trace::*;
+
+const LO: [i64; 3] = [100, 6, 20];
+const HI: [i64; 3] = [150, 37, 53];
+const S: f64 = 0.5;
+const T: [f64; 3] = [1.0, 2.0, 3.0];
+
+fn box_asset(v: f32) -> vdbcook_asset::Asset {
+    let xf = [
+        [S, 0.0, 0.0, T[0]],
+        [0.0, S, 0.0, T[1]],
+        [0.0, 0.0, S, T[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let mut f = FrameSpec::default();
+    box_leaves(LO, HI, v, &mut f.leaves);
+    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+}
+
+fn w(p: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|a| (p[a] - 0.5) * S + T[a])
+}
+
+fn settings(absorb: f32) -> RenderSettings {
+    RenderSettings {
+        mode: Mode::Density,
+        absorb,
+        emission: Some(Emission {
+            range: [800.0, 2000.0],
+            intensity: 2.0,
+        }),
+        ..Default::default()
+    }
+}
+
+fn camera() -> Camera {
+    Camera {
+        eye: [0.0, 0.0, -10.0],
+        look_at: [0.0; 3],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 45.0,
+    }
+}
+
+#[test]
+fn emitted_light_matches_the_closed_form() {
+    let value = 1500.0f32;
+    let asset = box_asset(value);
+    let (lo, hi) = (w(LO.map(|c| c as f64)), w(HI.map(|c| c as f64)));
+    let rays = [
+        ([20.0, 12.0, -5.0], [0.0, 0.0, 1.0]),  // along z
+        ([-4.0, 11.0, 12.0], [1.0, 0.1, 0.05]), // mostly along x, through two regions
+        ([30.0, -5.0, 9.0], [-0.3, 0.8, 0.2]),  // oblique
+        ([20.0, 12.0, -5.0], [0.0, 1.0, 0.0]),  // misses the box
+    ];
+    for absorb in [0.0f32, 2e-4, 2e-3] {
+        let s = settings(absorb);
+        let e = s.emission.unwrap();
+        let radiance = e.radiance(&blackbody_table(e.range), value);
+        let tracer = Tracer::new(&asset, &camera(), &s).unwrap();
+        for (eye, dir) in rays {
+            let n: f64 = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+            let d = dir.map(|c| c / n.sqrt());
+            let len = slab_length(eye, d, lo, hi) / S; // voxels
+            let x = absorb as f64 * value as f64 * len;
+            let gain = if x > 0.0 {
+                (1.0 - (-x).exp()) / (absorb as f64 * value as f64)
+            } else {
+                len
+            };
+            let px = tracer.trace(eye, d, 0, &mut Scratch::default());
+            let t = (-x).exp();
+            assert!(
+                (px.value as f64 - t).abs() < 1e-6,
+                "T {} want {t}",
+                px.value
+            );
+            for (c, r) in radiance.iter().enumerate() {
+                let want = *r as f64 * gain + (1.0 - t);
+                assert!(
+                    (px.rgba[c] as f64 - want).abs() <= 1e-5 * want.max(1.0),
+                    "absorb {absorb}, ray {eye:?}: channel {c} {} want {want} (L = {len} voxels)",
+                    px.rgba[c]
+                );
+            }
+            if len == 0.0 {
+                assert_eq!(&px.rgba[..3], &[0.0; 3]);
+            }
+        }
+    }
+    // At the range's low end the box emits nothing.
+    let cold = box_asset(800.0);
+    let tracer = Tracer::new(&cold, &camera(), &settings(0.0)).unwrap();
+    let px = tracer.trace(
+        [20.0, 12.0, -5.0],
+        [0.0, 0.0, 1.0],
+        0,
+        &mut Scratch::default(),
+    );
+    assert_eq!(&px.rgba[..3], &[0.0; 3]);
+}
+
+#[test]
+fn emission_outside_the_density_mode_or_out_of_range_is_refused() {
+    let asset = box_asset(1000.0);
+    for bad in [
+        RenderSettings {
+            mode: Mode::SingleScatter,
+            ..settings(0.1)
+        },
+        RenderSettings {
+            emission: Some(Emission {
+                range: [2000.0, 800.0],
+                intensity: 1.0,
+            }),
+            ..settings(0.1)
+        },
+        RenderSettings {
+            emission: Some(Emission {
+                range: [800.0, 2000.0],
+                intensity: f32::NAN,
+            }),
+            ..settings(0.1)
+        },
+    ] {
+        let e = render(&asset, &camera(), &bad).unwrap_err();
+        assert!(matches!(e, TraceError::Setting(_)), "{e}");
+    }
+}
