@@ -69,11 +69,51 @@ pub struct Args {
     /// Headless: print one JSON document on stdout (per-frame times, the final camera).
     #[arg(long)]
     pub json: bool,
+    /// Absorption per unit density per unit length (as `render`).
+    #[arg(long, default_value_t = 0.1)]
+    absorb: f32,
+    /// Blackbody emission in the density mode, as `render`: the grid's values are Kelvin, LO,HI
+    /// the range over which the glow rises (e.g. `--grid temperature --emission 800,2000`).
+    #[arg(long, value_name = "LO,HI")]
+    emission: Option<String>,
+    /// Brightness of the emission at HI Kelvin.
+    #[arg(long, default_value_t = 1.0)]
+    emission_intensity: f32,
+}
+
+/// The render settings the flags ask for (the mode is the viewer's own, switched with `m`).
+fn base_settings(a: &Args) -> Result<vdbcook_trace::RenderSettings, CliError> {
+    let usage = |m: String| CliError::Usage(m);
+    let emission = match &a.emission {
+        None => None,
+        Some(r) => {
+            let v: Vec<f32> = r
+                .split(',')
+                .map(|t| t.trim().parse::<f32>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| usage(format!("--emission {r}: give LO,HI in Kelvin")))?;
+            let [lo, hi] = v[..] else {
+                return Err(usage(format!("--emission {r}: give LO,HI in Kelvin")));
+            };
+            Some(vdbcook_trace::Emission {
+                range: [lo, hi],
+                intensity: a.emission_intensity,
+            })
+        }
+    };
+    let s = vdbcook_trace::RenderSettings {
+        absorb: a.absorb,
+        emission,
+        ..Default::default()
+    };
+    s.validate(1).map_err(|e| usage(e.to_string()))?;
+    Ok(s)
 }
 
 /// The headless run's frame count, after checking the flags: `None` for the interactive viewer.
 fn headless_frames(a: &Args) -> Result<Option<u32>, CliError> {
     let usage = |m: String| Err(CliError::Usage(m));
+    base_settings(a)?;
     if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 1000.0) {
         return usage(format!(
             "--fps {} is out of range: give 0 < F <= 1000",
@@ -446,8 +486,11 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             let Some((image, group)) = &self.image else {
                 return Ok(());
             };
+            let mode = self.mode();
             let settings = Settings {
-                mode: self.mode(),
+                mode,
+                // Emission is drawn by the density mode.
+                emission: self.settings.emission.filter(|_| mode == Mode::Density),
                 ..self.settings.clone()
             };
             self.renderer
@@ -612,6 +655,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             a.fps,
         )
         .map_err(at)?;
+        state.settings = base_settings(a)?;
         let target = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("vdbcook view headless target"),
             size: wgpu::Extent3d {
@@ -779,6 +823,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         frame: usize,
         mode: usize,
         fps: f64,
+        settings: Settings,
         gfx: Option<Gfx>,
         error: Option<String>,
         dragging: bool,
@@ -815,7 +860,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             config.format = format;
             config.present_mode = wgpu::PresentMode::AutoVsync;
             surface.configure(&device, &config);
-            let state = ViewerState::new(
+            let mut state = ViewerState::new(
                 &device,
                 &queue,
                 &self.asset,
@@ -825,6 +870,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 self.mode,
                 self.fps,
             )?;
+            state.settings = self.settings.clone();
             let adapter = describe(&adapter);
             eprintln!(
                 "vdbcook view on {adapter}, surface {format:?}: left-drag orbits, wheel zooms, \
@@ -994,6 +1040,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             frame: a.frame,
             mode,
             fps: a.fps,
+            settings: base_settings(a)?,
             gfx: None,
             error: None,
             dragging: false,

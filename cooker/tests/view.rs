@@ -148,6 +148,44 @@ fn screenshot_alone_renders_one_frame() {
     assert_eq!(read_png(&shot).0, 64);
 }
 
+/// The fire fixture's temperature grid glows in the viewer's density mode with `--emission`:
+/// warm pixels (red over green over blue), none without it.
+#[test]
+fn emission_glows_in_the_density_mode() {
+    let dir = tempfile::tempdir().unwrap();
+    let shot = dir.path().join("fire.png");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "view",
+            "fixtures/seq/fire/fire.0002.vdb",
+            "--grid",
+            "temperature",
+            "--absorb",
+            "0",
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--width",
+            "96",
+            "--height",
+            "96",
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = gpu_run(&args)?;
+        assert_eq!(code, 0, "{err}");
+        let (_, _, px) = read_png(&shot);
+        Some(
+            px.chunks(4)
+                .filter(|p| p[0] > 40 && p[0] > p[1] && p[1] >= p[2])
+                .count(),
+        )
+    };
+    let Some(glow) = run(&["--emission", "700,1800"]) else {
+        return;
+    };
+    assert!(glow > 200, "only {glow} glowing pixels");
+    assert_eq!(run(&[]), Some(0), "no glow without --emission");
+}
+
 #[test]
 fn bad_input_is_refused_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();
@@ -156,7 +194,17 @@ fn bad_input_is_refused_with_a_reason() {
     let shot = shot.to_str().unwrap();
     let missing = dir.path().join("missing.vdbc");
     let missing = missing.to_str().unwrap();
-    let cases: [(&[&str], i32, &str); 6] = [
+    let cases: [(&[&str], i32, &str); 8] = [
+        (
+            &["view", &asset, "--emission", "5", "--frames", "1"],
+            2,
+            "--emission",
+        ),
+        (
+            &["view", &asset, "--emission", "900,800", "--frames", "1"],
+            2,
+            "emission range",
+        ),
         (&["view", missing, "--frames", "1"], 1, "missing.vdbc"),
         (&["view", &asset, "--frames", "0"], 2, "--frames 0"),
         (
