@@ -447,7 +447,13 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
             if (sigma < cutoff || sigma <= 0.0) {
                 continue;
             }
-            let dt = exp(-params.extinction * sigma * step);
+            let x = params.extinction * sigma * step;
+            let dt = exp(-x);
+            if (params.emission.w != 0.0) {
+                // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
+                let phi = select((1.0 - dt) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
+                v_emit += trans * step * phi * emit_radiance(sigma);
+            }
             let ts = shadow_march(p);
             lum += params.albedo * ts * trans * (1.0 - dt);
             trans *= dt;
@@ -673,7 +679,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 lt = vec2<f32>(lum / n, escaped / n);
             }
         }
-        rgba = vec4<f32>(params.light_color.xyz * lt.x, 1.0 - lt.y);
+        rgba = vec4<f32>(params.light_color.xyz * lt.x + v_emit, 1.0 - lt.y);
         value = lt.y;
     } else if (v_density) {
         let t = exp(-params.absorb * v_tau);

@@ -156,8 +156,8 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     // Emission is drawn by the density mode; a bad range is refused.
     for (extra, want) in [
         (
-            &["--emission", "800,2000", "--mode", "scatter"][..],
-            "density mode only",
+            &["--emission", "800,2000", "--mode", "delta"][..],
+            "density and scatter modes only",
         ),
         (&["--emission", "2000,800"][..], "emission range"),
         (&["--emission", "800"][..], "--emission takes LO,HI"),

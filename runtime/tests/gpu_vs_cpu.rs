@@ -1207,6 +1207,32 @@ fn emission_matches_the_cpu() {
     let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Density);
     eprintln!("emission: {bad} pixels differ (max diff {max_diff:.2e}) {first}");
     assert_eq!(bad, 0, "{first}");
+    // The scatter mode's emission at its samples, lit by the light too (f32 on the GPU: the
+    // scatter mode's tolerance).
+    let sc = RenderSettings {
+        mode: Mode::SingleScatter,
+        absorb: 1e-5,
+        scatter: 1e-5,
+        ..s.clone()
+    };
+    let cpu_sc = vdbcook_trace::render(&asset, &cam, &sc).unwrap();
+    let g_sc = gpu.render(&r, &target, &cam, &sc).unwrap();
+    let (bad, first, max_diff) = mismatches(&cpu_sc, &g_sc, Mode::SingleScatter);
+    eprintln!("scatter emission: {bad} pixels differ (max diff {max_diff:.2e}) {first}");
+    assert!(
+        bad * 1000 <= cpu_sc.value.len() * 5,
+        "{bad} pixels; {first}"
+    );
+    assert!(
+        cpu_sc
+            .rgba
+            .chunks(4)
+            .filter(|p| p[0] > 0.05 && p[0] > p[2])
+            .count()
+            * 20
+            > cpu_sc.value.len(),
+        "the scatter image glows"
+    );
     let glowing = cpu
         .rgba
         .chunks(4)

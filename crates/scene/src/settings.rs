@@ -107,7 +107,8 @@ pub struct RenderSettings {
     pub phase_w: f32,
     /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
     pub bounces: u32,
-    /// Blackbody emission of the rendered grid read as Kelvin (`Density` mode only so far).
+    /// Blackbody emission of the rendered grid read as Kelvin (`Density` and `SingleScatter`
+    /// modes so far).
     pub emission: Option<crate::Emission>,
 }
 
@@ -242,9 +243,9 @@ impl RenderSettings {
             return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
         }
         if let Some(e) = self.emission {
-            if self.mode != Mode::Density {
+            if !matches!(self.mode, Mode::Density | Mode::SingleScatter) {
                 return bad(format!(
-                    "emission is drawn by the density mode only so far (mode {})",
+                    "emission is drawn by the density and scatter modes only so far (mode {})",
                     self.mode.name()
                 ));
             }

@@ -66,6 +66,8 @@
 //!   `light_dir`, samples at `s' = k·shadow_step` (`k ≥ 1`), `T_s *= exp(−(absorb+scatter)·σ'·
 //!   shadow_step/(1 + gain·s'))` for `σ' ≥ cutoff`, stop once `3T_s² < cutoff`. rgb =
 //!   `light_color·L`, alpha = `1 − T`, value = `T`. Each march takes at most 2²⁰ samples.
+//!   With `emission`, each counted sample also adds `T · E(σ) · step · (1 − e^{−x})/x`,
+//!   `x = (absorb+scatter)·σ·step`, to rgb (before `T` takes the sample's attenuation).
 //! - **DeltaTracking**: per sample `k ∈ [first_sample, first_sample + spp)` a path with the
 //!   random stream `Rng::new(seed, y·W + x, k)`: free flights against the span majorant
 //!   `(absorb+scatter)·m` (`m` = tile value or brick max), a tentative collision is real with

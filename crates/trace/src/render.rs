@@ -54,7 +54,7 @@ pub struct Tracer<'a> {
     /// The frame's max value (`FirstHitDensity` maps it to white).
     pub value_max: f32,
     /// The blackbody table of `settings.emission`'s range.
-    emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
+    pub(crate) emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
 }
 
 impl<'a> Tracer<'a> {
@@ -240,11 +240,12 @@ impl<'a> Tracer<'a> {
                     shadow_cache: &mut scratch.shadow,
                     trans: 1.0,
                     lum: 0.0,
+                    emit: [0.0; 3],
                     budget: MAX_MARCH_SAMPLES,
                 };
                 walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 let (lum, trans) = (v.lum, v.trans);
-                let c = s.light_color.map(|c| (c as f64 * lum) as f32);
+                let c = [0, 1, 2].map(|i| (s.light_color[i] as f64 * lum + v.emit[i]) as f32);
                 Sample {
                     rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
                     value: trans as f32,

@@ -4,6 +4,7 @@
 //! whose max is below the cutoff are skipped whole (their samples would be ignored anyway).
 
 use crate::dda::{ceil_f64, Flow};
+use crate::exact::phi;
 use crate::space::IndexRay;
 use crate::walk::{walk, BrickCache, SpanSampler};
 use crate::Tracer;
@@ -46,6 +47,8 @@ pub(crate) struct Primary<'a, 't> {
     pub shadow_cache: &'t mut BrickCache,
     pub trans: f64,
     pub lum: f64,
+    /// Emitted light gathered (with `settings.emission`).
+    pub emit: [f64; 3],
     pub budget: u64,
 }
 
@@ -62,7 +65,16 @@ impl Primary<'_, '_> {
             if sigma < cutoff || sigma <= 0.0 {
                 return Flow::Go;
             }
-            let dt = (-ext * sigma * step).exp();
+            let x = ext * sigma * step;
+            let dt = (-x).exp();
+            if let Some(e) = &s.emission {
+                // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
+                let r = e.radiance(&self.tracer.emit_table, sigma as f32);
+                let w = self.trans * step * phi(x);
+                for (a, r) in self.emit.iter_mut().zip(r) {
+                    *a += w * r as f64;
+                }
+            }
             let ts = self.tracer.shadow_march(p, self.shadow_cache);
             self.lum += albedo * ts * self.trans * (1.0 - dt);
             self.trans *= dt;

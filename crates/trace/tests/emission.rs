@@ -58,12 +58,14 @@ fn emitted_light_matches_the_closed_form() {
     let value = 1500.0f32;
     let asset = box_asset(value);
     let (lo, hi) = (w(LO.map(|c| c as f64)), w(HI.map(|c| c as f64)));
+    // The box spans world (50.75, 4.75, 12.75) .. (75.75, 20.25, 29.25).
     let rays = [
-        ([20.0, 12.0, -5.0], [0.0, 0.0, 1.0]),  // along z
-        ([-4.0, 11.0, 12.0], [1.0, 0.1, 0.05]), // mostly along x, through two regions
-        ([30.0, -5.0, 9.0], [-0.3, 0.8, 0.2]),  // oblique
+        ([60.0, 12.0, -5.0], [0.0, 0.0, 1.0]),  // along z
+        ([40.0, 11.0, 20.0], [1.0, 0.1, 0.05]), // mostly along x, across two root regions
+        ([70.0, 0.0, 14.0], [-0.3, 0.8, 0.2]),  // oblique
         ([20.0, 12.0, -5.0], [0.0, 1.0, 0.0]),  // misses the box
     ];
+    let mut hits = 0;
     for absorb in [0.0f32, 2e-4, 2e-3] {
         let s = settings(absorb);
         let e = s.emission.unwrap();
@@ -96,9 +98,15 @@ fn emitted_light_matches_the_closed_form() {
             }
             if len == 0.0 {
                 assert_eq!(&px.rgba[..3], &[0.0; 3]);
+            } else {
+                hits += 1;
             }
         }
     }
+    assert_eq!(
+        hits, 9,
+        "three rays hit the box, for each of three absorptions"
+    );
     // At the range's low end the box emits nothing.
     let cold = box_asset(800.0);
     let tracer = Tracer::new(&cold, &camera(), &settings(0.0)).unwrap();
@@ -112,11 +120,11 @@ fn emitted_light_matches_the_closed_form() {
 }
 
 #[test]
-fn emission_outside_the_density_mode_or_out_of_range_is_refused() {
+fn emission_outside_the_density_and_scatter_modes_or_out_of_range_is_refused() {
     let asset = box_asset(1000.0);
     for bad in [
         RenderSettings {
-            mode: Mode::SingleScatter,
+            mode: Mode::DeltaTracking,
             ..settings(0.1)
         },
         RenderSettings {
@@ -136,5 +144,54 @@ fn emission_outside_the_density_mode_or_out_of_range_is_refused() {
     ] {
         let e = render(&asset, &camera(), &bad).unwrap_err();
         assert!(matches!(e, TraceError::Setting(_)), "{e}");
+    }
+}
+
+/// The scatter mode's emission: at each grid sample `s = k·step` inside the box, `T · E · step ·
+/// φ(x)` with `x = (absorb + scatter)·V·step`, which sums over the `n` samples to
+/// `E · (1 − e^{−x·n}) / ((absorb + scatter)·V)` — the closed form over `n` steps.
+#[test]
+fn scatter_mode_emission_sums_to_the_closed_form_over_its_samples() {
+    let value = 1500.0f32;
+    let asset = box_asset(value);
+    let (lo, hi) = (w(LO.map(|c| c as f64)), w(HI.map(|c| c as f64)));
+    // Absorptions that keep `3T²` above the cutoff through the box (the march stops there).
+    for (absorb, step) in [(0.0f32, 1.0f32), (1e-5, 0.7), (3e-5, 1.3)] {
+        let s = RenderSettings {
+            mode: Mode::SingleScatter,
+            absorb,
+            scatter: 0.0,
+            light_color: [0.0; 3],
+            step,
+            ..settings(absorb)
+        };
+        let e = s.emission.unwrap();
+        let radiance = e.radiance(&blackbody_table(e.range), value);
+        let tracer = Tracer::new(&asset, &camera(), &s).unwrap();
+        for (eye, dir) in [
+            ([60.0, 12.0, -5.0], [0.0, 0.0, 1.0]),
+            ([40.0, 11.0, 20.0], [1.0, 0.1, 0.05]),
+        ] {
+            let n: f64 = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+            let d = dir.map(|c| c / n.sqrt());
+            let (t0, t1) = slab_interval(eye, d, lo, hi).unwrap();
+            // Samples at k·step (voxel lengths from the eye) inside [t0, t1) / S.
+            let count = ((t1 / S) / step as f64).ceil() - ((t0 / S) / step as f64).ceil();
+            let kappa = absorb as f64 * value as f64;
+            let gain = if kappa > 0.0 {
+                (1.0 - (-kappa * step as f64 * count).exp()) / kappa
+            } else {
+                step as f64 * count
+            };
+            let px = tracer.trace(eye, d, 0, &mut Scratch::default());
+            for (c, r) in radiance.iter().enumerate() {
+                let want = *r as f64 * gain;
+                assert!(
+                    (px.rgba[c] as f64 - want).abs() <= 1e-5 * want.max(1.0),
+                    "absorb {absorb} step {step}: channel {c} {} want {want} ({count} samples)",
+                    px.rgba[c]
+                );
+            }
+        }
     }
 }
