@@ -157,7 +157,7 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     for (extra, want) in [
         (
             &["--emission", "800,2000", "--mode", "delta"][..],
-            "density and scatter modes only",
+            "emission is drawn by",
         ),
         (&["--emission", "2000,800"][..], "emission range"),
         (&["--emission", "800"][..], "--emission takes LO,HI"),

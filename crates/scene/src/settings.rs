@@ -107,8 +107,8 @@ pub struct RenderSettings {
     pub phase_w: f32,
     /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
     pub bounces: u32,
-    /// Blackbody emission of the rendered grid read as Kelvin (`Density` and `SingleScatter`
-    /// modes so far).
+    /// Blackbody emission of the rendered grid read as Kelvin (`Density`, `SingleScatter` and
+    /// `Reference` so far).
     pub emission: Option<crate::Emission>,
 }
 
@@ -243,9 +243,12 @@ impl RenderSettings {
             return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
         }
         if let Some(e) = self.emission {
-            if !matches!(self.mode, Mode::Density | Mode::SingleScatter) {
+            if !matches!(
+                self.mode,
+                Mode::Density | Mode::SingleScatter | Mode::Reference
+            ) {
                 return bad(format!(
-                    "emission is drawn by the density and scatter modes only so far (mode {})",
+                    "emission is drawn by the density, scatter and reference modes only so far (mode {})",
                     self.mode.name()
                 ));
             }

@@ -87,7 +87,9 @@
 //!   the next one, forward for `g > 0`). A path that scattered and leaves adds
 //!   `throughput · sky`; a primary ray that leaves unscattered adds nothing. rgb = mean
 //!   radiance `L` (premultiplied), alpha = `1 − T`, value = `T` (the escaped fraction), so
-//!   `L + T·background` composites. Unbiased except: at most `bounces` scattering events and
+//!   `L + T·background` composites. With `emission`, every flight also gathers
+//!   `throughput · E / μ̄` at each tentative collision (majorant at least `1/step` where a
+//!   span can emit). Unbiased except: at most `bounces` scattering events and
 //!   2¹⁶ tentative collisions per flight (then absorbed), shadow weights below 1e-6 end as 0.
 //!
 //! `step`, `shadow_step`, `cutoff` and `gain` follow `vdb_render`'s `-step`, `-shadowstep`,

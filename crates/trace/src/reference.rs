@@ -14,6 +14,10 @@
 //! tentative collisions in one flight (counted as absorbed), shadow weights below
 //! `MIN_SHADOW_WEIGHT` end as 0.
 //!
+//! With `emission`, every flight gathers the emission it crosses by a collision estimator (see
+//! `Flight`), weighted by the path's throughput: emitted light is absorbed, scattered and
+//! seen through the medium like any other (no next-event estimation toward emitters).
+//!
 //! Phase convention: `d` is the path's direction (from the eye), `ω'` the next one; light
 //! arriving along `−ω'` leaves toward the eye along `−d`, so the scattering cosine is `d·ω'` and
 //! for the sun (`l` toward it) `d·l`. `HG(g, μ) = (1 − g²) / (4π (1 + g² − 2gμ)^{3/2})`,
@@ -25,7 +29,7 @@ use crate::rng::Rng64;
 use crate::space::IndexRay;
 use crate::walk::{walk, SpanSampler};
 use crate::{Scratch, Tracer};
-use vdbcook_scene::normalize;
+use vdbcook_scene::{normalize, Emission, BLACKBODY_TABLE_LEN};
 
 /// `HG(g, μ)`.
 fn hg(g: f64, mu: f64) -> f64 {
@@ -61,8 +65,15 @@ fn around(d: [f64; 3], mu: f64, phi: f64) -> [f64; 3] {
     normalize([0, 1, 2].map(|i| mu * d[i] + st * (cp * t[i] + sp * bb[i])))
 }
 
-/// The first real collision along a ray by delta tracking.
-struct Flight {
+/// The first real collision along a ray by delta tracking, and the emission met on the way.
+///
+/// Emission is gathered by a collision estimator: every tentative collision at `p` (before
+/// the first real one, which included) adds `throughput · E(p) / μ̄`, whose expectation is
+/// `throughput · ∫ T(s) E(s) ds`. Where the span can emit (its max is above the emission
+/// range's low end) the majorant is at least `1 / step` (one tentative collision per step on
+/// average), so a weakly or non-absorbing emitter is still sampled; a tentative collision is
+/// then real with probability `μ/μ̄`.
+struct Flight<'e> {
     ray: IndexRay,
     extinction: f64,
     rng: Rng64,
@@ -71,14 +82,32 @@ struct Flight {
     hit: Option<[f64; 3]>,
     /// The event budget ran out (the path counts as absorbed).
     exhausted: bool,
+    /// The settings' emission, its table, and the majorant floor `1 / step`.
+    emission: Option<(Emission, &'e [[f32; 4]; BLACKBODY_TABLE_LEN], f64)>,
+    throughput: f64,
+    emitted: [f64; 3],
 }
 
-impl SpanSampler for Flight {
+impl Flight<'_> {
+    fn emits(&self, max: f32) -> bool {
+        self.emission.is_some_and(|(e, _, _)| max > e.range[0])
+    }
+}
+
+impl SpanSampler for Flight<'_> {
     fn skip_max(&self, max: f32) -> bool {
-        !(max > 0.0) || self.extinction == 0.0
+        !self.emits(max) && (!(max > 0.0) || self.extinction == 0.0)
     }
     fn sample_span(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
-        let mu_bar = self.extinction * max as f64;
+        let base = self.extinction * max as f64;
+        let emission = self.emission.filter(|_| self.emits(max));
+        let mu_bar = match emission {
+            Some((_, _, floor)) => base.max(floor),
+            None => base,
+        };
+        let boosted = mu_bar != base;
+        let (ext, throughput) = (self.extinction, self.throughput);
+        let mut emitted = [0.0f64; 3];
         let mut hit = None;
         let flow = track(
             &self.ray,
@@ -88,14 +117,29 @@ impl SpanSampler for Flight {
             &mut self.rng,
             &mut self.events,
             |_, p, rng| {
-                let sigma = (value(p) as f64).max(0.0);
-                if rng.uniform() * max as f64 >= sigma {
-                    return Flow::Go; // null collision
+                let v = value(p);
+                let sigma = (v as f64).max(0.0);
+                if let Some((e, table, _)) = &emission {
+                    let r = e.radiance(table, v);
+                    for (a, r) in emitted.iter_mut().zip(r) {
+                        *a += throughput * r as f64 / mu_bar;
+                    }
+                }
+                let null = if boosted {
+                    rng.uniform() * mu_bar >= ext * sigma
+                } else {
+                    rng.uniform() * max as f64 >= sigma
+                };
+                if null {
+                    return Flow::Go;
                 }
                 hit = Some(p);
                 Flow::Stop
             },
         );
+        for (a, e) in self.emitted.iter_mut().zip(emitted) {
+            *a += e;
+        }
         self.hit = hit;
         self.exhausted = flow == Flow::Stop && hit.is_none();
         flow
@@ -125,11 +169,19 @@ impl Tracer<'_> {
                 events: MAX_EVENTS,
                 hit: None,
                 exhausted: false,
+                emission: s
+                    .emission
+                    .map(|e| (e, &self.emit_table, 1.0 / s.step as f64)),
+                throughput,
+                emitted: [0.0; 3],
             };
             if let Some((t0, t1)) = ray.clip(self.extent) {
                 walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut f);
             }
             *rng = f.rng;
+            for (r, e) in radiance.iter_mut().zip(f.emitted) {
+                *r += e;
+            }
             let Some(p) = f.hit else {
                 if f.exhausted {
                     return (radiance, false);

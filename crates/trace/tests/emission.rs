@@ -195,3 +195,56 @@ fn scatter_mode_emission_sums_to_the_closed_form_over_its_samples() {
         }
     }
 }
+
+/// The reference path tracer gathers emission by a collision estimator; without scattering its
+/// mean is the density march's emitted light (the same `∫ T E ds`), for a purely emitting box
+/// (no absorption: only the majorant floor samples it) and for absorbing ones.
+#[test]
+fn reference_emission_converges_to_the_density_march() {
+    let value = 1500.0f32;
+    let asset = box_asset(value);
+    let rays = [
+        ([60.0, 12.0, -5.0], [0.0, 0.0, 1.0]),
+        ([40.0, 11.0, 20.0], [1.0, 0.1, 0.05]),
+    ];
+    for absorb in [0.0f32, 2e-4, 2e-3] {
+        let dens = settings(absorb);
+        let refs = RenderSettings {
+            mode: Mode::Reference,
+            scatter: 0.0,
+            light_color: [0.0; 3],
+            sky: [0.0; 3],
+            spp: MAX_SPP,
+            ..dens.clone()
+        };
+        let td = Tracer::new(&asset, &camera(), &dens).unwrap();
+        let tr = Tracer::new(&asset, &camera(), &refs).unwrap();
+        for (eye, dir) in rays {
+            let n: f64 = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+            let d = dir.map(|c| c / n.sqrt());
+            let px = td.trace(eye, d, 0, &mut Scratch::default());
+            let want: Vec<f64> = (0..3)
+                .map(|c| px.rgba[c] as f64 - (1.0 - px.value as f64))
+                .collect();
+            assert!(want[0] > 0.1, "the ray crosses the glowing box: {want:?}");
+            let got: Vec<f64> = (0..3)
+                .map(|c| {
+                    (0..4)
+                        .map(|pixel| {
+                            tr.trace(eye, d, pixel, &mut Scratch::default()).rgba[c] as f64
+                        })
+                        .sum::<f64>()
+                        / 4.0
+                })
+                .collect();
+            for c in 0..3 {
+                assert!(
+                    (got[c] - want[c]).abs() <= 0.01 * want[c] + 1e-6,
+                    "absorb {absorb}, ray {eye:?}, channel {c}: reference {} density {}",
+                    got[c],
+                    want[c]
+                );
+            }
+        }
+    }
+}
