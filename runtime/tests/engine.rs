@@ -262,6 +262,14 @@ fn cpu_lt(rays: &ViewRays, instances: &[CpuInstance], depth: Option<f32>) -> Vec
 }
 
 /// Largest difference between the GPU picture and `L + T·bg` from the CPU.
+/// Asserts that the GPU image is within `tol` of the CPU's `(L, T)` over `BG` (printing the
+/// largest difference and where it is).
+fn assert_matches(what: &str, gpu: &[f32], cpu: &[[f64; 4]], tol: f32) {
+    let (d, at) = max_diff(gpu, cpu, BG);
+    eprintln!("{what}: max diff {d:.2e} {at}");
+    assert!(d <= tol, "{what}: {at}");
+}
+
 fn max_diff(gpu: &[f32], cpu: &[[f64; 4]], bg: [f64; 3]) -> (f32, String) {
     let mut worst = (0.0f32, String::new());
     for (p, lt) in cpu.iter().enumerate() {
@@ -344,9 +352,7 @@ fn depth_planes_in_front_beyond_and_through_the_cloud() {
 
         let free = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, None);
         let cpu_free = cpu_lt(&rays, &[cpu_instance(&asset, &inst[0], &medium)], None);
-        let (d, at) = max_diff(&free, &cpu_free, BG);
-        eprintln!("no depth: max diff {d:.2e} {at}");
-        assert!(d <= TOL, "no depth: {at}");
+        assert_matches("no depth", &free, &cpu_free, TOL);
         assert!(
             cpu_free.iter().filter(|p| p[3] < 0.5).count() > 100,
             "the cloud covers the picture"
@@ -387,9 +393,7 @@ fn depth_planes_in_front_beyond_and_through_the_cloud() {
         let z = ndc_depth(&view.proj, mid);
         let cut = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, Some(z));
         let cpu_cut = cpu_lt(&rays, &[cpu_instance(&asset, &inst[0], &medium)], Some(z));
-        let (d, at) = max_diff(&cut, &cpu_cut, BG);
-        eprintln!("depth through the centre: max diff {d:.2e} {at}");
-        assert!(d <= TOL, "cut: {at}");
+        assert_matches("depth through the centre", &cut, &cpu_cut, TOL);
         let thinner = (0..cpu_cut.len())
             .filter(|&p| cpu_cut[p][3] > cpu_free[p][3] + 0.05)
             .count();
@@ -485,9 +489,7 @@ fn moved_and_jittered_instances_match_the_cpu() {
             &[cpu_instance(&m, &unit, &medium)],
             None,
         );
-        let (d, at) = max_diff(&g, &cpu, BG);
-        eprintln!("{what}: max diff {d:.2e} {at}");
-        assert!(d <= 2.0 * TOL, "{what}: {at}");
+        assert_matches(what, &g, &cpu, 2.0 * TOL);
         assert!(cpu.iter().filter(|p| p[3] < 0.5).count() > 100, "{what}");
     }
     // World length units too.
@@ -510,9 +512,7 @@ fn moved_and_jittered_instances_match_the_cpu() {
         &[cpu_instance(&asset, &Instance::default(), &medium)],
         None,
     );
-    let (d, at) = max_diff(&g, &cpu, BG);
-    eprintln!("world units: max diff {d:.2e} {at}");
-    assert!(d <= TOL, "world units: {at}");
+    assert_matches("world units", &g, &cpu, TOL);
 }
 
 /// Three overlapping copies (equal tints: the result does not depend on their order).
@@ -558,9 +558,7 @@ fn overlapping_instances_in_one_draw_multiply_transmittances() {
         })
         .collect();
     let cpu = cpu_lt(&view.rays().unwrap(), &cpu_insts, Some(z));
-    let (d, at) = max_diff(&g, &cpu, BG);
-    eprintln!("three overlapping instances: max diff {d:.2e} {at}");
-    assert!(d <= TOL, "{at}");
+    assert_matches("three overlapping instances", &g, &cpu, TOL);
 }
 
 #[test]
@@ -664,17 +662,13 @@ fn crossfades_lerp_the_densities() {
     let mut frames = Vec::new();
     for k in 0..3 {
         let (g, cpu) = draw(&mut drawer, k as f32);
-        let (d, at) = max_diff(&g, &cpu, BG);
-        eprintln!("time {k}: max diff {d:.2e} {at}");
-        assert!(d <= TOL, "time {k}: {at}");
+        assert_matches(&format!("time {k}"), &g, &cpu, TOL);
         frames.push(g);
     }
     assert_ne!(frames[0], frames[1]);
     for time in [0.5f32, 1.25, 1.999] {
         let (g, cpu) = draw(&mut drawer, time);
-        let (d, at) = max_diff(&g, &cpu, BG);
-        eprintln!("time {time}: max diff {d:.2e} {at}");
-        assert!(d <= TOL, "time {time}: {at}");
+        assert_matches(&format!("time {time}"), &g, &cpu, TOL);
     }
 }
 
@@ -759,9 +753,7 @@ fn standard_reversed_and_orthographic_projections() {
                     "{what}: the depth plane cuts the cloud ({thinner})"
                 );
             }
-            let (d, at) = max_diff(&g, &cpu, BG);
-            eprintln!("{what}, {plane}: max diff {d:.2e} {at}");
-            assert!(d <= TOL, "{what}, {plane}: {at}");
+            assert_matches(&format!("{what}, {plane}"), &g, &cpu, TOL);
             assert!(
                 cpu.iter().filter(|p| p[3] < 0.9).count() > 100,
                 "{what}, {plane}: the cloud is in view"

@@ -8,28 +8,18 @@
 mod common;
 
 use common::*;
-use vdbcook_asset::PayloadFormat;
 use vdbcook_trace::*;
 
-const LO: [i64; 3] = [100, 6, 20];
-const HI: [i64; 3] = [150, 37, 53];
-const S: f64 = 0.5;
-const T: [f64; 3] = [1.0, 2.0, 3.0];
+const LO: [i64; 3] = BOX_LO;
+const HI: [i64; 3] = BOX_HI;
+const S: f64 = BOX_S;
 
 fn box_asset(v: f32) -> vdbcook_asset::Asset {
-    let xf = [
-        [S, 0.0, 0.0, T[0]],
-        [0.0, S, 0.0, T[1]],
-        [0.0, 0.0, S, T[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
-    let mut f = FrameSpec::default();
-    box_leaves(LO, HI, v, &mut f.leaves);
-    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+    constant_box(v)
 }
 
 fn w(p: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|a| (p[a] - 0.5) * S + T[a])
+    box_world(p)
 }
 
 fn settings(absorb: f32) -> RenderSettings {

@@ -14,31 +14,19 @@
 mod common;
 
 use common::*;
-use vdbcook_asset::{Asset, PayloadFormat};
+use vdbcook_asset::Asset;
 use vdbcook_trace::*;
 
-const LO: [i64; 3] = [100, 6, 20];
-const HI: [i64; 3] = [150, 37, 53];
+const LO: [i64; 3] = BOX_LO;
+const HI: [i64; 3] = BOX_HI;
 const SIGMA: f32 = 1.0;
-/// index = (world − T) / S.
-const S: f64 = 0.5;
-const T: [f64; 3] = [1.0, 2.0, 3.0];
 
 fn box_asset() -> Asset {
-    let xf = [
-        [S, 0.0, 0.0, T[0]],
-        [0.0, S, 0.0, T[1]],
-        [0.0, 0.0, S, T[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
-    let mut f = FrameSpec::default();
-    box_leaves(LO, HI, SIGMA, &mut f.leaves);
-    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+    constant_box(SIGMA)
 }
 
-/// Cell point → world (voxel `i` is the cell `[i, i+1)`, centred on world `S·i + T`).
 fn w(p: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|a| (p[a] - 0.5) * S + T[a])
+    box_world(p)
 }
 
 fn centre() -> [f64; 3] {

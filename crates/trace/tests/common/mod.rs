@@ -111,3 +111,29 @@ impl RotScale {
         self.dir_to_index([p[0] - self.t[0], p[1] - self.t[1], p[2] - self.t[2]])
     }
 }
+
+/// The constant box the closed-form tests share: voxels `BOX_LO ..= BOX_HI − 1` (two root
+/// regions along x) of value `v`, tiles and constant and partial bricks (`box_leaves`), under
+/// `index → world = BOX_S · index + BOX_T`, f32 bricks.
+pub const BOX_LO: [i64; 3] = [100, 6, 20];
+pub const BOX_HI: [i64; 3] = [150, 37, 53];
+pub const BOX_S: f64 = 0.5;
+pub const BOX_T: [f64; 3] = [1.0, 2.0, 3.0];
+
+pub fn constant_box(v: f32) -> Asset {
+    let xf = [
+        [BOX_S, 0.0, 0.0, BOX_T[0]],
+        [0.0, BOX_S, 0.0, BOX_T[1]],
+        [0.0, 0.0, BOX_S, BOX_T[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let mut f = FrameSpec::default();
+    box_leaves(BOX_LO, BOX_HI, v, &mut f.leaves);
+    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+}
+
+/// Cell point → world under [`constant_box`]'s transform (voxel `i` is the cell `[i, i+1)`,
+/// centred on world `BOX_S·i + BOX_T`).
+pub fn box_world(p: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|a| (p[a] - 0.5) * BOX_S + BOX_T[a])
+}
