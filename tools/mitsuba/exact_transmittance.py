@@ -17,7 +17,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from pfm import write_pfm  # noqa: E402
-from render_mitsuba import load_grid, normalize  # noqa: E402
+from render_mitsuba import camera_basis, load_grid, normalize  # noqa: E402
 
 
 def main():
@@ -38,13 +38,7 @@ def main():
     s = np.array(meta["voxel_scale"], dtype=np.float64)
     t = np.array(meta["translate"], dtype=np.float64)
 
-    cam = sc["camera"]
-    W, H = int(sc["width"]), int(sc["height"])
-    eye, look, up = (np.array(cam[k], dtype=np.float64) for k in ("eye", "look", "up"))
-    fw = normalize(look - eye)
-    r = normalize(np.cross(fw, up))
-    u = np.cross(r, fw)
-    th = math.tan(math.radians(float(cam["fov_y_deg"])) / 2)
+    eye, fw, r, u, th, W, H = camera_basis(sc)
     # Cell space of the dense block: dense voxel v covers [v, v + 1); c = (w - t)/s - (lo - 1/2).
     oc = (eye - t) / s - (lo - 0.5)
     tau = np.zeros((H, W))

@@ -152,9 +152,9 @@ def build_scene(mi, sc, data, meta):
     return scene, (wmin, wmax)
 
 
-def centre_rays(mi, dr, sc, spp):
-    """vdbcook's camera contract: pixel (i, j), row 0 at the top, spp copies of each ray
-    (lane = pixel * spp + sample), directions computed in float64."""
+def camera_basis(sc):
+    """vdbcook's pinhole basis from the scene JSON: eye, forward f, right r, up u (unit), the
+    tangent of half the vertical field of view, and the image size."""
     cam = sc["camera"]
     W, H = int(sc["width"]), int(sc["height"])
     eye, look, up = (np.array(cam[k], dtype=np.float64) for k in ("eye", "look", "up"))
@@ -162,6 +162,13 @@ def centre_rays(mi, dr, sc, spp):
     r = normalize(np.cross(f, up))
     u = np.cross(r, f)
     th = math.tan(math.radians(float(cam["fov_y_deg"])) / 2)
+    return eye, f, r, u, th, W, H
+
+
+def centre_rays(mi, dr, sc, spp):
+    """vdbcook's camera contract: pixel (i, j), row 0 at the top, spp copies of each ray
+    (lane = pixel * spp + sample), directions computed in float64."""
+    eye, f, r, u, th, W, H = camera_basis(sc)
     F64 = dr.float64_array_t(mi.Float)
     U32 = mi.UInt32
     pix = dr.arange(U32, W * H * spp) // spp
