@@ -544,7 +544,15 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
         if (!sp.ok) {
             break;
         }
-        let mu_bar = ext * sp.m;
+        let base = ext * sp.m;
+        // Emission (`vdbcook_trace`'s delta `Path`): the majorant at least 1/step where the span
+        // can emit, `E / μ̄` gathered at each tentative collision.
+        let emits = params.emission.w != 0.0 && sp.m > params.emission.x;
+        var mu_bar = base;
+        if (emits) {
+            mu_bar = max(base, 1.0 / params.step);
+        }
+        let boosted = mu_bar != base;
         if (!(mu_bar > 0.0)) {
             continue;
         }
@@ -561,8 +569,18 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
                 break;
             }
             let p = ray.o + (s / ray.per_t) * ray.d;
-            let sigma = max(wk_value(sp, p), 0.0);
-            if (rng_uniform(rng) * sp.m >= sigma) {
+            let v = wk_value(sp, p);
+            let sigma = max(v, 0.0);
+            if (emits) {
+                v_emit += emit_radiance(v) / mu_bar;
+            }
+            var null_collision: bool;
+            if (boosted) {
+                null_collision = rng_uniform(rng) * mu_bar >= ext * sigma;
+            } else {
+                null_collision = rng_uniform(rng) * sp.m >= sigma;
+            }
+            if (null_collision) {
                 continue; // null collision
             }
             if (rng_uniform(rng) < params.albedo) {
@@ -677,6 +695,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 let n = f32(params.spp);
                 lt = vec2<f32>(lum / n, escaped / n);
+                v_emit /= n;
             }
         }
         rgba = vec4<f32>(params.light_color.xyz * lt.x + v_emit, 1.0 - lt.y);

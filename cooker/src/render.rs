@@ -105,7 +105,7 @@ pub struct Args {
     /// Most scattering events per reference path (more count as absorbed).
     #[arg(long, default_value_t = 256)]
     bounces: u32,
-    /// Blackbody emission (density, scatter and reference modes): the grid's values are
+    /// Blackbody emission (density, scatter, delta and reference modes): the grid's values are
     /// Kelvin; LO,HI is the range over which the glow rises as ((T − LO)/(HI − LO))⁴ to full
     /// brightness (none at or below LO), coloured by Planck's law. E.g. `--grid temperature
     /// --emission 800,2000 --absorb 0`.

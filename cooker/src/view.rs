@@ -489,11 +489,13 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             let mode = self.mode();
             let settings = Settings {
                 mode,
-                // Emission is drawn by the density and scatter modes.
-                emission: self
-                    .settings
-                    .emission
-                    .filter(|_| matches!(mode, Mode::Density | Mode::SingleScatter)),
+                // Emission is drawn by the shaded modes.
+                emission: self.settings.emission.filter(|_| {
+                    matches!(
+                        mode,
+                        Mode::Density | Mode::SingleScatter | Mode::DeltaTracking
+                    )
+                }),
                 ..self.settings.clone()
             };
             self.renderer

@@ -156,7 +156,7 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     // Emission is drawn by the density mode; a bad range is refused.
     for (extra, want) in [
         (
-            &["--emission", "800,2000", "--mode", "delta"][..],
+            &["--emission", "800,2000", "--mode", "steps"][..],
             "emission is drawn by",
         ),
         (&["--emission", "2000,800"][..], "emission range"),

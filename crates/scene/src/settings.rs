@@ -107,8 +107,8 @@ pub struct RenderSettings {
     pub phase_w: f32,
     /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
     pub bounces: u32,
-    /// Blackbody emission of the rendered grid read as Kelvin (`Density`, `SingleScatter` and
-    /// `Reference` so far).
+    /// Blackbody emission of the rendered grid read as Kelvin (the shaded modes: `Density`,
+    /// `SingleScatter`, `DeltaTracking`, `Reference`).
     pub emission: Option<crate::Emission>,
 }
 
@@ -245,10 +245,10 @@ impl RenderSettings {
         if let Some(e) = self.emission {
             if !matches!(
                 self.mode,
-                Mode::Density | Mode::SingleScatter | Mode::Reference
+                Mode::Density | Mode::SingleScatter | Mode::DeltaTracking | Mode::Reference
             ) {
                 return bad(format!(
-                    "emission is drawn by the density, scatter and reference modes only so far (mode {})",
+                    "emission is drawn by the shaded modes (density, scatter, delta, reference), not {}",
                     self.mode.name()
                 ));
             }

@@ -58,13 +58,33 @@ pub(crate) struct Path<'a, 't> {
     pub escaped: bool,
     /// Light scored (before the light colour).
     pub lum: f64,
+    /// Emission gathered (with `settings.emission`; the collision estimator of
+    /// `reference::Flight`: `E / μ̄` at each tentative collision, the majorant at least `1/step`
+    /// where the span can emit).
+    pub emitted: [f64; 3],
     pub events: u32,
 }
 
 impl Path<'_, '_> {
+    /// Whether a span of max `max` can emit.
+    fn emits(&self, max: f32) -> bool {
+        self.tracer
+            .settings
+            .emission
+            .is_some_and(|e| max > e.range[0])
+    }
+
     fn flight(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
         let ext = self.tracer.extinction;
-        let mu_bar = ext * max as f64;
+        let base = ext * max as f64;
+        let emission = self.tracer.settings.emission.filter(|_| self.emits(max));
+        let mu_bar = match emission {
+            Some(_) => base.max(1.0 / self.tracer.settings.step as f64),
+            None => base,
+        };
+        let boosted = mu_bar != base;
+        let table = &self.tracer.emit_table;
+        let mut emitted = [0.0f64; 3];
         let ray = self.ray;
         let mut rng = self.rng;
         let mut events = self.events;
@@ -72,8 +92,19 @@ impl Path<'_, '_> {
         let mut lum = 0.0;
         let cache = &mut *self.shadow_cache;
         let flow = track(&ray, mu_bar, ta, tb, &mut rng, &mut events, |_, p, rng| {
-            let sigma = (value(p) as f64).max(0.0);
-            if rng.uniform() * max as f64 >= sigma {
+            let v = value(p);
+            let sigma = (v as f64).max(0.0);
+            if let Some(e) = &emission {
+                for (a, r) in emitted.iter_mut().zip(e.radiance(table, v)) {
+                    *a += r as f64 / mu_bar;
+                }
+            }
+            let null = if boosted {
+                rng.uniform() * mu_bar >= ext * sigma
+            } else {
+                rng.uniform() * max as f64 >= sigma
+            };
+            if null {
                 return Flow::Go; // null collision
             }
             if rng.uniform() < tracer.albedo {
@@ -84,6 +115,9 @@ impl Path<'_, '_> {
         self.rng = rng;
         self.events = events;
         self.lum += lum;
+        for (a, e) in self.emitted.iter_mut().zip(emitted) {
+            *a += e;
+        }
         if flow == Flow::Stop {
             // A real collision, or the event budget ran out (counted as absorbed).
             self.escaped = false;
@@ -94,7 +128,7 @@ impl Path<'_, '_> {
 
 impl SpanSampler for Path<'_, '_> {
     fn skip_max(&self, max: f32) -> bool {
-        !(max > 0.0) || self.tracer.extinction == 0.0
+        !self.emits(max) && (!(max > 0.0) || self.tracer.extinction == 0.0)
     }
     fn sample_span(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
         self.flight(ta, tb, max, value)

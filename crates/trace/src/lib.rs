@@ -74,7 +74,9 @@
 //!   probability `σ/m`; at the first real one the path ends, scoring (with probability albedo)
 //!   a ratio-tracking shadow weight `Π (1 − μ/μ̄)` with `μ = (absorb+scatter)·σ/(1 + gain·s')`.
 //!   rgb = `light_color · mean score`, alpha = `1 − escaped fraction`, value = escaped fraction
-//!   (its mean is Density's `T` with `absorb+scatter` as the absorption). Unbiased except: at
+//!   (its mean is Density's `T` with `absorb+scatter` as the absorption). With `emission`, the
+//!   path also gathers `E / μ̄` at each tentative collision (the majorant at least `1/step`
+//!   where a span can emit), added to rgb. Unbiased except: at
 //!   most 2¹⁶ events per path (then absorbed) and shadow weights below 1e-6 end as 0.
 //!
 //! - **Reference** (physically based; module `reference`): per sample a path with the stream

@@ -256,7 +256,7 @@ impl<'a> Tracer<'a> {
                 let Some((t0, t1)) = clip else {
                     return miss(1.0, 0.0);
                 };
-                let (mut lum, mut escaped) = (0.0f64, 0u32);
+                let (mut lum, mut escaped, mut emitted) = (0.0f64, 0u32, [0.0f64; 3]);
                 for k in 0..s.spp {
                     let sample = s.first_sample.wrapping_add(k);
                     let mut v = Path {
@@ -266,15 +266,20 @@ impl<'a> Tracer<'a> {
                         shadow_cache: &mut scratch.shadow,
                         escaped: true,
                         lum: 0.0,
+                        emitted: [0.0; 3],
                         events: MAX_EVENTS,
                     };
                     walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                     lum += v.lum;
                     escaped += v.escaped as u32;
+                    for (a, e) in emitted.iter_mut().zip(v.emitted) {
+                        *a += e;
+                    }
                 }
                 let n = s.spp as f64;
                 let trans = escaped as f64 / n;
-                let c = s.light_color.map(|c| (c as f64 * lum / n) as f32);
+                let c =
+                    [0, 1, 2].map(|i| ((s.light_color[i] as f64 * lum + emitted[i]) / n) as f32);
                 Sample {
                     rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
                     value: trans as f32,

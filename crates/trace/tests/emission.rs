@@ -110,11 +110,11 @@ fn emitted_light_matches_the_closed_form() {
 }
 
 #[test]
-fn emission_outside_the_density_and_scatter_modes_or_out_of_range_is_refused() {
+fn emission_outside_the_shaded_modes_or_out_of_range_is_refused() {
     let asset = box_asset(1000.0);
     for bad in [
         RenderSettings {
-            mode: Mode::DeltaTracking,
+            mode: Mode::Steps,
             ..settings(0.1)
         },
         RenderSettings {
@@ -186,21 +186,25 @@ fn scatter_mode_emission_sums_to_the_closed_form_over_its_samples() {
     }
 }
 
-/// The reference path tracer gathers emission by a collision estimator; without scattering its
-/// mean is the density march's emitted light (the same `∫ T E ds`), for a purely emitting box
-/// (no absorption: only the majorant floor samples it) and for absorbing ones.
+/// The reference path tracer and delta tracking gather emission by a collision estimator;
+/// without scattering its mean is the density march's emitted light (the same `∫ T E ds`), for
+/// a purely emitting box (no absorption: only the majorant floor samples it) and for absorbing
+/// ones.
 #[test]
-fn reference_emission_converges_to_the_density_march() {
+fn stochastic_emission_converges_to_the_density_march() {
     let value = 1500.0f32;
     let asset = box_asset(value);
     let rays = [
         ([60.0, 12.0, -5.0], [0.0, 0.0, 1.0]),
         ([40.0, 11.0, 20.0], [1.0, 0.1, 0.05]),
     ];
-    for absorb in [0.0f32, 2e-4, 2e-3] {
+    for (mode, absorb) in [0.0f32, 2e-4, 2e-3]
+        .into_iter()
+        .flat_map(|a| [(Mode::Reference, a), (Mode::DeltaTracking, a)])
+    {
         let dens = settings(absorb);
         let refs = RenderSettings {
-            mode: Mode::Reference,
+            mode,
             scatter: 0.0,
             light_color: [0.0; 3],
             sky: [0.0; 3],
@@ -230,7 +234,7 @@ fn reference_emission_converges_to_the_density_march() {
             for c in 0..3 {
                 assert!(
                     (got[c] - want[c]).abs() <= 0.01 * want[c] + 1e-6,
-                    "absorb {absorb}, ray {eye:?}, channel {c}: reference {} density {}",
+                    "{mode:?}, absorb {absorb}, ray {eye:?}, channel {c}: {} vs density {}",
                     got[c],
                     want[c]
                 );
