@@ -1102,6 +1102,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                 &Medium {
                     absorb: s.absorb,
                     unit: s.unit,
+                    emission: s.emission,
                 },
             )
             .map_err(|e| e.to_string())?;
