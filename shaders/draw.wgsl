@@ -5,8 +5,8 @@
 // - `draw_main` (compute, one invocation per pixel): unprojects the pixel centre (+ jitter)
 //   through the engine's projection, cuts the ray at the engine's depth (a `Depth32Float`
 //   texture, standard or reversed Z, `textureLoad`), and marches every instance of the volume
-//   with the density march and its emission (`vdb_march` in `volume.wgsl`: the CPU tracer's
-//   Density mode), front to back in the order the CPU sorted them, writing premultiplied radiance and
+//   with the density march (`vdb_optical_depth` in `volume.wgsl`: the CPU tracer's Density mode),
+//   front to back in the order the CPU sorted them, writing premultiplied radiance and
 //   transmittance (L, T) to an `Rgba16Float` storage texture.
 // The composite that blends (L, T) over the engine's colour target is `composite.wgsl`.
 //
@@ -30,10 +30,6 @@ struct DrawView {
     instance_count: u32,
     has_depth: u32,
     voxel_units: u32,
-    // The medium's emission (`VdbEmission` of `volume.wgsl`: range, intensity; 0 intensity:
-    // off) and its blackbody table.
-    emission: vec4<f32>,
-    emit_table: array<vec4<f32>, 32>,
 }
 
 struct DrawInstance {
@@ -50,13 +46,9 @@ struct DrawInstance {
     // Root offsets (frame · root_len) of frames floor(time) and floor(time) + 1.
     frame_root0: u32,
     frame_root1: u32,
-    // Multiplies the emitted light of this instance.
-    emission_scale: f32,
-    _pad: u32,
+    _pad0: u32,
+    _pad1: u32,
 }
-
-// The emission `vdb_march` reads (copied from `draw_view` once per invocation).
-var<private> draw_emission: VdbEmission;
 
 @group(1) @binding(0) var<uniform> draw_view: DrawView;
 @group(1) @binding(1) var<storage, read> draw_instances: array<DrawInstance>;
@@ -77,10 +69,6 @@ fn draw_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = draw_view.viewport;
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
-    }
-    if (draw_view.emission.z != 0.0) {
-        draw_emission.range_intensity = draw_view.emission;
-        draw_emission.table = draw_view.emit_table;
     }
     let pc = vec2<f32>(gid.xy) + vec2<f32>(0.5) + draw_view.jitter;
     let ndc = vec2<f32>(2.0 * pc.x / f32(size.x) - 1.0, 1.0 - 2.0 * pc.y / f32(size.y));
@@ -132,15 +120,14 @@ fn draw_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             continue;
         }
         let absorb = inst.tint_absorb.w;
-        // (emitted light, τ) of the frame, the crossfade lerping both.
-        var m = vdb_march(inst.frame_root0, ray, clip.x, t1, absorb, &draw_emission);
+        var tau = vdb_optical_depth(inst.frame_root0, ray, clip.x, t1, absorb);
         let a = inst.box_lo.w;
         if (a > 0.0) {
-            let m1 = vdb_march(inst.frame_root1, ray, clip.x, t1, absorb, &draw_emission);
-            m = mix(m, m1, a);
+            let tau1 = vdb_optical_depth(inst.frame_root1, ray, clip.x, t1, absorb);
+            tau = mix(tau, tau1, a);
         }
-        let ti = exp(-absorb * m.w);
-        lum += trans * (inst.tint_absorb.xyz * (1.0 - ti) + inst.emission_scale * m.xyz);
+        let ti = exp(-absorb * tau);
+        lum += trans * inst.tint_absorb.xyz * (1.0 - ti);
         trans *= ti;
     }
     textureStore(draw_out, vec2<i32>(gid.xy), vec4<f32>(lum, trans));

@@ -105,9 +105,21 @@ fn vis_skip(m: f32) -> bool {
     return !(m > params.cutoff);
 }
 
-// The emission the modes read (`vdb_emission_radiance` of `volume.wgsl`), copied from `params`
-// once per invocation when emission is on.
-var<private> trace_emission: VdbEmission;
+// The radiance per unit length emitted by value `v` (`vdbcook_scene::Emission::radiance`).
+fn emit_radiance(v: f32) -> vec3<f32> {
+    let lo = params.emission.x;
+    let hi = params.emission.y;
+    if (!(v > lo)) {
+        return vec3<f32>(0.0);
+    }
+    let s = min((v - lo) / (hi - lo), 1.0);
+    let x = s * 31.0;
+    let i = min(u32(x), 30u);
+    let f = x - f32(i);
+    let b = params.emission.z * s * s * s * s;
+    let c0 = params.emit_table[i].xyz;
+    return b * (c0 + f * (params.emit_table[i + 1u].xyz - c0));
+}
 
 // A span [ta, tb] of constant value `v`; true: stop the walk.
 fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
@@ -117,7 +129,7 @@ fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
     if (v_density) {
         if (params.emission.w != 0.0) {
             // Emitted light reaching the eye: T_before · E(v) · ℓ · (1 − e^{−x})/x, x = absorb·v·ℓ.
-            let r = vdb_emission_radiance(&trace_emission, v);
+            let r = emit_radiance(v);
             if (any(r != vec3<f32>(0.0))) {
                 let len = (tb - ta) * v_per_t;
                 let x = params.absorb * v * len;
@@ -440,7 +452,7 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
             if (params.emission.w != 0.0) {
                 // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
                 let phi = select((1.0 - dt) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
-                v_emit += trans * step * phi * vdb_emission_radiance(&trace_emission, sigma);
+                v_emit += trans * step * phi * emit_radiance(sigma);
             }
             let ts = shadow_march(p);
             lum += params.albedo * ts * trans * (1.0 - dt);
@@ -560,7 +572,7 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
             let v = wk_value(sp, p);
             let sigma = max(v, 0.0);
             if (emits) {
-                v_emit += vdb_emission_radiance(&trace_emission, v) / mu_bar;
+                v_emit += emit_radiance(v) / mu_bar;
             }
             var null_collision: bool;
             if (boosted) {
@@ -652,10 +664,6 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     v_per_t = ray.per_t;
     v_tau = 0.0;
     v_emit = vec3<f32>(0.0);
-    if (params.emission.w != 0.0) {
-        trace_emission.range_intensity = params.emission;
-        trace_emission.table = params.emit_table;
-    }
     v_steps = 0u;
     v_hit = false;
 

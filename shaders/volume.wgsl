@@ -412,63 +412,16 @@ fn vdb_dda_next(ray: VdbRay, s: ptr<function, VdbDda>) -> VdbSeg {
 // Optical depth beyond which `vdb_optical_depth` stops (`vdbcook_trace::OPAQUE_DEPTH`).
 const VDB_OPAQUE_DEPTH: f32 = 20.0;
 
-// Emission for `vdb_march` (`vdbcook_scene::Emission`): x, y the range in Kelvin (no glow at or
-// below x), z the intensity (0: off); the blackbody colours over the range
-// (`vdbcook_scene::blackbody_table`). A caller keeps one in `var<private>` and passes a pointer.
-struct VdbEmission {
-    range_intensity: vec4<f32>,
-    table: array<vec4<f32>, 32>,
-}
-
-// No emission (all zero): what `vdb_optical_depth` passes.
-var<private> vdb_no_emission: VdbEmission;
-
-// The radiance per unit length that value `v` (Kelvin) emits (`Emission::radiance`).
-fn vdb_emission_radiance(em: ptr<private, VdbEmission>, v: f32) -> vec3<f32> {
-    let lo = (*em).range_intensity.x;
-    let hi = (*em).range_intensity.y;
-    if (!(v > lo)) {
-        return vec3<f32>(0.0);
-    }
-    let s = min((v - lo) / (hi - lo), 1.0);
-    let x = s * 31.0;
-    let i = min(u32(x), 30u);
-    let f = x - f32(i);
-    let b = (*em).range_intensity.z * s * s * s * s;
-    let c0 = (*em).table[i].xyz;
-    return b * (c0 + f * ((*em).table[i + 1u].xyz - c0));
-}
-
-// One span of `vdb_march`: value v over length ℓ (already in `ray.per_t` units).
-fn vdb_march_span(v: f32, len: f32, absorb: f32, tau: ptr<function, f32>,
-                  light: ptr<function, vec3<f32>>, em: ptr<private, VdbEmission>) {
-    if ((*em).range_intensity.z != 0.0) {
-        let r = vdb_emission_radiance(em, v);
-        if (any(r != vec3<f32>(0.0))) {
-            let x = absorb * v * len;
-            let phi = select((1.0 - exp(-x)) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
-            *light += exp(-absorb * *tau) * len * phi * r;
-        }
-    }
-    *tau += v * len;
-}
-
 // The density march of the frame whose roots start at `frame_root` along `ray` for t in
 // [t0, t1] (inside the root extent, e.g. from `vdb_clip`): τ = Σ v·ℓ over the voxels, tiles and
 // background spans crossed whose value is > 0 (ℓ: segment length times `ray.per_t`), exact (no
 // step error), stopping once `absorb·τ ≥ 20`. Transmittance: `exp(−absorb·τ)`. This is the CPU
 // tracer's Density mode (`vdbcook_trace::Tracer::optical_depth`); nodes, leaves and bricks whose
 // max is ≤ 0 are passed over in one step.
-// `vdb_march` also gathers the light emitted on the way (`em`: `VdbEmission`; off when its
-// intensity is 0): over a segment of length ℓ with value v, T_before · E(v) · ℓ · (1 − e^{−x})/x,
-// x = absorb·v·ℓ — the CPU tracer's Density mode with emission (`Tracer::march`). Returns
-// (emitted light, τ).
-fn vdb_march(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32,
-             em: ptr<private, VdbEmission>) -> vec4<f32> {
+fn vdb_optical_depth(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32) -> f32 {
     let bg = vdb_info.background;
     let dims = vec3<i32>(vdb_info.root_dims);
     var tau = 0.0;
-    var light = vec3<f32>(0.0);
     var rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), dims, t0, t1);
     for (var ri = 0; ri < 99; ri++) {
         let rs = vdb_dda_next(ray, &rd);
@@ -482,7 +435,7 @@ fn vdb_march(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32,
                 v = vdb_tile(e & ~VDB_TILE_BIT);
             }
             if (v > 0.0) {
-                vdb_march_span(v, (rs.tb - rs.ta) * ray.per_t, absorb, &tau, &light, em);
+                tau += v * (rs.tb - rs.ta) * ray.per_t;
                 if (absorb * tau >= VDB_OPAQUE_DEPTH) {
                     break;
                 }
@@ -507,7 +460,7 @@ fn vdb_march(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32,
                     v = vdb_tile(r & ~VDB_TILE_BIT);
                 }
                 if (v > 0.0) {
-                    vdb_march_span(v, (ls.tb - ls.ta) * ray.per_t, absorb, &tau, &light, em);
+                    tau += v * (ls.tb - ls.ta) * ray.per_t;
                     if (absorb * tau >= VDB_OPAQUE_DEPTH) {
                         opaque = true;
                         break;
@@ -527,7 +480,7 @@ fn vdb_march(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32,
                 }
                 let v = vdb_brick_voxel(r, vs.cell);
                 if (v > 0.0) {
-                    vdb_march_span(v, (vs.tb - vs.ta) * ray.per_t, absorb, &tau, &light, em);
+                    tau += v * (vs.tb - vs.ta) * ray.per_t;
                     if (absorb * tau >= VDB_OPAQUE_DEPTH) {
                         opaque = true;
                         break;
@@ -542,10 +495,5 @@ fn vdb_march(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32,
             break;
         }
     }
-    return vec4<f32>(light, tau);
-}
-
-// The density march's optical depth alone (`vdb_march` without emission).
-fn vdb_optical_depth(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32) -> f32 {
-    return vdb_march(frame_root, ray, t0, t1, absorb, &vdb_no_emission).w;
+    return tau;
 }

@@ -1102,7 +1102,6 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                 &Medium {
                     absorb: s.absorb,
                     unit: s.unit,
-                    emission: s.emission,
                 },
             )
             .map_err(|e| e.to_string())?;

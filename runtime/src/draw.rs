@@ -26,7 +26,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
-use vdbcook_scene::{blackbody_table, Affine, Emission, BLACKBODY_TABLE_LEN, MAX_SIDE};
+use vdbcook_scene::{Affine, MAX_SIDE};
 
 use crate::upload::{Bound, GpuVolume};
 use crate::{LengthUnit, Result, RuntimeError, VOLUME_WGSL};
@@ -286,8 +286,6 @@ pub struct Instance {
     pub time: f32,
     pub density_scale: f32,
     pub tint: Vec3,
-    /// Multiplies the light this instance emits (`Medium::emission`; default 1).
-    pub emission_scale: f32,
 }
 
 impl Default for Instance {
@@ -297,7 +295,6 @@ impl Default for Instance {
             time: 0.0,
             density_scale: 1.0,
             tint: Vec3::ONE,
-            emission_scale: 1.0,
         }
     }
 }
@@ -373,12 +370,6 @@ impl Instance {
                 self.tint
             )));
         }
-        if !(self.emission_scale >= 0.0 && self.emission_scale.is_finite()) {
-            return Err(RuntimeError::Setting(format!(
-                "instance emission_scale {} (finite, ≥ 0)",
-                self.emission_scale
-            )));
-        }
         Ok(())
     }
 }
@@ -389,9 +380,6 @@ impl Instance {
 pub struct Medium {
     pub absorb: f32,
     pub unit: LengthUnit,
-    /// Blackbody emission of the volume's values read as Kelvin (`vdbcook_scene::Emission`:
-    /// the CPU tracer's density mode with emission, `Tracer::march`); `None`: flat-lit only.
-    pub emission: Option<Emission>,
 }
 
 impl Default for Medium {
@@ -400,7 +388,6 @@ impl Default for Medium {
         Medium {
             absorb: s.absorb,
             unit: s.unit,
-            emission: None,
         }
     }
 }
@@ -429,9 +416,6 @@ struct DrawView {
     instance_count: u32,
     has_depth: u32,
     voxel_units: u32,
-    /// `Medium::emission`: range, intensity (0: off), 0.
-    emission: [f32; 4],
-    emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
 }
 
 /// One element of the `draw_instances` array of `draw.wgsl`.
@@ -444,8 +428,7 @@ struct DrawInstance {
     box_hi: [f32; 4],
     frame_root0: u32,
     frame_root1: u32,
-    emission_scale: f32,
-    _pad: u32,
+    _pad: [u32; 2],
 }
 
 /// The `(L, T)` texture of one viewport size and the composite's bind group over it.
@@ -785,8 +768,7 @@ impl VolumeDrawer {
                     box_hi: v4(hi, 0.0),
                     frame_root0: (f0 * self.vol.root_len) as u32,
                     frame_root1: (f1 * self.vol.root_len) as u32,
-                    emission_scale: inst.emission_scale,
-                    _pad: 0,
+                    _pad: [0; 2],
                 },
             ));
         }
@@ -817,14 +799,6 @@ impl VolumeDrawer {
                 medium.absorb
             )));
         }
-        if let Some(e) = medium.emission {
-            // The tracer's checks of an emission (range in Kelvin, intensity).
-            vdbcook_scene::RenderSettings {
-                emission: Some(e),
-                ..Default::default()
-            }
-            .validate(1)?;
-        }
         let size = view.viewport;
         self.check_targets(target, size)?;
         let gpu_instances = self.instances(&rays, instances, medium)?;
@@ -847,14 +821,6 @@ impl VolumeDrawer {
             instance_count: gpu_instances.len() as u32,
             has_depth: target.depth.is_some() as u32,
             voxel_units: (medium.unit == LengthUnit::Voxel) as u32,
-            emission: medium
-                .emission
-                .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 0.0]),
-            emit_table: medium
-                .emission
-                .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
-                    blackbody_table(e.range)
-                }),
         };
         let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vdbcook draw view"),
@@ -947,8 +913,6 @@ mod tests {
                 instance_count,
                 has_depth,
                 voxel_units,
-                emission,
-                emit_table,
             }),
         );
         assert_mirrors(
@@ -961,7 +925,6 @@ mod tests {
                 box_hi,
                 frame_root0,
                 frame_root1,
-                emission_scale,
                 _pad,
             }),
         );

@@ -130,30 +130,6 @@ impl<'a> Tracer<'a> {
         t_max: f64,
         scratch: &mut Scratch,
     ) -> f64 {
-        self.march_with(origin, dir, t_max, scratch, false).0
-    }
-
-    /// As [`Tracer::optical_depth`], with the emitted light that reaches `origin` too (the
-    /// `Density` mode's emission, `settings.emission`; none without it): `(τ, light)`. The
-    /// reference of the engine drawer's emission.
-    pub fn march(
-        &self,
-        origin: [f64; 3],
-        dir: [f64; 3],
-        t_max: f64,
-        scratch: &mut Scratch,
-    ) -> (f64, [f64; 3]) {
-        self.march_with(origin, dir, t_max, scratch, true)
-    }
-
-    fn march_with(
-        &self,
-        origin: [f64; 3],
-        dir: [f64; 3],
-        t_max: f64,
-        scratch: &mut Scratch,
-        emit: bool,
-    ) -> (f64, [f64; 3]) {
         let ray = IndexRay::new(
             self.xf.index_of(origin),
             self.xf.dir_to_index(normalize(dir)),
@@ -164,11 +140,7 @@ impl<'a> Tracer<'a> {
             absorb: self.settings.absorb as f64,
             tau: 0.0,
             steps: 0,
-            emission: self
-                .settings
-                .emission
-                .filter(|_| emit)
-                .map(|e| (e, &self.emit_table)),
+            emission: None,
             light: [0.0; 3],
         };
         if let Some((t0, t1)) = ray.clip(self.extent) {
@@ -177,7 +149,7 @@ impl<'a> Tracer<'a> {
                 walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
             }
         }
-        (v.tau, v.light)
+        v.tau
     }
 
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
