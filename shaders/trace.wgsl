@@ -68,6 +68,9 @@ struct Params {
 @group(2) @binding(0) var out_texture: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(2) @binding(1) var<storage, read_write> out_buffer: array<f32>;
 
+// Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
+const TRACE_EMISSION: bool = {{EMISSION}};
+
 const MODE_DENSITY: u32 = 0u;
 const MODE_DEPTH: u32 = 1u;
 const MODE_FIRST_HIT: u32 = 2u;
@@ -127,7 +130,7 @@ fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
         return false;
     }
     if (v_density) {
-        if (params.emission.w != 0.0) {
+        if (TRACE_EMISSION && params.emission.w != 0.0) {
             // Emitted light reaching the eye: T_before · E(v) · ℓ · (1 − e^{−x})/x, x = absorb·v·ℓ.
             let r = emit_radiance(v);
             if (any(r != vec3<f32>(0.0))) {
@@ -449,7 +452,7 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
             }
             let x = params.extinction * sigma * step;
             let dt = exp(-x);
-            if (params.emission.w != 0.0) {
+            if (TRACE_EMISSION && params.emission.w != 0.0) {
                 // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
                 let phi = select((1.0 - dt) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
                 v_emit += trans * step * phi * emit_radiance(sigma);
@@ -547,7 +550,7 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
         let base = ext * sp.m;
         // Emission (`vdbcook_trace`'s delta `Path`): the majorant at least 1/step where the span
         // can emit, `E / μ̄` gathered at each tentative collision.
-        let emits = params.emission.w != 0.0 && sp.m > params.emission.x;
+        let emits = TRACE_EMISSION && params.emission.w != 0.0 && sp.m > params.emission.x;
         var mu_bar = base;
         if (emits) {
             mu_bar = max(base, 1.0 / params.step);

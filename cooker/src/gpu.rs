@@ -118,10 +118,20 @@ mod imp {
         }
 
         pub fn upload(&self, asset: &Asset) -> Result<Uploaded, String> {
+            self.upload_for(asset, false)
+        }
+
+        /// As [`Gpu::upload`], the renderer compiled with emission when `emission`.
+        pub fn upload_for(&self, asset: &Asset, emission: bool) -> Result<Uploaded, String> {
             let volume = GpuVolume::upload(&self.device, &self.queue, asset)
                 .map_err(|e| format!("GPU upload: {e}"))?;
-            let renderer = Renderer::new(&self.device, &volume, wgpu::TextureFormat::Rgba8Unorm)
-                .map_err(|e| format!("GPU renderer: {e}"))?;
+            let format = wgpu::TextureFormat::Rgba8Unorm;
+            let renderer = if emission {
+                Renderer::with_emission(&self.device, &volume, format)
+            } else {
+                Renderer::new(&self.device, &volume, format)
+            }
+            .map_err(|e| format!("GPU renderer: {e}"))?;
             Ok(Uploaded { volume, renderer })
         }
 

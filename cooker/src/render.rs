@@ -717,7 +717,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             (image, "gpu", Some(g.describe()), gpu_ms, true)
         }
         Some(g) => {
-            let up = g.upload(&asset).map_err(|e| at(&e))?;
+            let up = g
+                .upload_for(&asset, s.emission.is_some())
+                .map_err(|e| at(&e))?;
             let r = g.render(&up, &camera, &s, 1).map_err(|e| at(&e))?;
             (
                 r.image,

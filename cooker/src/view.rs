@@ -305,6 +305,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             frame: usize,
             mode: usize,
             fps: f64,
+            emission: bool,
         ) -> Result<ViewerState, String> {
             let frames = asset.frame_count();
             if frame >= frames {
@@ -316,8 +317,13 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 .map_err(|e| e.to_string())?;
             let volume =
                 GpuVolume::upload(device, queue, asset).map_err(|e| format!("GPU upload: {e}"))?;
-            let renderer = Renderer::new(device, &volume, TRACE_FORMAT)
-                .map_err(|e| format!("GPU renderer: {e}"))?;
+            // Emission is compiled in when asked for (it slows the other renders).
+            let renderer = if emission {
+                Renderer::with_emission(device, &volume, TRACE_FORMAT)
+            } else {
+                Renderer::new(device, &volume, TRACE_FORMAT)
+            }
+            .map_err(|e| format!("GPU renderer: {e}"))?;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("vdbcook view blit"),
                 source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
@@ -658,6 +664,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             a.frame,
             mode,
             a.fps,
+            a.emission.is_some(),
         )
         .map_err(at)?;
         state.settings = base_settings(a)?;
@@ -874,6 +881,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 self.frame,
                 self.mode,
                 self.fps,
+                self.settings.emission.is_some(),
             )?;
             state.settings = self.settings.clone();
             let adapter = describe(&adapter);

@@ -131,6 +131,8 @@ pub struct Renderer {
     dummy_buffer: wgpu::Buffer,
     xf: Affine,
     vol: Bound,
+    /// Whether the pipeline was compiled with emission.
+    emission: bool,
 }
 
 /// The WGSL name of a storage-texture format the renderer can write.
@@ -145,11 +147,32 @@ fn wgsl_format(f: wgpu::TextureFormat) -> Option<&'static str> {
 
 impl Renderer {
     /// Builds the pipeline for `volume` writing textures of `format` (`Rgba8Unorm`,
-    /// `Rgba16Float` or `Rgba32Float`; buffer targets work with any of them).
+    /// `Rgba16Float` or `Rgba32Float`; buffer targets work with any of them). Emission is
+    /// compiled out of this pipeline (it cost 1.4–1.7× in the density mode on lavapipe even
+    /// when off); settings with `emission` need [`Renderer::with_emission`].
     pub fn new(
         device: &wgpu::Device,
         volume: &GpuVolume,
         format: wgpu::TextureFormat,
+    ) -> Result<Renderer> {
+        Renderer::build(device, volume, format, false)
+    }
+
+    /// As [`Renderer::new`], with blackbody emission compiled in (`Settings::emission`, in the
+    /// density, scatter and delta modes); renders without emission too, a little slower.
+    pub fn with_emission(
+        device: &wgpu::Device,
+        volume: &GpuVolume,
+        format: wgpu::TextureFormat,
+    ) -> Result<Renderer> {
+        Renderer::build(device, volume, format, true)
+    }
+
+    fn build(
+        device: &wgpu::Device,
+        volume: &GpuVolume,
+        format: wgpu::TextureFormat,
+        emission: bool,
     ) -> Result<Renderer> {
         let Some(fmt) = wgsl_format(format) else {
             return Err(RuntimeError::Target(format!(
@@ -159,7 +182,9 @@ impl Renderer {
         let xf = Affine::cells(volume.index_to_world())?;
         let source = format!(
             "{VOLUME_WGSL}\n{}",
-            TRACE_WGSL.replace("{{TARGET_FORMAT}}", fmt)
+            TRACE_WGSL
+                .replace("{{TARGET_FORMAT}}", fmt)
+                .replace("{{EMISSION}}", if emission { "true" } else { "false" })
         );
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("vdbcook trace"),
@@ -269,6 +294,7 @@ impl Renderer {
             dummy_buffer,
             xf,
             vol: Bound::of(volume),
+            emission,
         })
     }
 
@@ -465,6 +491,13 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<Params> {
         let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
+        if settings.emission.is_some() && !self.emission {
+            return Err(RuntimeError::Unsupported(
+                "emission: this renderer's pipeline was built without it; create it with \
+                 Renderer::with_emission"
+                    .into(),
+            ));
+        }
         let basis = camera.basis(width, height)?;
         let eye = self.xf.index_of(camera.eye);
         // Depth range: nearest and farthest corner of the frame's stored box (0 inside it).
@@ -539,7 +572,9 @@ mod tests {
         assert_mirrors(
             &format!(
                 "{VOLUME_WGSL}\n{}",
-                TRACE_WGSL.replace("{{TARGET_FORMAT}}", "rgba8unorm")
+                TRACE_WGSL
+                    .replace("{{TARGET_FORMAT}}", "rgba8unorm")
+                    .replace("{{EMISSION}}", "true")
             ),
             "Params",
             rust_layout!(Params {

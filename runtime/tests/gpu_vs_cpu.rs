@@ -1191,7 +1191,25 @@ fn emission_matches_the_cpu() {
         &[blob_frame([120.0, 100.0, 40.0], 34.0, 2000.0, None)],
         PayloadFormat::F32,
     );
-    let (_vol, r) = gpu.setup(&asset);
+    let (vol, plain) = gpu.setup(&asset);
+    // Emission is compiled out of `Renderer::new`'s pipeline: refused there.
+    let cam0 = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let probe = RenderSettings {
+        emission: Some(vdbcook_trace::Emission {
+            range: [800.0, 2500.0],
+            intensity: 0.5,
+        }),
+        ..small(Mode::Density, 0)
+    };
+    let t0 = plain.buffer_target(&gpu.device, W, H).unwrap();
+    let e = gpu.render(&plain, &t0, &cam0, &probe).unwrap_err();
+    assert!(matches!(e, RuntimeError::Unsupported(_)), "{e}");
+    let r = vdbcook_runtime::Renderer::with_emission(
+        &gpu.device,
+        &vol,
+        wgpu::TextureFormat::Rgba8Unorm,
+    )
+    .unwrap();
     let target = r.buffer_target(&gpu.device, W, H).unwrap();
     let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
     let s = RenderSettings {
