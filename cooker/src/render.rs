@@ -629,6 +629,13 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], what)?;
     let s = settings(a)?;
+    if a.depth.is_some() && s.emission.is_some() {
+        return Err(CliError::Usage(
+            "--depth with --emission: the depth-cut march and the engine drawer do not draw \
+             emission yet; drop one of them"
+                .into(),
+        ));
+    }
     if a.depth.is_some() && s.mode != Mode::Density {
         return Err(CliError::Usage(format!(
             "--depth cuts the density mode only (the other modes do not stop at a depth yet), \
@@ -701,7 +708,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // `composited`: whether the plate is already under the image (the GPU drawer does it).
     let (mut image, backend, adapter, gpu_ms, composited) = match &gpu {
         #[cfg(feature = "gpu")]
-        Some(g) if scene && s.mode == Mode::Density => {
+        // The drawer composites density over a plate on the GPU; it has no emission, which the
+        // renderer below draws (the plate is then composited on the CPU).
+        Some(g) if scene && s.mode == Mode::Density && s.emission.is_none() => {
             s.validate(asset.frame_count()).map_err(|e| at(&e))?;
             let (image, gpu_ms) = drawer::composite(
                 g,

@@ -386,3 +386,41 @@ fn bad_scene_inputs_are_refused_and_nothing_is_written() {
         assert!(!Path::new(&out).exists() && !Path::new(&exr).exists());
     }
 }
+
+/// Emission over a plate keeps its glow on both backends (the GPU takes the renderer with
+/// emission and composites on the CPU, not the flat-lit drawer): the fire fixture's temperature
+/// grid with no absorption is `plate + L_e`, the same on CPU and GPU.
+#[test]
+fn emission_over_a_plate_keeps_its_glow_on_both_backends() {
+    let dir = tempfile::tempdir().unwrap();
+    let [(plate, px), _] = plates(dir.path());
+    let fire = "fixtures/seq/fire";
+    let extra = [
+        "--grid",
+        "temperature",
+        "--emission",
+        "700,1800",
+        "--absorb",
+        "0",
+        "--background",
+        plate.as_str(),
+    ];
+    let cpu = dir.path().join("fire_cpu.pfm");
+    render(fire, &cpu, "cpu", &extra).unwrap();
+    let (_, _, c) = read_pfm(&cpu);
+    let glow = (0..(W * H) as usize)
+        .filter(|&p| c[3 * p] > srgb_to_linear(px[p][0]) + 0.1)
+        .count();
+    assert!(glow > 50, "only {glow} glowing pixels over the plate");
+    let gpu = dir.path().join("fire_gpu.pfm");
+    if render(fire, &gpu, "gpu", &extra).is_none() {
+        return;
+    }
+    let (_, _, g) = read_pfm(&gpu);
+    for (k, (a, b)) in c.iter().zip(&g).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-3 * a.abs().max(1.0),
+            "value {k}: cpu {a} gpu {b}"
+        );
+    }
+}

@@ -168,6 +168,19 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         assert_eq!(code, 1, "{extra:?}: {err}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
+    // Emission with a depth cut is not drawn yet: a usage error, not a silent grey image.
+    let (code, _, err) = vdbcook(&[
+        "render",
+        &asset,
+        "-o",
+        &out,
+        "--emission",
+        "800,2000",
+        "--depth",
+        "nope.pfm",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--depth with --emission"), "{err}");
     // The reference is CPU only: asking the GPU for it is a usage error, before any work.
     let (code, _, err) = vdbcook(&[
         "render",
