@@ -27,6 +27,71 @@ mod imp {
 
     use super::*;
 
+    /// A copy of a texture's mip 0 on its way to the CPU: [`TextureReadback::record`] puts the
+    /// copy into the caller's encoder; after that encoder is submitted, [`TextureReadback::read`]
+    /// waits for it and returns the rows packed tightly (`width · texel_bytes` bytes each,
+    /// top row first). Blocking, so for the CLI (`render` over a scene, `view --screenshot`),
+    /// never the runtime.
+    pub struct TextureReadback {
+        buffer: wgpu::Buffer,
+        /// Bytes per row in the buffer (padded to `COPY_BYTES_PER_ROW_ALIGNMENT`) and packed.
+        row: usize,
+        packed: usize,
+        height: usize,
+    }
+
+    impl TextureReadback {
+        pub fn record(
+            device: &wgpu::Device,
+            encoder: &mut wgpu::CommandEncoder,
+            texture: &wgpu::Texture,
+            texel_bytes: u32,
+        ) -> TextureReadback {
+            let (w, h) = (texture.width(), texture.height());
+            let row = (w * texel_bytes).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vdbcook read-back"),
+                size: row as u64 * h as u64,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            encoder.copy_texture_to_buffer(
+                texture.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row),
+                        rows_per_image: None,
+                    },
+                },
+                texture.size(),
+            );
+            TextureReadback {
+                buffer,
+                row: row as usize,
+                packed: (w * texel_bytes) as usize,
+                height: h as usize,
+            }
+        }
+
+        /// Waits for the copy (its encoder must have been submitted) and returns the rows.
+        pub fn read(self, device: &wgpu::Device) -> Result<Vec<u8>, String> {
+            let slice = self.buffer.slice(..);
+            slice.map_async(wgpu::MapMode::Read, |r| r.expect("map read-back"));
+            device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| format!("GPU: {e}"))?;
+            let data = slice
+                .get_mapped_range()
+                .map_err(|e| format!("GPU read-back: {e}"))?;
+            Ok((0..self.height)
+                .flat_map(|y| &data[y * self.row..][..self.packed])
+                .copied()
+                .collect())
+        }
+    }
+
     /// An adapter's name and backend, marked when it is a software rasterizer (the CLI's one
     /// wording for `render`, `report` and `view`).
     pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
@@ -226,6 +291,9 @@ mod imp {
         pub fn upload(&self, _: &Asset) -> Result<Uploaded, String> {
             Err("built without the `gpu` feature".into())
         }
+        pub fn upload_for(&self, _: &Asset, _: bool) -> Result<Uploaded, String> {
+            Err("built without the `gpu` feature".into())
+        }
         pub fn render(
             &self,
             _: &Uploaded,
@@ -238,9 +306,9 @@ mod imp {
     }
 }
 
-#[cfg(feature = "gpu")]
-pub use imp::describe_adapter;
 pub use imp::Gpu;
+#[cfg(feature = "gpu")]
+pub use imp::{describe_adapter, TextureReadback};
 
 /// Containers usually run without `XDG_RUNTIME_DIR`; the Vulkan loader's window-system probes
 /// then print "error: XDG_RUNTIME_DIR is invalid or not set" on stderr although nothing failed.

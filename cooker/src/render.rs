@@ -1056,13 +1056,6 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
             cache: None,
         });
 
-        let row = (w * 8).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vdbcook render composite readback"),
-            size: row as u64 * h as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let timer = GpuTimer::new(device, queue);
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -1119,38 +1112,15 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         if let Some(t) = &timer {
             t.end(&mut encoder);
         }
-        encoder.copy_texture_to_buffer(
-            color.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: None,
-                },
-            },
-            color.size(),
-        );
+        // Rgba16Float: 8 bytes per texel.
+        let readback = crate::gpu::TextureReadback::record(device, &mut encoder, &color, 8);
         queue.submit([encoder.finish()]);
-        readback
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, |r| r.expect("map readback"));
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| format!("GPU: {e}"))?;
+        let data = readback.read(device)?;
         let gpu_ms = timer.as_ref().and_then(|t| t.read_ms(device));
-        let data = readback
-            .slice(..)
-            .get_mapped_range()
-            .map_err(|e| format!("GPU read-back: {e}"))?;
-        let mut rgba = Vec::with_capacity(4 * n);
-        for y in 0..h as usize {
-            let r = &data[y * row as usize..][..8 * w as usize];
-            rgba.extend(
-                r.chunks_exact(2)
-                    .map(|c| f16_to_f32(u16::from_le_bytes([c[0], c[1]]))),
-            );
-        }
+        let rgba: Vec<f32> = data
+            .chunks_exact(2)
+            .map(|c| f16_to_f32(u16::from_le_bytes([c[0], c[1]])))
+            .collect();
         Ok((
             Image {
                 width: w,

@@ -756,47 +756,16 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
 
     /// The target's pixels as RGBA8 (its own submission; waits).
     fn read_back(device: &wgpu::Device, queue: &wgpu::Queue, target: &wgpu::Texture) -> Vec<u8> {
-        let (w, h) = (target.width(), target.height());
-        let row = (w * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vdbcook view read-back"),
-            size: row as u64 * h as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.copy_texture_to_buffer(
-            target.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: None,
-                },
-            },
-            target.size(),
-        );
+        let readback = crate::gpu::TextureReadback::record(device, &mut encoder, target, 4);
         queue.submit([encoder.finish()]);
-        buffer
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, |r| r.expect("map read-back"));
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .expect("device poll");
-        let data = buffer.slice(..).get_mapped_range().expect("mapped range");
-        let bgra = matches!(
+        let mut rgba = readback.read(device).expect("read-back");
+        if matches!(
             target.format(),
             wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
-        );
-        let mut rgba = Vec::with_capacity((4 * w * h) as usize);
-        for y in 0..h as usize {
-            for p in data[y * row as usize..][..4 * w as usize].chunks_exact(4) {
-                rgba.extend(if bgra {
-                    [p[2], p[1], p[0], p[3]]
-                } else {
-                    [p[0], p[1], p[2], p[3]]
-                });
+        ) {
+            for p in rgba.chunks_exact_mut(4) {
+                p.swap(0, 2);
             }
         }
         rgba

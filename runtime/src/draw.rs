@@ -517,23 +517,13 @@ impl VolumeDrawer {
                 ),
             ],
         });
-        let (volume_layout, _) = volume.bind_group();
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("vdbcook draw"),
-            bind_group_layouts: &[Some(volume_layout), Some(&draw_layout)],
-            immediate_size: 0,
-        });
-        let draw_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("vdbcook draw"),
-            layout: Some(&layout),
-            module: &module,
-            entry_point: Some("draw_main"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &volume.pipeline_constants(),
-                ..Default::default()
-            },
-            cache: None,
-        });
+        let draw_pipeline = volume.compute_pipeline(
+            device,
+            "vdbcook draw",
+            &module,
+            "draw_main",
+            &[&draw_layout],
+        );
 
         let composite_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("vdbcook composite"),

@@ -228,27 +228,13 @@ impl Renderer {
                 },
             ],
         });
-        let (volume_layout, _) = volume.bind_group();
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("vdbcook trace"),
-            bind_group_layouts: &[
-                Some(volume_layout),
-                Some(&params_layout),
-                Some(&target_layout),
-            ],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("vdbcook trace"),
-            layout: Some(&layout),
-            module: &module,
-            entry_point: Some("trace_main"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &volume.pipeline_constants(),
-                ..Default::default()
-            },
-            cache: None,
-        });
+        let pipeline = volume.compute_pipeline(
+            device,
+            "vdbcook trace",
+            &module,
+            "trace_main",
+            &[&params_layout, &target_layout],
+        );
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook params"),
             size: std::mem::size_of::<Params>() as u64,

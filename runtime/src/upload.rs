@@ -967,6 +967,38 @@ impl GpuVolume {
     pub fn gpu_bytes(&self) -> u64 {
         self.gpu_bytes
     }
+    /// A compute pipeline over this volume: group 0 is the volume's, groups 1.. are `layouts`,
+    /// compiled with [`GpuVolume::pipeline_constants`] (the tracer's and the drawer's).
+    pub(crate) fn compute_pipeline(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        module: &wgpu::ShaderModule,
+        entry_point: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+    ) -> wgpu::ComputePipeline {
+        let groups: Vec<Option<&wgpu::BindGroupLayout>> = std::iter::once(&self.bind_group_layout)
+            .chain(layouts.iter().copied())
+            .map(Some)
+            .collect();
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &groups,
+            immediate_size: 0,
+        });
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&layout),
+            module,
+            entry_point: Some(entry_point),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &self.pipeline_constants(),
+                ..Default::default()
+            },
+            cache: None,
+        })
+    }
+
     /// The bind group of `VOLUME_WGSL`'s group 0 and its layout, for an engine's own pipelines.
     pub fn bind_group(&self) -> (&wgpu::BindGroupLayout, &wgpu::BindGroup) {
         (&self.bind_group_layout, &self.bind_group)
