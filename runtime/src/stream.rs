@@ -614,23 +614,23 @@ impl StreamingVolume {
         );
 
         let frames = last - first + 1;
-        let info = VolumeInfo {
-            root_dims: asset.header.root_dims,
-            root_len: asset.root_len() as u32,
-            off_masks: off_masks as u32,
-            off_base: off_base as u32,
-            off_prefix: off_prefix as u32,
-            off_l2_ranges: off_l2_ranges as u32,
-            off_refs: off_refs as u32,
-            off_tiles: off_tiles as u32,
-            off_brick_ranges: off_brick_ranges as u32,
-            bricks_per_binding: self.buffers.bricks_per_buffer(),
-            background: asset.header.background,
-            payload_layout: self.buffers.code(),
-            frames: frames as u32,
-            off_brick_quant: off_brick_quant as u32,
-            groups: self.groups,
-        };
+        let info = VolumeInfo::new(
+            &asset,
+            [
+                off_masks,
+                off_base,
+                off_prefix,
+                off_l2_ranges,
+                off_refs,
+                off_tiles,
+                off_brick_ranges,
+                off_brick_quant,
+            ],
+            self.buffers.bricks_per_buffer(),
+            self.buffers.code(),
+            frames,
+            self.groups,
+        );
         let info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vdbcook streamed volume info"),
             contents: bytemuck::bytes_of(&info),

@@ -224,6 +224,39 @@ struct VolumeInfo {
     groups: [GroupInfo; GROUPS],
 }
 
+impl VolumeInfo {
+    /// The uniform of a topology laid out in `topo` with its sections starting at the word
+    /// offsets `[masks, base, prefix, l2_ranges, refs, tiles, brick_ranges, brick_quant]`
+    /// (the full upload and a streamed window lay out the same sections).
+    fn new(
+        asset: &Asset,
+        offsets: [usize; 8],
+        bricks_per_binding: u32,
+        payload_layout: u32,
+        frames: usize,
+        groups: [GroupInfo; GROUPS],
+    ) -> VolumeInfo {
+        let o = offsets.map(|x| x as u32);
+        VolumeInfo {
+            root_dims: asset.header.root_dims,
+            root_len: asset.root_len() as u32,
+            off_masks: o[0],
+            off_base: o[1],
+            off_prefix: o[2],
+            off_l2_ranges: o[3],
+            off_refs: o[4],
+            off_tiles: o[5],
+            off_brick_ranges: o[6],
+            bricks_per_binding,
+            background: asset.header.background,
+            payload_layout,
+            frames: frames as u32,
+            off_brick_quant: o[7],
+            groups,
+        }
+    }
+}
+
 /// An asset on the GPU: all frames and the whole brick pool, with the bind group (group 0 of
 /// `VOLUME_WGSL`) an engine's pipelines can use as is.
 pub struct GpuVolume {
@@ -784,23 +817,23 @@ impl GpuVolume {
             .map(|f| vdbcook_scene::content_box(asset, f))
             .collect();
 
-        let info = VolumeInfo {
-            root_dims: asset.header.root_dims,
-            root_len: asset.root_len() as u32,
-            off_masks: off_masks as u32,
-            off_base: off_base as u32,
-            off_prefix: off_prefix as u32,
-            off_l2_ranges: off_l2_ranges as u32,
-            off_refs: off_refs as u32,
-            off_tiles: off_tiles as u32,
-            off_brick_ranges: off_brick_ranges as u32,
-            bricks_per_binding: per,
-            background,
-            payload_layout: plan.buffers.code(),
-            frames: asset.frame_count() as u32,
-            off_brick_quant: off_brick_quant as u32,
+        let info = VolumeInfo::new(
+            asset,
+            [
+                off_masks,
+                off_base,
+                off_prefix,
+                off_l2_ranges,
+                off_refs,
+                off_tiles,
+                off_brick_ranges,
+                off_brick_quant,
+            ],
+            per,
+            plan.buffers.code(),
+            asset.frame_count(),
             groups,
-        };
+        );
         let storage = wgpu::BufferUsages::STORAGE;
         let info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vdbcook volume info"),
