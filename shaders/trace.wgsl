@@ -58,6 +58,16 @@ struct Params {
     first_sample: u32,
     seed: u32,
     _pad: u32,
+    // The lit mode (`vdbcook_trace`'s `lit` module): the light volume's grid (xyz: corner of
+    // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves), the octave
+    // falloff (x, y, z: a, b, c), the sky radiance (xyz), the phase (x, y: g0, g1, z: weight) and
+    // the unit world direction toward the light (xyz).
+    lv_lo: vec4<f32>,
+    lv_dims: vec4<u32>,
+    ms: vec4<f32>,
+    sky: vec4<f32>,
+    phase: vec4<f32>,
+    light_world: vec4<f32>,
     // Emission (`vdbcook_scene::Emission`): x, y the range in Kelvin, z the intensity, w 1 when
     // on; the blackbody colours over the range (`vdbcook_scene::blackbody_table`).
     emission: vec4<f32>,
@@ -67,6 +77,8 @@ struct Params {
 @group(1) @binding(0) var<uniform> params: Params;
 @group(2) @binding(0) var out_texture: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(2) @binding(1) var<storage, read_write> out_buffer: array<f32>;
+// Group 3: the lit mode's light volume, (τ_sun, τ_sky) per cell (`light_build.wgsl`).
+@group(3) @binding(0) var<storage, read> lv_tau: array<vec2<f32>>;
 
 // Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
 const TRACE_EMISSION: bool = {{EMISSION}};
@@ -78,6 +90,7 @@ const MODE_BRICK_HUE: u32 = 3u;
 const MODE_STEPS: u32 = 4u;
 const MODE_SCATTER: u32 = 5u;
 const MODE_DELTA: u32 = 6u;
+const MODE_LIT: u32 = 7u;
 
 // Optical depth beyond which a density ray stops (`vdbcook_trace::OPAQUE_DEPTH`).
 const OPAQUE_DEPTH: f32 = 20.0;
@@ -472,6 +485,94 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
     return vec2<f32>(lum, trans);
 }
 
+// ---- The lit mode (`vdbcook_trace`'s `lit` module) -----------------------------------------
+
+// Transmittance below which a lit ray stops (`vdbcook_trace::LIT_MIN_TRANS`).
+const LIT_MIN_TRANS: f32 = 1e-4;
+
+fn hg(g: f32, mu: f32) -> f32 {
+    let d = 1.0 + g * g - 2.0 * g * mu;
+    return (1.0 - g * g) / (12.566370614359172 * d * sqrt(d));
+}
+
+fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
+    let t = lv_taps(p, params.lv_lo.xyz, params.lv_lo.w, params.lv_dims.xyz);
+    var out = vec2<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        out += t.w[k] * lv_tau[t.idx[k]];
+    }
+    return out;
+}
+
+// The lit march for t in [t0, t1]: (radiance rgb, transmittance). `dw`: the unit world direction.
+fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
+    let step = params.step;
+    let octaves = params.lv_dims.w;
+    let ms = params.ms.xyz;
+    // The phase per octave at this ray's μ, the sky's (isotropic: 1).
+    let mu = dot(dw, params.light_world.xyz);
+    var sun_ph: array<f32, 8>;
+    var sky_ph: array<f32, 8>;
+    var ci = 1.0;
+    for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
+        let pw = params.phase.z;
+        sun_ph[i] = pw * hg(params.phase.x * ci, mu) + (1.0 - pw) * hg(params.phase.y * ci, mu);
+        sky_ph[i] = 1.0;
+        ci *= ms.z;
+    }
+    let jitter = f32(pcg_hash(params.seed ^ pcg_hash(pixel)) >> 8u) / 16777216.0;
+    let ext = params.extinction;
+    var w = wk_init(ray, t0, t1);
+    var budget = MAX_MARCH_SAMPLES;
+    var trans = 1.0;
+    var rad = vec3<f32>(0.0);
+    for (var g = 0; g < WALK_SPANS; g++) {
+        let sp = wk_next(ray, &w, -3.0e38);
+        if (!sp.ok) {
+            break;
+        }
+        let sb = sp.tb * ray.per_t;
+        var k = max(ceil(sp.ta * ray.per_t / step - jitter), 0.0);
+        var stop = false;
+        for (var n = 0u; n <= MAX_MARCH_SAMPLES; n++) {
+            let s = (k + jitter) * step;
+            if (!(s < sb)) {
+                break;
+            }
+            k += 1.0;
+            if (budget == 0u) {
+                stop = true;
+                break;
+            }
+            budget -= 1u;
+            let p = ray.o + (s / ray.per_t) * ray.d;
+            let rho = wk_value(sp, p);
+            if (!(rho > 0.0)) {
+                continue;
+            }
+            let x = ext * rho * step;
+            let e = exp(-x);
+            if (TRACE_EMISSION && params.emission.w != 0.0) {
+                let phi = select((1.0 - e) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
+                v_emit += trans * step * phi * emit_radiance(rho);
+            }
+            let tau = lit_lookup(p);
+            let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+            let sky = lv_octaves(ext * tau.y, ms, octaves, &sky_ph);
+            rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
+            trans *= e;
+            if (trans < LIT_MIN_TRANS) {
+                stop = true;
+                break;
+            }
+        }
+        if (stop) {
+            break;
+        }
+    }
+    return vec4<f32>(rad, trans);
+}
+
 // `vdbcook_trace::pcg_hash`.
 fn pcg_hash(x: u32) -> u32 {
     let state = x * 747796405u + 2891336453u;
@@ -671,7 +772,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     v_hit = false;
 
     let clip = vdb_clip(ray, params.extent.xyz);
-    let media = params.mode == MODE_SCATTER || params.mode == MODE_DELTA;
+    let media = params.mode == MODE_SCATTER || params.mode == MODE_DELTA || params.mode == MODE_LIT;
     if (clip.y > clip.x && !media) {
         walk(ray, clip.x, clip.y);
     }
@@ -681,9 +782,14 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (media) {
         // (luminance, transmittance); a ray missing the root box or the content: (0, 1).
         var lt = vec2<f32>(0.0, 1.0);
+        var lit = vec3<f32>(0.0);
         let mclip = media_clip(ray);
         if (mclip.y > mclip.x) {
-            if (params.mode == MODE_SCATTER) {
+            if (params.mode == MODE_LIT) {
+                let r = lit_primary(ray, dw, mclip.x, mclip.y, gid.y * w + gid.x);
+                lit = r.xyz;
+                lt = vec2<f32>(0.0, r.w);
+            } else if (params.mode == MODE_SCATTER) {
                 lt = scatter_primary(ray, mclip.x, mclip.y);
             } else {
                 let pixel = gid.y * w + gid.x;
@@ -701,7 +807,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 v_emit /= n;
             }
         }
-        rgba = vec4<f32>(params.light_color.xyz * lt.x + v_emit, 1.0 - lt.y);
+        rgba = vec4<f32>(params.light_color.xyz * lt.x + lit + v_emit, 1.0 - lt.y);
         value = lt.y;
     } else if (v_density) {
         let t = exp(-params.absorb * v_tau);

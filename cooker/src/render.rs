@@ -42,7 +42,7 @@ pub struct Args {
     /// What pixels show.
     #[arg(long, default_value = "density",
           value_parser = ["density", "depth", "first-hit", "brick-hue", "steps", "scatter", "delta",
-                          "reference"])]
+                          "reference", "lit"])]
     mode: String,
     /// Renderer: cpu (the reference tracer), gpu (the wgpu runtime on the default adapter), or
     /// auto: gpu on a hardware adapter, else cpu.
@@ -105,6 +105,17 @@ pub struct Args {
     /// Most scattering events per reference path (more count as absorbed).
     #[arg(long, default_value_t = 256)]
     bounces: u32,
+    /// Light-volume resolution of the lit mode: cells along the longest side of the frame's
+    /// content box (2..=256). Coarser is faster to build and blurs shadows.
+    #[arg(long, default_value_t = 64)]
+    light_res: u32,
+    /// Multiple-scattering octaves of the lit mode (1 = single scattering, up to 8).
+    #[arg(long, default_value_t = 4)]
+    ms_octaves: u32,
+    /// Octave falloff of the lit mode's multiple scattering A,B,C: octave i scales the
+    /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i.
+    #[arg(long, default_value = "0.5,0.5,0.5", value_name = "A,B,C")]
+    ms: String,
     /// Blackbody emission (density, scatter, delta and reference modes): the grid's values are
     /// Kelvin; LO,HI is the range over which the glow rises as ((T − LO)/(HI − LO))⁴ to full
     /// brightness (none at or below LO), coloured by Planck's law. E.g. `--grid temperature
@@ -221,6 +232,10 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
             }
         },
     };
+    let ms = match numbers("ms", &a.ms)?[..] {
+        [x, y, z] => [x as f32, y as f32, z as f32],
+        ref v => return Err(other(format!("--ms takes A,B,C, got {} numbers", v.len()))),
+    };
     let (phase_g, phase_w) = match numbers("phase", &a.phase)?[..] {
         [g] => ([g as f32; 2], 1.0),
         [g0, g1, w] => ([g0 as f32, g1 as f32], w as f32),
@@ -257,6 +272,9 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         phase_w,
         bounces: a.bounces,
         emission,
+        light_res: a.light_res,
+        ms_octaves: a.ms_octaves,
+        ms,
     })
 }
 
@@ -816,6 +834,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "units": a.units,
                 "sky": s.sky.map(short), "phase_g": s.phase_g.map(short),
                 "phase_w": short(s.phase_w), "bounces": s.bounces,
+                "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
                 "emission": s.emission.map(|e| json!({
                     "range_kelvin": e.range.map(short), "intensity": short(e.intensity),
                 })),

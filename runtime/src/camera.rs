@@ -16,7 +16,7 @@ pub type Settings = vdbcook_scene::RenderSettings;
 /// The modes the GPU tracer implements (all of `Mode::ALL` but the CPU-only `Mode::Reference`,
 /// which is refused with [`RuntimeError::Unsupported`]), in the order of the shader's mode
 /// numbers.
-pub const GPU_MODES: [Mode; 7] = [
+pub const GPU_MODES: [Mode; 8] = [
     Mode::Density,
     Mode::Depth,
     Mode::FirstHitDensity,
@@ -24,6 +24,7 @@ pub const GPU_MODES: [Mode; 7] = [
     Mode::Steps,
     Mode::SingleScatter,
     Mode::DeltaTracking,
+    Mode::Lit,
 ];
 
 /// The shader's mode number (`None`: not implemented on the GPU).

@@ -49,6 +49,7 @@ mod draw;
 mod error;
 #[cfg(test)]
 mod layout_check;
+mod light;
 mod render;
 mod timer;
 mod upload;
@@ -74,8 +75,16 @@ pub use {glam, wgpu};
 
 /// Bindings of an uploaded volume (group 0), tree access, sampling and the DDA.
 pub const VOLUME_WGSL: &str = include_str!("../../shaders/volume.wgsl");
-/// The tracer (groups 1 and 2, entry point `trace_main`); needs [`VOLUME_WGSL`] before it.
+/// The tracer (groups 1, 2 and 3, entry point `trace_main`); needs [`VOLUME_WGSL`] and
+/// [`LIGHT_WGSL`] before it.
 pub const TRACE_WGSL: &str = include_str!("../../shaders/trace.wgsl");
+
+/// The lit mode's light-volume lookup and octave source (no bindings); the tracer and the
+/// light-volume pass include it.
+pub const LIGHT_WGSL: &str = include_str!("../../shaders/light.wgsl");
+/// The lit mode's light-volume pass (group 1, entry points `lv_density_main`, `lv_tau_main`);
+/// needs [`VOLUME_WGSL`] and [`LIGHT_WGSL`] before it.
+pub const LIGHT_BUILD_WGSL: &str = include_str!("../../shaders/light_build.wgsl");
 
 /// Result of the runtime's calls.
 pub type Result<T> = std::result::Result<T, RuntimeError>;

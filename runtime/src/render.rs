@@ -6,10 +6,15 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use vdbcook_scene::{blackbody_table, depth_range, Affine, BLACKBODY_TABLE_LEN, MAX_SIDE};
+use vdbcook_scene::{
+    blackbody_table, depth_range, Affine, LightGrid, Mode, BLACKBODY_TABLE_LEN, MAX_SIDE,
+};
 
+use crate::light::{LightParams, LightPass};
 use crate::upload::{Bound, GpuVolume};
-use crate::{Camera, LengthUnit, Result, RuntimeError, Settings, TRACE_WGSL, VOLUME_WGSL};
+use crate::{
+    Camera, LengthUnit, Result, RuntimeError, Settings, LIGHT_WGSL, TRACE_WGSL, VOLUME_WGSL,
+};
 
 /// The `Params` uniform of `trace.wgsl`.
 #[repr(C)]
@@ -52,6 +57,15 @@ struct Params {
     first_sample: u32,
     seed: u32,
     _pad: u32,
+    /// The lit mode: the light volume's grid (xyz corner, w cell; xyz dims, w octaves), the
+    /// octave falloff `a, b, c`, the sky, the phase `g0, g1, w`, the unit world direction
+    /// toward the light.
+    lv_lo: [f32; 4],
+    lv_dims: [u32; 4],
+    ms: [f32; 4],
+    sky: [f32; 4],
+    phase: [f32; 4],
+    light_world: [f32; 4],
     /// Emission (`vdbcook_scene::Emission`): low and high end of the range (Kelvin),
     /// intensity, and 1 when on (0: off).
     emission: [f32; 4],
@@ -133,6 +147,10 @@ pub struct Renderer {
     vol: Bound,
     /// Whether the pipeline was compiled with emission.
     emission: bool,
+    /// The lit mode's light-volume pass (and the device its buffers are made on, when a lit
+    /// render first needs them).
+    light: LightPass,
+    device: wgpu::Device,
 }
 
 /// The WGSL name of a storage-texture format the renderer can write.
@@ -181,7 +199,7 @@ impl Renderer {
         };
         let xf = Affine::cells(volume.index_to_world())?;
         let source = format!(
-            "{VOLUME_WGSL}\n{}",
+            "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
             TRACE_WGSL
                 .replace("{{TARGET_FORMAT}}", fmt)
                 .replace("{{EMISSION}}", if emission { "true" } else { "false" })
@@ -228,12 +246,13 @@ impl Renderer {
                 },
             ],
         });
+        let light = LightPass::new(device, volume);
         let pipeline = volume.compute_pipeline(
             device,
             "vdbcook trace",
             &module,
             "trace_main",
-            &[&params_layout, &target_layout],
+            &[&params_layout, &target_layout, &light.read_layout],
         );
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook params"),
@@ -281,6 +300,8 @@ impl Renderer {
             xf,
             vol: Bound::of(volume),
             emission,
+            light,
+            device: device.clone(),
         })
     }
 
@@ -289,7 +310,9 @@ impl Renderer {
     /// ([`RuntimeError::Rebind`]) a volume laid out differently from the one this renderer was
     /// built for. Work recorded before still reads the old window's topology.
     pub fn rebind(&mut self, volume: &GpuVolume) -> Result<()> {
-        self.vol.rebind(volume)
+        self.vol.rebind(volume)?;
+        self.light.invalidate();
+        Ok(())
     }
 
     /// The texture format this renderer writes.
@@ -453,6 +476,14 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<()> {
         let params = self.params(width, height, out_flags, frame, camera, settings)?;
+        let light_group = if settings.mode == Mode::Lit {
+            let grid = self.light_grid(frame, settings);
+            let lp = LightParams::new(&grid, &self.xf, settings, params.frame_root);
+            self.light
+                .record(&self.device, queue, encoder, &self.vol.group, lp)
+        } else {
+            self.light.empty_group.clone()
+        };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("vdbcook trace"),
@@ -462,8 +493,14 @@ impl Renderer {
         pass.set_bind_group(0, &self.vol.group, &[]);
         pass.set_bind_group(1, &self.params_group, &[]);
         pass.set_bind_group(2, target, &[]);
+        pass.set_bind_group(3, &light_group, &[]);
         pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
         Ok(())
+    }
+
+    /// The light volume's grid of `frame` (`vdbcook_trace::LightVolume`'s).
+    fn light_grid(&self, frame: usize, settings: &Settings) -> LightGrid {
+        LightGrid::new(self.vol.content[frame], settings.light_res)
     }
 
     /// The uniform for one render (the CPU tracer's `Tracer::new` in f64, then f32).
@@ -503,6 +540,8 @@ impl Renderer {
             0.0
         };
         let c = settings.light_color;
+        let grid = self.light_grid(frame, settings);
+        let lw = l.map(|c| (c / ln) as f32);
         Ok(Params {
             eye_index: v4(eye),
             forward: v4(basis.forward),
@@ -536,6 +575,22 @@ impl Renderer {
             first_sample: settings.first_sample,
             seed: settings.seed,
             _pad: 0,
+            lv_lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
+            lv_dims: [
+                grid.dims[0],
+                grid.dims[1],
+                grid.dims[2],
+                settings.ms_octaves,
+            ],
+            ms: [settings.ms[0], settings.ms[1], settings.ms[2], 0.0],
+            sky: [settings.sky[0], settings.sky[1], settings.sky[2], 0.0],
+            phase: [
+                settings.phase_g[0],
+                settings.phase_g[1],
+                settings.phase_w,
+                0.0,
+            ],
+            light_world: [lw[0], lw[1], lw[2], 0.0],
             emission: settings
                 .emission
                 .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 1.0]),
@@ -557,7 +612,7 @@ mod tests {
     fn params_mirror_the_wgsl() {
         assert_mirrors(
             &format!(
-                "{VOLUME_WGSL}\n{}",
+                "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
                 TRACE_WGSL
                     .replace("{{TARGET_FORMAT}}", "rgba8unorm")
                     .replace("{{EMISSION}}", "true")
@@ -596,6 +651,12 @@ mod tests {
                 first_sample,
                 seed,
                 _pad,
+                lv_lo,
+                lv_dims,
+                ms,
+                sky,
+                phase,
+                light_world,
                 emission,
                 emit_table,
             }),

@@ -39,13 +39,14 @@ const H: u32 = 90;
 
 /// The modes with one exact answer per pixel (all but delta tracking, which is compared
 /// statistically: `delta_tracking_matches_the_cpu_statistically`).
-const DETERMINISTIC: [Mode; 6] = [
+const DETERMINISTIC: [Mode; 7] = [
     Mode::Density,
     Mode::Depth,
     Mode::FirstHitDensity,
     Mode::BrickHue,
     Mode::Steps,
     Mode::SingleScatter,
+    Mode::Lit,
 ];
 
 /// Single scatter, per channel and value: f32 sample positions and exponentials against f64.
@@ -92,6 +93,8 @@ fn small(mode: Mode, frame: usize) -> RenderSettings {
         height: H,
         mode,
         frame,
+        // A light volume of 24 cells along the longest side: the CPU builds it per render.
+        light_res: 24,
         ..Default::default()
     }
 }
@@ -112,7 +115,7 @@ fn mismatches_with(cpu: &Image, gpu: &Readback, mode: Mode, slack: f32) -> (usiz
     let (tol_rgba, tol_value) = match mode {
         Mode::Density => (1e-3, 1e-3),
         Mode::Depth => (1e-3, 1e-3),
-        Mode::SingleScatter => (SCATTER_TOL, SCATTER_TOL),
+        Mode::SingleScatter | Mode::Lit => (SCATTER_TOL, SCATTER_TOL),
         // Values are dequantized in f32 on both sides, the GPU with its own unorm conversion
         // and fused multiply-adds: a few ulps of the brick's range (measured ≤ 6e-8 on ranges
         // up to 2.5). Steps and brick hues are exact.

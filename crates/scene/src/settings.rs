@@ -25,10 +25,16 @@ pub enum Mode {
     /// a dual-lobe Henyey–Greenstein phase, the sun by ratio-tracked next-event estimation, a
     /// constant sky on escape), no `gain` hack. CPU only; what approximations are judged by.
     Reference,
+    /// The game-speed approximation of `Reference` (same medium, sun, sky and phase): a
+    /// fixed-step march with per-step energy-conserving integration whose sun and sky
+    /// transmittances are read from a low-resolution light volume (optical depths toward the
+    /// sun and toward the six axis directions, built once per frame and light), with multiple
+    /// scattering approximated by `ms_octaves` octaves of attenuated extinction and phase.
+    Lit,
 }
 
 impl Mode {
-    pub const ALL: [Mode; 8] = [
+    pub const ALL: [Mode; 9] = [
         Mode::Density,
         Mode::Depth,
         Mode::FirstHitDensity,
@@ -37,6 +43,7 @@ impl Mode {
         Mode::SingleScatter,
         Mode::DeltaTracking,
         Mode::Reference,
+        Mode::Lit,
     ];
     /// The name the CLI uses.
     pub fn name(self) -> &'static str {
@@ -49,6 +56,7 @@ impl Mode {
             Mode::SingleScatter => "scatter",
             Mode::DeltaTracking => "delta",
             Mode::Reference => "reference",
+            Mode::Lit => "lit",
         }
     }
     pub fn parse(s: &str) -> Option<Mode> {
@@ -110,6 +118,14 @@ pub struct RenderSettings {
     /// Blackbody emission of the rendered grid read as Kelvin (the shaded modes: `Density`,
     /// `SingleScatter`, `DeltaTracking`, `Reference`).
     pub emission: Option<crate::Emission>,
+    /// Light-volume resolution of `Lit`: cells along the longest side of the frame's content
+    /// box (cubic cells; the other sides in proportion).
+    pub light_res: u32,
+    /// Multiple-scattering octaves of `Lit` (1: single scattering through the light volume).
+    pub ms_octaves: u32,
+    /// Octave `i` of `Lit` scales the scattering by `a^i`, the extinction toward the lights by
+    /// `b^i` and the phase asymmetry by `c^i`: `[a, b, c]`, each in `[0, 1]`.
+    pub ms: [f32; 3],
 }
 
 impl Default for RenderSettings {
@@ -137,6 +153,9 @@ impl Default for RenderSettings {
             phase_w: 0.8,
             bounces: 256,
             emission: None,
+            light_res: 64,
+            ms_octaves: 4,
+            ms: [0.5, 0.5, 0.5],
         }
     }
 }
@@ -149,6 +168,10 @@ pub const MIN_STEP: f32 = 1e-3;
 pub const MAX_SPP: u32 = 1 << 16;
 /// Largest `|g|` of a phase lobe (closer to 1 the lobe is a near-delta no sampler resolves).
 pub const MAX_PHASE_G: f32 = 0.99;
+/// Largest light-volume resolution accepted (cells along the longest side).
+pub const MAX_LIGHT_RES: u32 = 256;
+/// Most multiple-scattering octaves accepted.
+pub const MAX_MS_OCTAVES: u32 = 8;
 /// Most scattering events per `Reference` path accepted.
 pub const MAX_BOUNCES: u32 = 1 << 12;
 
@@ -242,13 +265,32 @@ impl RenderSettings {
         if self.bounces == 0 || self.bounces > MAX_BOUNCES {
             return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
         }
+        if !(2..=MAX_LIGHT_RES).contains(&self.light_res) {
+            return bad(format!(
+                "light-res = {} (2..={MAX_LIGHT_RES})",
+                self.light_res
+            ));
+        }
+        if !(1..=MAX_MS_OCTAVES).contains(&self.ms_octaves) {
+            return bad(format!(
+                "ms-octaves = {} (1..={MAX_MS_OCTAVES})",
+                self.ms_octaves
+            ));
+        }
+        if self.ms.iter().any(|v| !(0.0..=1.0).contains(v)) {
+            return bad(format!("ms {:?} (each in 0..=1)", self.ms));
+        }
         if let Some(e) = self.emission {
             if !matches!(
                 self.mode,
-                Mode::Density | Mode::SingleScatter | Mode::DeltaTracking | Mode::Reference
+                Mode::Density
+                    | Mode::SingleScatter
+                    | Mode::DeltaTracking
+                    | Mode::Reference
+                    | Mode::Lit
             ) {
                 return bad(format!(
-                    "emission is drawn by the shaded modes (density, scatter, delta, reference), not {}",
+                    "emission is drawn by the shaded modes (density, scatter, delta, reference, lit), not {}",
                     self.mode.name()
                 ));
             }

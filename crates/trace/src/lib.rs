@@ -93,6 +93,11 @@
 //!   `throughput · E / μ̄` at each tentative collision (majorant at least `1/step` where a
 //!   span can emit). Unbiased except: at most `bounces` scattering events and
 //!   2¹⁶ tentative collisions per flight (then absorbed), shadow weights below 1e-6 end as 0.
+//! - **Lit** (module `lit`, the game-speed approximation of Reference: same medium, sun, sky,
+//!   phase): a light volume of optical depths toward the sun and the sky, then a jittered
+//!   fixed-step march with per-step energy-conserving integration and octaves of multiple
+//!   scattering; the `lit` module docs define it exactly. rgb = `L` (premultiplied), alpha
+//!   `1 − T`, value `T`.
 //!
 //! `step`, `shadow_step`, `cutoff` and `gain` follow `vdb_render`'s `-step`, `-shadowstep`,
 //! `-cutoff` and `-gain` (defaults 1, 3, 0.005, 0.2; `absorb` 0.1, `scatter` 1.5, light
@@ -107,6 +112,7 @@ mod dda;
 mod delta;
 mod exact;
 mod image;
+mod lit;
 mod reference;
 mod render;
 mod rng;
@@ -124,6 +130,7 @@ pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
 pub use image::Image;
+pub use lit::{light_dirs, lit_jitter, sky_depth, LightVolume, LIT_MAX_SKY_DEPTH, LIT_MIN_TRANS};
 pub use reference::phase;
 pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng, Rng64};

@@ -8,6 +8,7 @@ use vdbcook_asset::Asset;
 use crate::color::{brick_color, heat, STEPS_FULL_SCALE};
 use crate::delta::{Path, MAX_EVENTS};
 use crate::exact::{Density, FirstHit};
+use crate::lit::{LightVolume, LitMarch};
 use crate::rng::{Rng, Rng64};
 use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
 use crate::space::IndexRay;
@@ -55,6 +56,8 @@ pub struct Tracer<'a> {
     pub value_max: f32,
     /// The blackbody table of `settings.emission`'s range.
     pub(crate) emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
+    /// The light volume of `Mode::Lit` (built in `new`; `None` in the other modes).
+    pub(crate) light: Option<LightVolume>,
 }
 
 impl<'a> Tracer<'a> {
@@ -81,6 +84,8 @@ impl<'a> Tracer<'a> {
         let bbox = stored_bbox(asset, settings.frame).unwrap_or(([0.0; 3], ext));
         let depth_range = depth_range(&xf, bbox, camera.eye);
         let value_max = asset.frame_ranges[settings.frame][1];
+        let light = (settings.mode == Mode::Lit)
+            .then(|| LightVolume::build(asset, settings.frame, &xf, settings, extinction));
         Ok(Tracer {
             grid: Grid::new(asset, settings.frame),
             settings: settings.clone(),
@@ -95,7 +100,13 @@ impl<'a> Tracer<'a> {
                 .emission
                 .map(|e| blackbody_table(e.range))
                 .unwrap_or([[0.0; 4]; BLACKBODY_TABLE_LEN]),
+            light,
         })
+    }
+
+    /// The light volume (`Mode::Lit` only).
+    pub fn light_volume(&self) -> Option<&LightVolume> {
+        self.light.as_ref()
     }
 
     pub(crate) fn voxel_units(&self) -> bool {
@@ -283,6 +294,19 @@ impl<'a> Tracer<'a> {
                 Sample {
                     rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
                     value: trans as f32,
+                    steps: 0,
+                }
+            }
+            Mode::Lit => {
+                let (Some((t0, t1)), Some(lv)) = (clip, self.light.as_ref()) else {
+                    return miss(1.0, 0.0);
+                };
+                let mut v = LitMarch::new(self, lv, ray, dir, pixel);
+                walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
+                let c = [0, 1, 2].map(|i| (v.rad[i] + v.emit[i]) as f32);
+                Sample {
+                    rgba: [c[0], c[1], c[2], (1.0 - v.trans) as f32],
+                    value: v.trans as f32,
                     steps: 0,
                 }
             }

@@ -1,0 +1,132 @@
+//! The light volume's grid (mode `Lit`): where its cells lie, how a point is looked up in it,
+//! and the octave weights of the multiple-scattering approximation. Defined once, here, so the
+//! CPU tracer (`vdbcook-trace`'s `lit` module) and the GPU pass (`shaders/light.wgsl`) build
+//! and read the same volume.
+//!
+//! Layout of a light volume over `dims` cells: cell `(x, y, z)` is element
+//! `x + dims[0]·(y + dims[1]·z)`; cell `c` covers the cell-space box
+//! `lo + c·cell .. lo + (c + 1)·cell` and its value sits at the centre. Lookups are trilinear
+//! between centres and clamp to the outermost centres (the medium outside the content box is
+//! empty, so nothing is shaded there).
+
+/// Where a light volume's cells lie (cell space: voxel `i` is `[i, i + 1)`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightGrid {
+    /// Corner of cell `(0, 0, 0)`.
+    pub lo: [f64; 3],
+    /// Cell edge in voxels (cubic cells).
+    pub cell: f64,
+    /// Cells per axis, each `1..=res`.
+    pub dims: [u32; 3],
+    /// Sample points per axis per cell of the density pass (`sub³` nearest-voxel reads are
+    /// averaged into a cell's density): `clamp(ceil(cell), 1, MAX_SUB)`.
+    pub sub: u32,
+}
+
+/// Most density sample points per cell axis.
+pub const MAX_SUB: u32 = 4;
+
+impl LightGrid {
+    /// `res` cells along the longest side of `content` (a `[lo, hi)` cell-space box; `None`:
+    /// one unit cell at the origin, as nothing is drawn).
+    pub fn new(content: Option<([f64; 3], [f64; 3])>, res: u32) -> LightGrid {
+        let Some((lo, hi)) = content.filter(|(lo, hi)| (0..3).all(|a| hi[a] > lo[a])) else {
+            return LightGrid {
+                lo: [0.0; 3],
+                cell: 1.0,
+                dims: [1; 3],
+                sub: 1,
+            };
+        };
+        let res = res.max(1);
+        let side = [0, 1, 2].map(|a| hi[a] - lo[a]);
+        let cell = side.iter().fold(0.0f64, |m, &s| m.max(s)) / res as f64;
+        let dims = side.map(|s| ((s / cell).ceil() as u32).clamp(1, res));
+        LightGrid {
+            lo,
+            cell,
+            dims,
+            sub: (cell.ceil() as u32).clamp(1, MAX_SUB),
+        }
+    }
+
+    pub fn cells(&self) -> usize {
+        self.dims.iter().map(|&d| d as usize).product()
+    }
+
+    /// The element of cell `c`.
+    pub fn index(&self, c: [u32; 3]) -> usize {
+        c[0] as usize
+            + self.dims[0] as usize * (c[1] as usize + self.dims[1] as usize * c[2] as usize)
+    }
+
+    /// Centre of cell `c`.
+    pub fn centre(&self, c: [u32; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.lo[a] + (c[a] as f64 + 0.5) * self.cell)
+    }
+
+    /// The eight elements and weights of the trilinear lookup at cell-space point `p`.
+    pub fn taps(&self, p: [f64; 3]) -> [(usize, f64); 8] {
+        let mut i0 = [0u32; 3];
+        let mut i1 = [0u32; 3];
+        let mut f = [0.0f64; 3];
+        for a in 0..3 {
+            let top = (self.dims[a] - 1) as f64;
+            let u = ((p[a] - self.lo[a]) / self.cell - 0.5).clamp(0.0, top);
+            let u = if u.is_nan() { 0.0 } else { u };
+            let base = u.floor().min((top - 1.0).max(0.0));
+            i0[a] = base as u32;
+            i1[a] = (base as u32 + 1).min(self.dims[a] - 1);
+            f[a] = u - base;
+        }
+        let mut out = [(0usize, 0.0f64); 8];
+        for (k, o) in out.iter_mut().enumerate() {
+            let pick = |a: usize| {
+                if k >> a & 1 == 0 {
+                    (i0[a], 1.0 - f[a])
+                } else {
+                    (i1[a], f[a])
+                }
+            };
+            let (x, wx) = pick(0);
+            let (y, wy) = pick(1);
+            let (z, wz) = pick(2);
+            *o = (self.index([x, y, z]), wx * wy * wz);
+        }
+        out
+    }
+
+    /// Distance along unit cell-space direction `d` from `p` (inside) to the grid's far side.
+    pub fn exit(&self, p: [f64; 3], d: [f64; 3]) -> f64 {
+        let mut t = f64::INFINITY;
+        for a in 0..3 {
+            let hi = self.lo[a] + self.dims[a] as f64 * self.cell;
+            if d[a] > 0.0 {
+                t = t.min((hi - p[a]) / d[a]);
+            } else if d[a] < 0.0 {
+                t = t.min((self.lo[a] - p[a]) / d[a]);
+            }
+        }
+        t.max(0.0)
+    }
+}
+
+/// The multiple-scattering source of `Lit` for one light, relative to its single-scattering
+/// term: octave 0 is single scattering, `phase[0]·e^{−x}`; octave `i ≥ 1` adds
+/// `a^i·phase[i]·(e^{−b^i·x} − e^{−x})`, light the medium took out of the direct beam
+/// (`1 − e^{−x}`) and brought back along a path whose extinction is scaled by `b^i`. At `x = 0`
+/// only single scattering is left (a thin wisp is not brightened), and a thick core keeps the
+/// light that octaves of reduced extinction bring in. `x` is the optical depth toward the
+/// light (extinction included), `phase[i]` the phase of octave `i` (the sky's: 1).
+pub fn octave_source(x: f64, ms: [f32; 3], octaves: u32, phase: impl Fn(u32) -> f64) -> f64 {
+    let direct = (-x).exp();
+    let mut s = phase(0) * direct;
+    let (a, b) = (ms[0] as f64, ms[1] as f64);
+    let (mut ai, mut bi) = (1.0f64, 1.0f64);
+    for i in 1..octaves {
+        ai *= a;
+        bi *= b;
+        s += ai * phase(i) * ((-bi * x).exp() - direct);
+    }
+    s
+}

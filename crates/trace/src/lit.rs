@@ -1,0 +1,298 @@
+//! `Mode::Lit`: the game-speed approximation of the reference (same medium, sun, sky and
+//! phase), as the GPU runs it (`shaders/light.wgsl`, `trace.wgsl`'s `lit_primary`).
+//!
+//! 1. **Light volume**, once per frame and light (`LightVolume::build`), over
+//!    `vdbcook_scene::LightGrid` (cubic cells, `light_res` along the content box's longest side):
+//!    - density pass: a cell's density `D` is the mean of `max(v, 0)` over `sub³` nearest-voxel
+//!      reads at the centres of its `sub³` sub-cells (a box filter, so a coarse cell does not
+//!      alias the voxels it covers);
+//!    - sun pass: `τ_sun` at a cell centre is `Σ D(c + (k + ½)·h·l̂)·h` (trilinear `D`,
+//!      `h = cell/2`, `l̂` the cell-space direction toward the light) up to the grid's far side;
+//!    - sky pass: the optical depths toward the six axis directions (`cell·(D(c)/2 + Σ D beyond)`,
+//!      exact for the piecewise-constant `D`), combined into the one depth `τ_sky` whose
+//!      transmittance is their mean: `e^{−σ·τ_sky} = ⅙ Σ e^{−σ·τ_axis}` (σ the extinction).
+//!
+//!    Depths are in the settings' length unit, before the extinction; stored as f32.
+//! 2. **Primary march**: samples at `s = (k + j)·step` from the eye (`j ∈ [0, 1)` a per-pixel
+//!    jitter from `pcg_hash`, which turns banding at large steps into noise), nearest voxel
+//!    `ρ`, per-step energy-conserving integration: with `x = σ·ρ·step`, `L += T·α·S·(1 − e^{−x})`,
+//!    `T *= e^{−x}` (exact for a constant source over the step, so the image does not drift
+//!    with the step size); stops once `T < LIT_MIN_TRANS`.
+//! 3. **Source** `S = sun·Σᵢ … + sky·Σᵢ …` by `vdbcook_scene::octave_source` with the light
+//!    volume's depths at the sample (trilinear): the sun's octave `i` takes the dual-lobe phase
+//!    with both `g` scaled by `c^i` at `μ = d·l`, the sky's an isotropic phase (a uniform sky).
+//!
+//! rgba = `(L + emission, 1 − T)`, value = `T`, like the other shaded modes.
+
+#[cfg(feature = "parallel")]
+use rayon::prelude::*;
+use vdbcook_asset::Asset;
+use vdbcook_scene::{
+    content_box, length, normalize, octave_source, Affine, LengthUnit, LightGrid, RenderSettings,
+    MAX_MS_OCTAVES,
+};
+
+use crate::dda::{ceil_f64, Flow};
+use crate::exact::phi;
+use crate::reference::phase;
+use crate::space::IndexRay;
+use crate::walk::SpanSampler;
+use crate::Tracer;
+
+/// Transmittance below which a `Lit` ray stops (what is left counts as opaque).
+pub const LIT_MIN_TRANS: f64 = 1e-4;
+
+/// The light volume: per cell `(τ_sun, τ_sky)` (see the module docs).
+#[derive(Debug, Clone)]
+pub struct LightVolume {
+    pub grid: LightGrid,
+    pub density: Vec<f32>,
+    pub tau: Vec<[f32; 2]>,
+}
+
+/// The cell-space unit direction toward the light and the length (in the settings' unit) of
+/// one cell-space unit along it; the same for the six axes.
+pub fn light_dirs(xf: &Affine, s: &RenderSettings) -> (([f64; 3], f64), [f64; 3]) {
+    let voxel = s.unit == LengthUnit::Voxel;
+    let l = xf.dir_to_index(normalize(s.light_dir.map(|c| c as f64)));
+    let n = length(l);
+    let sun = (l.map(|c| c / n), if voxel { 1.0 } else { 1.0 / n });
+    let axis = [0, 1, 2].map(|a| {
+        if voxel {
+            1.0
+        } else {
+            length([xf.a[0][a], xf.a[1][a], xf.a[2][a]])
+        }
+    });
+    (sun, axis)
+}
+
+impl LightVolume {
+    /// Builds the light volume of `frame` for the settings' light and medium (`extinction`
+    /// = absorb + scatter).
+    pub fn build(
+        asset: &Asset,
+        frame: usize,
+        xf: &Affine,
+        s: &RenderSettings,
+        extinction: f64,
+    ) -> LightVolume {
+        let grid = LightGrid::new(content_box(asset, frame), s.light_res);
+        let [nx, ny, _] = grid.dims.map(|d| d as usize);
+        let slab = nx * ny;
+        let n = grid.cells();
+
+        // Density pass, one z slab per task.
+        let mut density = vec![0.0f32; n];
+        let sub = grid.sub as usize;
+        let fill = |(z, out): (usize, &mut [f32])| {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let mut sum = 0.0f64;
+                    for k in 0..sub * sub * sub {
+                        let q = [k % sub, (k / sub) % sub, k / (sub * sub)];
+                        let c = [x, y, z];
+                        let a = [0, 1, 2].map(|i| {
+                            let f = (c[i] as f64 + (q[i] as f64 + 0.5) / sub as f64) * grid.cell;
+                            (grid.lo[i] + f).floor() as i64
+                        });
+                        let v = asset.value(frame, a);
+                        if v > 0.0 {
+                            sum += v as f64;
+                        }
+                    }
+                    out[x + nx * y] = (sum / (sub * sub * sub) as f64) as f32;
+                }
+            }
+        };
+        #[cfg(feature = "parallel")]
+        density.par_chunks_mut(slab).enumerate().for_each(fill);
+        #[cfg(not(feature = "parallel"))]
+        density.chunks_mut(slab).enumerate().for_each(fill);
+
+        // Sun and sky passes.
+        let ((l, sun_len), axis_len) = light_dirs(xf, s);
+        let h = grid.cell / 2.0;
+        let d_at = |p: [f64; 3]| -> f64 {
+            grid.taps(p)
+                .iter()
+                .map(|&(i, w)| w * density[i] as f64)
+                .sum()
+        };
+        let mut tau = vec![[0.0f32; 2]; n];
+        let pass = |(z, out): (usize, &mut [[f32; 2]])| {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let c = [x as u32, y as u32, z as u32];
+                    let p = grid.centre(c);
+                    let t_exit = grid.exit(p, l);
+                    let mut sum = 0.0f64;
+                    let mut k = 0.0f64;
+                    while (k + 0.5) * h < t_exit {
+                        let t = (k + 0.5) * h;
+                        sum += d_at([0, 1, 2].map(|i| p[i] + t * l[i]));
+                        k += 1.0;
+                    }
+                    let tau_sun = sum * h * sun_len;
+                    let mut t_mean = 0.0f64;
+                    let mut tau_mean = 0.0f64;
+                    for a in 0..3 {
+                        for dir in [-1i64, 1] {
+                            let mut q = c.map(|v| v as i64);
+                            let mut acc = density[grid.index(c)] as f64 / 2.0;
+                            loop {
+                                q[a] += dir;
+                                if q[a] < 0 || q[a] >= grid.dims[a] as i64 {
+                                    break;
+                                }
+                                acc += density[grid.index(q.map(|v| v as u32))] as f64;
+                            }
+                            let t = acc * grid.cell * axis_len[a];
+                            tau_mean += t / 6.0;
+                            t_mean += (-extinction * t).exp() / 6.0;
+                        }
+                    }
+                    let tau_sky = sky_depth(t_mean, tau_mean, extinction);
+                    out[x + nx * y] = [tau_sun as f32, tau_sky as f32];
+                }
+            }
+        };
+        #[cfg(feature = "parallel")]
+        tau.par_chunks_mut(slab).enumerate().for_each(pass);
+        #[cfg(not(feature = "parallel"))]
+        tau.chunks_mut(slab).enumerate().for_each(pass);
+        LightVolume { grid, density, tau }
+    }
+
+    /// `(τ_sun, τ_sky)` at cell-space point `p` (trilinear).
+    pub fn lookup(&self, p: [f64; 3]) -> [f64; 2] {
+        let mut out = [0.0f64; 2];
+        for (i, w) in self.grid.taps(p) {
+            out[0] += w * self.tau[i][0] as f64;
+            out[1] += w * self.tau[i][1] as f64;
+        }
+        out
+    }
+}
+
+/// The depth whose transmittance is the six directions' mean transmittance `t_mean` (their
+/// mean depth `tau_mean` where there is no extinction); at most `LIT_MAX_SKY_DEPTH / σ`.
+pub fn sky_depth(t_mean: f64, tau_mean: f64, extinction: f64) -> f64 {
+    if extinction > 0.0 {
+        (-(t_mean.max((-LIT_MAX_SKY_DEPTH).exp())).ln() / extinction).max(0.0)
+    } else {
+        tau_mean
+    }
+}
+
+/// Largest sky optical depth kept (`e^{−80}` is far below what an image shows).
+pub const LIT_MAX_SKY_DEPTH: f64 = 80.0;
+
+/// The per-pixel jitter of the primary samples, in `[0, 1)` (24 bits, exact in f32).
+pub fn lit_jitter(seed: u32, pixel: u32) -> f64 {
+    (crate::pcg_hash(seed ^ crate::pcg_hash(pixel)) >> 8) as f64 / (1u32 << 24) as f64
+}
+
+/// The primary march of one `Lit` ray.
+pub(crate) struct LitMarch<'a, 't> {
+    pub tracer: &'t Tracer<'a>,
+    pub lv: &'t LightVolume,
+    pub ray: IndexRay,
+    pub jitter: f64,
+    pub trans: f64,
+    pub rad: [f64; 3],
+    pub emit: [f64; 3],
+    pub budget: u64,
+    /// The sun's phase per octave at this ray's `μ`.
+    pub sun_phase: [f64; MAX_MS_OCTAVES as usize],
+}
+
+impl<'a, 't> LitMarch<'a, 't> {
+    pub fn new(
+        tracer: &'t Tracer<'a>,
+        lv: &'t LightVolume,
+        ray: IndexRay,
+        dir: [f64; 3],
+        pixel: u32,
+    ) -> Self {
+        let s = &tracer.settings;
+        let mu = {
+            let (d, l) = (normalize(dir), normalize(s.light_dir.map(|c| c as f64)));
+            d[0] * l[0] + d[1] * l[1] + d[2] * l[2]
+        };
+        let mut sun_phase = [0.0; MAX_MS_OCTAVES as usize];
+        let mut ci = 1.0f32;
+        for p in sun_phase.iter_mut().take(s.ms_octaves as usize) {
+            *p = phase(s.phase_g.map(|g| g * ci), s.phase_w, mu);
+            ci *= s.ms[2];
+        }
+        LitMarch {
+            tracer,
+            lv,
+            ray,
+            jitter: lit_jitter(s.seed, pixel),
+            trans: 1.0,
+            rad: [0.0; 3],
+            emit: [0.0; 3],
+            budget: crate::scatter::MAX_MARCH_SAMPLES,
+            sun_phase,
+        }
+    }
+}
+
+impl SpanSampler for LitMarch<'_, '_> {
+    fn skip_max(&self, max: f32) -> bool {
+        !(max > 0.0)
+    }
+    fn sample_span(
+        &mut self,
+        ta: f64,
+        tb: f64,
+        _max: f32,
+        value: impl Fn([f64; 3]) -> f32,
+    ) -> Flow {
+        let t = self.tracer;
+        let s = &t.settings;
+        let step = s.step as f64;
+        let (ext, albedo) = (t.extinction, t.albedo);
+        let ray = self.ray;
+        let (sa, sb) = (ta * ray.per_t, tb * ray.per_t);
+        let mut k = ceil_f64(sa / step - self.jitter).max(0.0);
+        loop {
+            let sd = (k + self.jitter) * step;
+            if !(sd < sb) {
+                return Flow::Go;
+            }
+            k += 1.0;
+            if self.budget == 0 {
+                return Flow::Stop;
+            }
+            self.budget -= 1;
+            let p = ray.at(sd / ray.per_t);
+            let rho = value(p) as f64;
+            if !(rho > 0.0) {
+                continue;
+            }
+            let x = ext * rho * step;
+            let e = (-x).exp();
+            if let Some(em) = &s.emission {
+                let r = em.radiance(&t.emit_table, rho as f32);
+                let w = self.trans * step * phi(x);
+                for (a, r) in self.emit.iter_mut().zip(r) {
+                    *a += w * r as f64;
+                }
+            }
+            let [ts, tk] = self.lv.lookup(p);
+            let sun = octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]);
+            let sky = octave_source(ext * tk, s.ms, s.ms_octaves, |_| 1.0);
+            let w = self.trans * albedo * (1.0 - e);
+            for c in 0..3 {
+                self.rad[c] += w * (s.light_color[c] as f64 * sun + s.sky[c] as f64 * sky);
+            }
+            self.trans *= e;
+            if self.trans < LIT_MIN_TRANS {
+                return Flow::Stop;
+            }
+        }
+    }
+}
