@@ -556,7 +556,9 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
                 let phi = select((1.0 - e) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
                 v_emit += trans * step * phi * emit_radiance(rho);
             }
-            let tau = lit_lookup(p);
+            // The source where the step's light is scattered on average (`lit::mean_depth`).
+            let m = step * select(1.0 / x - 1.0 / (exp(x) - 1.0), 0.5 - x / 12.0, x < 1e-3);
+            let tau = lit_lookup(ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d);
             let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
             let sky = lv_octaves(ext * tau.y, ms, octaves, &sky_ph);
             rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);

@@ -116,7 +116,7 @@ pub struct Args {
     /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i.
     #[arg(long, default_value = "0.5,0.5,0.5", value_name = "A,B,C")]
     ms: String,
-    /// Blackbody emission (density, scatter, delta and reference modes): the grid's values are
+    /// Blackbody emission (density, scatter, delta, reference and lit modes): the grid's values are
     /// Kelvin; LO,HI is the range over which the glow rises as ((T − LO)/(HI − LO))⁴ to full
     /// brightness (none at or below LO), coloured by Planck's law. E.g. `--grid temperature
     /// --emission 800,2000 --absorb 0`.

@@ -1254,6 +1254,29 @@ fn emission_matches_the_cpu() {
             > cpu_sc.value.len(),
         "the scatter image glows"
     );
+    // The lit mode's emission at its samples, over its light volume.
+    let lit = RenderSettings {
+        mode: Mode::Lit,
+        ..sc.clone()
+    };
+    let cpu_lit = vdbcook_trace::render(&asset, &cam, &lit).unwrap();
+    let g_lit = gpu.render(&r, &target, &cam, &lit).unwrap();
+    let (bad, first, max_diff) = mismatches(&cpu_lit, &g_lit, Mode::Lit);
+    eprintln!("lit emission: {bad} pixels differ (max diff {max_diff:.2e}) {first}");
+    assert!(
+        bad * 1000 <= cpu_lit.value.len() * 5,
+        "{bad} pixels; {first}"
+    );
+    assert!(
+        cpu_lit
+            .rgba
+            .chunks(4)
+            .filter(|p| p[0] > 0.05 && p[0] > p[2])
+            .count()
+            * 20
+            > cpu_lit.value.len(),
+        "the lit image glows"
+    );
     // Delta tracking's collision estimator (f32 free flights on the GPU draw other tentative
     // collisions than the CPU's f64 ones): the image means per channel within 2%.
     let dl = RenderSettings {

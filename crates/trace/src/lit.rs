@@ -188,6 +188,16 @@ pub fn sky_depth(t_mean: f64, tau_mean: f64, extinction: f64) -> f64 {
 /// Largest sky optical depth kept (`e^{−80}` is far below what an image shows).
 pub const LIT_MAX_SKY_DEPTH: f64 = 80.0;
 
+/// The mean depth, as a fraction of the step, at which light entering a step of optical depth
+/// `x` is scattered (`1/x − 1/(eˣ − 1)`: ½ when thin, the mean free path when thick).
+pub fn mean_depth(x: f64) -> f64 {
+    if x < 1e-3 {
+        0.5 - x / 12.0
+    } else {
+        1.0 / x - 1.0 / x.exp_m1()
+    }
+}
+
 /// The per-pixel jitter of the primary samples, in `[0, 1)` (24 bits, exact in f32).
 pub fn lit_jitter(seed: u32, pixel: u32) -> f64 {
     (crate::pcg_hash(seed ^ crate::pcg_hash(pixel)) >> 8) as f64 / (1u32 << 24) as f64
@@ -282,7 +292,11 @@ impl SpanSampler for LitMarch<'_, '_> {
                     *a += w * r as f64;
                 }
             }
-            let [ts, tk] = self.lv.lookup(p);
+            // The source where the step's light is scattered on average: the step is the
+            // segment centred on the sample, light is scattered at depth `m` into it with
+            // density ∝ e^{−σs}.
+            let m = step * mean_depth(x);
+            let [ts, tk] = self.lv.lookup(ray.at((sd - 0.5 * step + m) / ray.per_t));
             let sun = octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]);
             let sky = octave_source(ext * tk, s.ms, s.ms_octaves, |_| 1.0);
             let w = self.trans * albedo * (1.0 - e);

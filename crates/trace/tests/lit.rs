@@ -1,0 +1,341 @@
+//! The lit mode (`Mode::Lit`) against closed forms, on the constant box the reference tests use:
+//! - its **light volume** is exact where it can be: with one-voxel cells over a constant box the
+//!   depth toward an axis-aligned sun is the distance to the box's face, the sky's depth is
+//!   `−ln(⅙ Σ e^{−κ·d_face})/κ`, and an oblique sun is within half a march step of its exit;
+//! - with one octave it is **single scattering** through that volume: the closed forms with the
+//!   sun behind the camera and ahead of it (which pins the phase convention, as for the
+//!   reference);
+//! - its per-step integration **conserves energy**: with albedo 1, a uniform sky, no sun and the
+//!   octaves set so that all light taken out of the sky's beam comes back (`ms = 1,0,·`, two
+//!   octaves) the medium disappears against the sky, `L + T·sky = sky`, at any step size;
+//! - the image does not drift with the **step size**: the mean radiance of a dense box (optical
+//!   depth 1.6 per voxel) with steps of 1, 2 and 4 voxels against ¼ voxel;
+//! - the settings it refuses.
+
+mod common;
+
+use common::*;
+use vdbcook_trace::*;
+
+const SIGMA: f32 = 1.0;
+
+fn centre() -> [f64; 3] {
+    [0, 1, 2].map(|a| (BOX_LO[a] + BOX_HI[a]) as f64 / 2.0)
+}
+
+/// A camera in front of the box (−z side) looking at its centre.
+fn camera() -> Camera {
+    let c = box_world(centre());
+    Camera {
+        eye: [c[0], c[1], c[2] - 40.0],
+        look_at: c,
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 40.0,
+    }
+}
+
+fn lit() -> RenderSettings {
+    RenderSettings {
+        mode: Mode::Lit,
+        width: 24,
+        height: 16,
+        absorb: 0.01,
+        scatter: 0.04,
+        ..Default::default()
+    }
+}
+
+/// A constant box on whole leaves (the content box, and so the light grid, is leaf-granular).
+const ALIGNED_LO: [i64; 3] = [104, 8, 24];
+const ALIGNED_HI: [i64; 3] = [152, 40, 56];
+
+fn aligned_box() -> vdbcook_asset::Asset {
+    let mut f = FrameSpec::default();
+    box_leaves(ALIGNED_LO, ALIGNED_HI, SIGMA, &mut f.leaves);
+    let xf = [
+        [BOX_S, 0.0, 0.0, BOX_T[0]],
+        [0.0, BOX_S, 0.0, BOX_T[1]],
+        [0.0, 0.0, BOX_S, BOX_T[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    build([2, 1, 1], xf, 0.0, &[f], vdbcook_asset::PayloadFormat::F32)
+}
+
+/// The light volume of `s` over the aligned box.
+fn light_volume(s: &RenderSettings) -> LightVolume {
+    let asset = aligned_box();
+    let t = Tracer::new(&asset, &camera(), s).unwrap();
+    t.light_volume().expect("lit builds a light volume").clone()
+}
+
+#[test]
+fn light_volume_depths_are_exact_in_a_constant_box() {
+    let side = [0, 1, 2].map(|a| (ALIGNED_HI[a] - ALIGNED_LO[a]) as f64);
+    // One-voxel cells: the longest side (x) is 48 voxels.
+    for unit in [LengthUnit::Voxel, LengthUnit::World] {
+        let per = if unit == LengthUnit::World {
+            BOX_S
+        } else {
+            1.0
+        };
+        let s = RenderSettings {
+            light_res: 48,
+            light_dir: [0.0, 1.0, 0.0],
+            unit,
+            ..lit()
+        };
+        let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
+        let lv = light_volume(&s);
+        assert_eq!(lv.grid.dims, side.map(|s| s as u32));
+        assert_eq!(lv.grid.cell, 1.0);
+        let mut worst = [0.0f64; 2];
+        for z in 0..lv.grid.dims[2] {
+            for y in 0..lv.grid.dims[1] {
+                for x in 0..lv.grid.dims[0] {
+                    let c = [x, y, z];
+                    let i = lv.grid.index(c);
+                    assert_eq!(lv.density[i], SIGMA, "cell {c:?} density");
+                    // Distances (voxels) from the centre to the six faces.
+                    let d = [0, 1, 2].map(|a| [c[a] as f64 + 0.5, side[a] - c[a] as f64 - 0.5]);
+                    let want_sun = d[1][1] * SIGMA as f64 * per;
+                    let mean_t = d
+                        .iter()
+                        .flatten()
+                        .map(|&f| (-kappa * f * per).exp() / 6.0)
+                        .sum::<f64>();
+                    let want_sky = -mean_t.ln() / kappa;
+                    let [sun, sky] = lv.tau[i].map(|v| v as f64);
+                    worst[0] = worst[0].max((sun - want_sun).abs() / want_sun);
+                    worst[1] = worst[1].max((sky - want_sky).abs() / want_sky);
+                }
+            }
+        }
+        // f32 storage: a few ulps.
+        assert!(
+            worst[0] < 1e-6 && worst[1] < 1e-5,
+            "{unit:?}: worst relative {worst:?}"
+        );
+    }
+
+    // An oblique sun: the depth is the path to the box's far side, to half a march step.
+    let s = RenderSettings {
+        light_res: 48,
+        light_dir: [0.4, 1.0, -0.3],
+        ..lit()
+    };
+    let lv = light_volume(&s);
+    let l = normalize([0.4, 1.0, -0.3]);
+    let mut worst = 0.0f64;
+    for (i, tau) in lv.tau.iter().enumerate() {
+        let n = lv.grid.dims.map(|d| d as usize);
+        let c = [i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])].map(|v| v as u32);
+        let p = lv.grid.centre(c);
+        let exit = slab_length(
+            p,
+            l,
+            ALIGNED_LO.map(|v| v as f64),
+            ALIGNED_HI.map(|v| v as f64),
+        );
+        worst = worst.max((tau[0] as f64 - exit * SIGMA as f64).abs());
+    }
+    assert!(
+        worst <= 0.25 + 1e-4,
+        "oblique sun: worst error {worst} voxels (half step 0.25)"
+    );
+}
+
+fn hg(g: f64, mu: f64) -> f64 {
+    (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
+}
+
+/// The mean radiance over the box's face seen along +z, with one octave, the sun along `l`.
+fn single(g: f32, l: [f32; 3], step: f32) -> (f64, RenderSettings) {
+    let asset = constant_box(SIGMA);
+    let s = RenderSettings {
+        light_dir: l,
+        light_color: [2.0; 3],
+        sky: [0.0; 3],
+        phase_g: [g, g],
+        phase_w: 1.0,
+        ms_octaves: 1,
+        light_res: 50,
+        step,
+        ..lit()
+    };
+    let cam = camera();
+    let tracer = Tracer::new(&asset, &cam, &s).unwrap();
+    // Rays through the box's middle along +z, each with its own jitter.
+    let n = 64;
+    let mean = (0..n)
+        .map(|pixel| {
+            let px = tracer.trace(cam.eye, [0.0, 0.0, 1.0], pixel, &mut Scratch::default());
+            px.rgba[0] as f64
+        })
+        .sum::<f64>()
+        / n as f64;
+    (mean, s)
+}
+
+#[test]
+fn one_octave_is_single_scattering_with_the_reference_phase_convention() {
+    let depth = (BOX_HI[2] - BOX_LO[2]) as f64;
+    for g in [0.0f32, 0.5, -0.5] {
+        // Sun behind the camera: scattering cosine −1, shadow path from depth s is s.
+        let (got, s) = single(g, [0.0, 0.0, -1.0], 0.5);
+        let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
+        let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
+        let e = s.light_color[0] as f64;
+        let want = albedo * hg(g as f64, -1.0) * e * (1.0 - (-2.0 * kappa * depth).exp()) / 2.0;
+        assert!(
+            (got - want).abs() < 0.02 * want,
+            "g {g}, sun behind: {got} want {want}"
+        );
+        // Sun ahead: cosine +1, shadow path D − s.
+        let (got, _) = single(g, [0.0, 0.0, 1.0], 0.5);
+        let want = albedo * hg(g as f64, 1.0) * e * kappa * depth * (-kappa * depth).exp();
+        assert!(
+            (got - want).abs() < 0.02 * want,
+            "g {g}, sun ahead: {got} want {want}"
+        );
+    }
+}
+
+#[test]
+fn per_step_integration_conserves_energy_white_furnace() {
+    let asset = constant_box(SIGMA);
+    let sky = [0.3f32, 0.5, 0.9];
+    for step in [0.25f32, 1.0, 7.0] {
+        // Albedo 1, κ = 0.3 per voxel: optical depth 10 through the box.
+        let s = RenderSettings {
+            absorb: 0.0,
+            scatter: 0.3,
+            light_color: [0.0; 3],
+            sky,
+            ms_octaves: 2,
+            ms: [1.0, 0.0, 0.5],
+            step,
+            ..lit()
+        };
+        let img = render(&asset, &camera(), &s).unwrap();
+        let mut covered = 0;
+        for (k, px) in img.rgba.chunks_exact(4).enumerate() {
+            let t = img.value[k];
+            covered += (t < 0.5) as usize;
+            for c in 0..3 {
+                let total = px[c] + t * sky[c];
+                assert!(
+                    (total - sky[c]).abs() <= 1e-5,
+                    "step {step} pixel {k} channel {c}: L + T·sky = {total}, sky {}",
+                    sky[c]
+                );
+            }
+        }
+        assert!(
+            covered > 100,
+            "the box covers the picture ({covered} pixels)"
+        );
+        // With the default octaves the light taken out of the sky's beam is not all returned:
+        // the medium shows against the sky (a measured property of the approximation).
+        let d = render(
+            &asset,
+            &camera(),
+            &RenderSettings {
+                ms_octaves: 4,
+                ms: [0.5, 0.5, 0.5],
+                ..s.clone()
+            },
+        )
+        .unwrap();
+        let lost = d
+            .rgba
+            .chunks_exact(4)
+            .zip(&d.value)
+            .filter(|(px, t)| **t < 0.5 && px[2] + **t * sky[2] < 0.95 * sky[2])
+            .count();
+        assert!(
+            lost > 100,
+            "default octaves keep all the energy? ({lost} pixels lose > 5%)"
+        );
+    }
+}
+
+#[test]
+fn the_image_does_not_drift_with_the_step_size() {
+    let asset = constant_box(SIGMA);
+    // Dense: κ = 1.6 per voxel (the default medium), so a 4-voxel step has optical depth 6.4.
+    let base = RenderSettings {
+        absorb: 0.1,
+        scatter: 1.5,
+        light_res: 25,
+        ..lit()
+    };
+    let img = |step: f32| {
+        let s = RenderSettings {
+            step,
+            ..base.clone()
+        };
+        render(&asset, &camera(), &s).unwrap()
+    };
+    let fine = img(0.25);
+    // The mean radiance of the pixels the box covers: per-pixel values differ by the jitter's
+    // noise (another sample grid per step size), the mean must not drift.
+    let covered: Vec<bool> = fine.value.iter().map(|t| *t < 0.5).collect();
+    let mean = |img: &Image| {
+        let (mut sum, mut n) = (0.0f64, 0usize);
+        for (px, c) in img.rgba.chunks_exact(4).zip(&covered) {
+            if *c {
+                sum += px[..3].iter().map(|&v| v as f64).sum::<f64>();
+                n += 1;
+            }
+        }
+        (sum / n.max(1) as f64, n)
+    };
+    let (a, n) = mean(&fine);
+    assert!(n > 100, "covered pixels {n}");
+    // The tolerance grows with a step's optical depth (1.6 per voxel here): a hard edge falls
+    // anywhere inside a coarse step, and the source is read at one point of it.
+    for (step, tol) in [(1.0f32, 0.02), (2.0, 0.04), (4.0, 0.08)] {
+        let (b, _) = mean(&img(step));
+        let drift = (b / a - 1.0).abs();
+        eprintln!("step {step} against 1/4: mean radiance {b} against {a} (drift {drift:.4})");
+        assert!(
+            drift < tol,
+            "step {step} against 1/4: mean radiance {b} against {a}"
+        );
+    }
+}
+
+#[test]
+fn lit_settings_out_of_range_are_refused() {
+    let asset = constant_box(SIGMA);
+    let ok = lit();
+    for bad in [
+        RenderSettings {
+            light_res: 1,
+            ..ok.clone()
+        },
+        RenderSettings {
+            light_res: MAX_LIGHT_RES + 1,
+            ..ok.clone()
+        },
+        RenderSettings {
+            ms_octaves: 0,
+            ..ok.clone()
+        },
+        RenderSettings {
+            ms_octaves: MAX_MS_OCTAVES + 1,
+            ..ok.clone()
+        },
+        RenderSettings {
+            ms: [0.5, 1.5, 0.5],
+            ..ok.clone()
+        },
+        RenderSettings {
+            ms: [f32::NAN, 0.5, 0.5],
+            ..ok.clone()
+        },
+    ] {
+        let e = render(&asset, &camera(), &bad).unwrap_err();
+        assert!(matches!(e, TraceError::Setting(_)), "{e}");
+    }
+}
