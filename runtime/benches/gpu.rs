@@ -1,5 +1,5 @@
-//! GPU time of one render per mode (`VDBCOOK_BENCH_MODES`, default `density,scatter`; any of
-//! the tracer's mode names) from the default view at 640×360 and 1920×1080, measured with
+//! GPU time of one render per mode (`VDBCOOK_BENCH_MODES`, default `density,scatter,lit`; any
+//! of the tracer's mode names; `lit` twice: with its light volume cached, and rebuilt per render) from the default view at 640×360 and 1920×1080, measured with
 //! timestamp queries (`vdbcook_runtime::GpuTimer`) around the runtime's compute pass: median of
 //! RUNS (after one warm-up), plus the CPU wall time of submit-and-wait. Without
 //! `TIMESTAMP_QUERY` only the wall time is printed. The results: `docs/rendering.md`.
@@ -81,7 +81,7 @@ fn main() {
 
     let timer = GpuTimer::new(&device, &queue);
     let modes: Vec<Mode> = std::env::var("VDBCOOK_BENCH_MODES")
-        .unwrap_or_else(|_| "density,scatter".into())
+        .unwrap_or_else(|_| "density,scatter,lit".into())
         .split(',')
         .map(|m| Mode::parse(m.trim()).unwrap_or_else(|| panic!("unknown mode {m}")))
         .collect();
@@ -149,13 +149,24 @@ fn main() {
             // 2026-11-23), so figures stay comparable with those in docs/.
             let camera = Camera::framing_box(volume.index_to_world(), bbox, w as f64 / h as f64)
                 .expect("camera");
-            for &mode in &modes {
-                let settings = Settings {
-                    mode,
-                    ..Default::default()
+            // The lit mode twice: its light volume cached (a still frame and light), and
+            // rebuilt on every render (the light moves a little: a playing flip-book).
+            let variants = modes.iter().flat_map(|&m| {
+                let rebuild = if m == Mode::Lit {
+                    vec![false, true]
+                } else {
+                    vec![false]
                 };
+                rebuild.into_iter().map(move |r| (m, r))
+            });
+            for (mode, rebuild) in variants {
                 let (mut gpu, mut wall) = (Vec::new(), Vec::new());
                 for run in 0..=RUNS {
+                    let settings = Settings {
+                        mode,
+                        light_dir: [0.3, 0.3, if rebuild { 1e-3 * run as f32 } else { 0.0 }],
+                        ..Default::default()
+                    };
                     let start = Instant::now();
                     let mut encoder = device.create_command_encoder(&Default::default());
                     if let Some(t) = &timer {
@@ -183,9 +194,13 @@ fn main() {
                 } else {
                     format!("{:.1}", median(gpu))
                 };
+                let what = if rebuild {
+                    format!("{} + light volume", mode.name())
+                } else {
+                    mode.name().to_string()
+                };
                 println!(
-                    "| {name} | {layout_name} | {payload_bytes} | {w}×{h} | {} | {g} | {:.1} |",
-                    mode.name(),
+                    "| {name} | {layout_name} | {payload_bytes} | {w}×{h} | {what} | {g} | {:.1} |",
                     median(wall)
                 );
             }
