@@ -113,8 +113,9 @@ pub struct Args {
     #[arg(long, default_value_t = 4)]
     ms_octaves: u32,
     /// Octave falloff of the lit mode's multiple scattering A,B,C: octave i scales the
-    /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i.
-    #[arg(long, default_value = "0.5,0.5,0.5", value_name = "A,B,C")]
+    /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i
+    /// (the default is fitted to the reference mode on three clouds: docs/rendering.md).
+    #[arg(long, default_value = "0.9,0.6,0.1", value_name = "A,B,C")]
     ms: String,
     /// Blackbody emission (density, scatter, delta, reference and lit modes): the grid's values are
     /// Kelvin; LO,HI is the range over which the glow rises as ((T − LO)/(HI − LO))⁴ to full

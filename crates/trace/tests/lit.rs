@@ -234,27 +234,39 @@ fn per_step_integration_conserves_energy_white_furnace() {
             covered > 100,
             "the box covers the picture ({covered} pixels)"
         );
-        // With the default octaves the light taken out of the sky's beam is not all returned:
-        // the medium shows against the sky (a measured property of the approximation).
+        // The default octaves (fitted to the reference's images, not to conservation) do not
+        // return exactly what they take out of the sky's beam: the medium shows against the
+        // sky (a measured property of the approximation, `docs/rendering.md`).
+        let defaults = RenderSettings::default();
         let d = render(
             &asset,
             &camera(),
             &RenderSettings {
-                ms_octaves: 4,
-                ms: [0.5, 0.5, 0.5],
+                ms_octaves: defaults.ms_octaves,
+                ms: defaults.ms,
                 ..s.clone()
             },
         )
         .unwrap();
-        let lost = d
-            .rgba
-            .chunks_exact(4)
-            .zip(&d.value)
-            .filter(|(px, t)| **t < 0.5 && px[2] + **t * sky[2] < 0.95 * sky[2])
-            .count();
+        let (mut worst, mut sum, mut n) = (0.0f32, 0.0f32, 0);
+        for (px, t) in d.rgba.chunks_exact(4).zip(&d.value) {
+            if *t < 0.5 {
+                let e = (px[2] + t * sky[2]) / sky[2] - 1.0;
+                worst = if e.abs() > worst.abs() { e } else { worst };
+                sum += e;
+                n += 1;
+            }
+        }
+        let mean = sum / n as f32;
+        eprintln!("step {step}: default octaves, furnace error worst {worst:+.4}, mean {mean:+.4}");
+        // Measured: worst −0.16 … −0.34 (at a step of 7 voxels), mean −0.05 … −0.06.
         assert!(
-            lost > 100,
-            "default octaves keep all the energy? ({lost} pixels lose > 5%)"
+            worst < -0.05,
+            "the default octaves conserve energy? (worst {worst})"
+        );
+        assert!(
+            mean.abs() < 0.1,
+            "the default octaves lose {mean} on average"
         );
     }
 }
