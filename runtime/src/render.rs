@@ -315,6 +315,14 @@ impl Renderer {
         Ok(())
     }
 
+    /// Makes the next lit render rebuild its light volume. The renderer records the light-volume
+    /// pass only when the frame, the light, the medium or the grid changed since the last lit
+    /// render it recorded, assuming that recording was submitted: call this after dropping an
+    /// encoder that held a lit render without submitting it.
+    pub fn invalidate_light_volume(&self) {
+        self.light.invalidate();
+    }
+
     /// The texture format this renderer writes.
     pub fn format(&self) -> wgpu::TextureFormat {
         self.format
@@ -419,7 +427,11 @@ impl Renderer {
         })
     }
 
-    /// Renders `frame` into a texture target.
+    /// Renders `frame` into a texture target. The lit mode first records its light-volume pass
+    /// into `encoder` when the frame, the light or the medium changed (the first lit render
+    /// also makes the light volume's buffers, grown when a larger grid needs them). As with the
+    /// parameter uniform, one render per submission: a second render recorded into the same
+    /// encoder overwrites the first one's uniforms.
     pub fn render(
         &self,
         queue: &wgpu::Queue,

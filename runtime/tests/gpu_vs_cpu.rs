@@ -1306,3 +1306,51 @@ fn emission_matches_the_cpu() {
         .count();
     assert!(glowing * 20 > cpu.value.len(), "only {glowing} warm pixels");
 }
+
+/// The renderer records the lit mode's light-volume pass only when the frame, the light or the
+/// medium changed: every render of a sequence that switches them back and forth matches the CPU
+/// (a stale light volume would light frame 1 with frame 0's shadows, or with the old sun).
+#[test]
+fn lit_light_volume_follows_the_frame_and_the_light() {
+    let Some(gpu) = Gpu::new("lit_light_volume_follows_the_frame_and_the_light") else {
+        return;
+    };
+    let asset = blob_asset(PayloadFormat::F32);
+    let (_vol, r) = gpu.setup(&asset);
+    let target = r.buffer_target(&gpu.device, W, H).unwrap();
+    let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let sun_a = [0.3, 0.3, 0.0];
+    let sun_b = [-0.5, 0.2, 0.6];
+    let mut last: Option<Vec<f32>> = None;
+    for (frame, sun, scatter) in [
+        (0, sun_a, 1.5),
+        (1, sun_a, 1.5),
+        (1, sun_b, 1.5),
+        (1, sun_b, 0.5),
+        (0, sun_a, 1.5),
+    ] {
+        let s = RenderSettings {
+            light_dir: sun,
+            scatter,
+            ..small(Mode::Lit, frame)
+        };
+        let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
+        let g = gpu.render(&r, &target, &cam, &s).unwrap();
+        let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+        eprintln!("frame {frame} sun {sun:?} scatter {scatter}: {bad} differ (max {max_diff:.2e}) {first}");
+        assert!(bad * 1000 <= cpu.value.len() * 5, "{bad} pixels; {first}");
+        // Each step changes the image (the test would not see a stale volume otherwise).
+        if let Some(prev) = &last {
+            let changed = prev
+                .iter()
+                .zip(&g.rgba)
+                .filter(|(a, b)| (*a - *b).abs() > 1e-2)
+                .count();
+            assert!(
+                changed > 100,
+                "frame {frame} sun {sun:?}: only {changed} values changed"
+            );
+        }
+        last = Some(g.rgba);
+    }
+}
