@@ -19,7 +19,7 @@ use std::path::PathBuf;
 use crate::errors::CliError;
 
 /// The modes `m` cycles through (the runtime tracer's, `vdbcook_runtime::GPU_MODES`).
-pub const MODE_NAMES: [&str; 7] = [
+pub const MODE_NAMES: [&str; 8] = [
     "density",
     "depth",
     "first-hit",
@@ -27,6 +27,7 @@ pub const MODE_NAMES: [&str; 7] = [
     "steps",
     "scatter",
     "delta",
+    "lit",
 ];
 
 /// Degrees the headless path orbits the camera (about the vertical axis) per rendered frame.
@@ -499,7 +500,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 emission: self.settings.emission.filter(|_| {
                     matches!(
                         mode,
-                        Mode::Density | Mode::SingleScatter | Mode::DeltaTracking
+                        Mode::Density | Mode::SingleScatter | Mode::DeltaTracking | Mode::Lit
                     )
                 }),
                 ..self.settings.clone()

@@ -23,6 +23,7 @@ fn every_mode_renders_a_png_of_the_asked_size() {
         "scatter",
         "delta",
         "reference",
+        "lit",
     ] {
         let out = dir.path().join(format!("{mode}.png"));
         let (code, stdout, err) = vdbcook(&[
@@ -122,6 +123,9 @@ fn render_json_reports_settings_camera_and_timing() {
         "phase_g",
         "phase_w",
         "bounces",
+        "light_res",
+        "ms_octaves",
+        "ms",
     ] {
         assert!(!doc["settings"][k].is_null(), "missing settings.{k}");
     }
@@ -133,7 +137,7 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let out = dir.path().join("x.png").display().to_string();
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 11] = [
         (&["--frame", "5"], "frame 5"),
         (&["--camera", "1,2,3"], "--camera takes 7 numbers"),
         (&["--step", "0"], "step"),
@@ -145,6 +149,9 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         ),
         (&["--mode", "reference", "--sky", "1,1"], "--sky takes 3"),
         (&["--mode", "reference", "--bounces", "0"], "bounces"),
+        (&["--mode", "lit", "--light-res", "1"], "light-res"),
+        (&["--mode", "lit", "--ms-octaves", "9"], "ms-octaves"),
+        (&["--mode", "lit", "--ms", "0.5,0.5"], "--ms takes A,B,C"),
     ];
     for (extra, want) in cases {
         let mut args = vec!["render", asset.as_str(), "-o", out.as_str()];

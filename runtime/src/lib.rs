@@ -20,7 +20,9 @@
 //! implemented ([`GPU_MODES`]): density, depth, first-hit density, brick hue, steps, single
 //! scatter (the shadow march is a second bounded walk: WGSL has no recursion) and delta tracking
 //! (the CPU's PCG stream per (seed, pixel, sample), so the images agree statistically; f32 free
-//! flights make a few paths branch differently from the CPU's f64 ones).
+//! flights make a few paths branch differently from the CPU's f64 ones), and lit (a light-volume
+//! pass, `shaders/light_build.wgsl`, recorded ahead of the trace when the frame, the light or
+//! the medium changed; the march reads it through group 3).
 //!
 //! Brick payload on the GPU (see [`PayloadLayout`], [`Layout`] and `upload.rs`): the quantized
 //! formats stay quantized — BC4/BC7 bricks as BC textures (3D with
