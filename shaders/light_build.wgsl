@@ -2,7 +2,8 @@
 // GPU): `lv_density` box-filters the frame's voxels into the coarse cells, then `lv_tau` marches
 // each cell's centre toward the sun through that density and sums it along the six axes into the
 // sky's depth. Concatenated after `volume.wgsl` and `light.wgsl`; group 0 is the volume.
-// Run once per frame and light (the renderer caches it), each entry one invocation per cell.
+// Run once per frame and light (the renderer and the drawer cache it), each entry one invocation
+// per cell.
 
 struct LightParams {
     // xyz: corner of cell 0 (cell space); w: the cell edge in voxels.
@@ -15,7 +16,9 @@ struct LightParams {
     // xyz: length per cell-space unit along each axis; w: the extinction (absorb + scatter).
     axis_len: vec4<f32>,
     frame_root: u32,
-    _pad0: u32,
+    // Element of cell 0 in `lv_tau` (several light volumes share one buffer; the density
+    // scratch holds one at a time).
+    base: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -115,5 +118,5 @@ fn lv_tau_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (ext > 0.0) {
         tau_sky = max(-log(max(t_mean, exp(-LV_MAX_SKY_DEPTH))) / ext, 0.0);
     }
-    lv_tau[lv_index(gid, dims)] = vec2<f32>(tau_sun, tau_sky);
+    lv_tau[lp.base + lv_index(gid, dims)] = vec2<f32>(tau_sun, tau_sky);
 }

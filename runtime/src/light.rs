@@ -1,15 +1,17 @@
-//! The lit mode's light volume on the GPU (`shaders/light_build.wgsl`): its two pipelines, its
-//! buffers (grown on demand, never shrunk), and the cache that skips the pass while the frame,
-//! the light and the medium stay the same. The renderer records it into the caller's encoder
-//! ahead of the trace dispatch; the trace reads it through group 3.
+//! The lit mode's light volumes on the GPU (`shaders/light_build.wgsl`): their two pipelines,
+//! one buffer that holds every light volume a draw needs (grown on demand, never shrunk), the
+//! density scratch they are built through (one at a time), and the cache that skips the passes
+//! while the frames, the lights and the media stay the same. The renderer and the drawer record
+//! the passes into the caller's encoder ahead of their own dispatch and read the volumes through
+//! group 3 (`light_tau`).
 
 use std::sync::Mutex;
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{length, normalize, Affine, LengthUnit, LightGrid};
+use wgpu::util::DeviceExt;
 
 use crate::upload::GpuVolume;
-use crate::Settings;
 
 /// `LightParams` of `light_build.wgsl`.
 #[repr(C)]
@@ -24,16 +26,26 @@ pub(crate) struct LightParams {
     /// xyz: length per cell-space unit along each axis; w: the extinction.
     pub axis_len: [f32; 4],
     pub frame_root: u32,
-    pub _pad0: u32,
+    /// Element of cell 0 in the shared buffer (set by [`LightPass::record`]).
+    pub base: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }
 
 impl LightParams {
-    /// The pass's uniform for `grid` (as `vdbcook_trace::light_dirs` in f64, then f32).
-    pub fn new(grid: &LightGrid, xf: &Affine, s: &Settings, frame_root: u32) -> LightParams {
-        let voxel = s.unit == LengthUnit::Voxel;
-        let l = xf.dir_to_index(normalize(s.light_dir.map(|c| c as f64)));
+    /// The pass's uniform for `grid` (as `vdbcook_trace::light_dirs` in f64, then f32):
+    /// the cell space of `xf`, the world direction `light_dir` toward the light, `extinction`
+    /// per unit density per length `unit`.
+    pub fn new(
+        grid: &LightGrid,
+        xf: &Affine,
+        light_dir: [f32; 3],
+        extinction: f64,
+        unit: LengthUnit,
+        frame_root: u32,
+    ) -> LightParams {
+        let voxel = unit == LengthUnit::Voxel;
+        let l = xf.dir_to_index(normalize(light_dir.map(|c| c as f64)));
         let n = length(l);
         let axis = [0, 1, 2].map(|a| {
             if voxel {
@@ -42,45 +54,44 @@ impl LightParams {
                 length([xf.a[0][a], xf.a[1][a], xf.a[2][a]])
             }
         });
-        let ext = s.absorb as f64 + s.scatter as f64;
         LightParams {
             lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
             dims: [grid.dims[0], grid.dims[1], grid.dims[2], grid.sub],
-            sun: [
-                l[0] / n,
-                l[1] / n,
-                l[2] / n,
-                if voxel { 1.0 } else { 1.0 / n },
-            ]
-            .map(|v| v as f32),
-            axis_len: [axis[0], axis[1], axis[2], ext].map(|v| v as f32),
+            sun: [l[0] / n, l[1] / n, l[2] / n, if voxel { 1.0 } else { 1.0 / n }]
+                .map(|v| v as f32),
+            axis_len: [axis[0], axis[1], axis[2], extinction].map(|v| v as f32),
             frame_root,
-            _pad0: 0,
+            base: 0,
             _pad1: 0,
             _pad2: 0,
         }
     }
+
+    fn cells(&self) -> usize {
+        self.dims[..3].iter().map(|&d| d as usize).product()
+    }
 }
 
-/// Buffers of one capacity and their bind groups.
-struct Buffers {
-    cells: usize,
-    build_group: wgpu::BindGroup,
-    read_group: wgpu::BindGroup,
+/// What was built last: the buffers and the uniforms of the volumes in them.
+#[derive(Default)]
+struct State {
+    /// The shared buffer (`vec2<f32>` per cell), its capacity in cells, its read bind group.
+    pool: Option<(wgpu::Buffer, usize, wgpu::BindGroup)>,
+    /// The density scratch and its capacity in cells.
+    scratch: Option<(wgpu::Buffer, usize)>,
+    /// The light volumes the pool holds (`None`: invalidated).
+    built: Option<Vec<LightParams>>,
 }
 
-/// The light-volume pass of one renderer.
+/// The light-volume passes of one renderer or drawer.
 pub(crate) struct LightPass {
     density: wgpu::ComputePipeline,
     tau: wgpu::ComputePipeline,
     build_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
-    /// Bound at group 3 by the modes that read no light volume.
+    /// Bound at group 3 by draws that read no light volume.
     pub empty_group: wgpu::BindGroup,
-    /// The buffers, and the uniform of the last pass recorded into them (`None`: none yet, or
-    /// invalidated).
-    state: Mutex<(Option<Buffers>, Option<LightParams>)>,
+    state: Mutex<State>,
 }
 
 const WORKGROUP: u32 = 4;
@@ -131,26 +142,11 @@ impl LightPass {
             label: Some("vdbcook light read"),
             entries: &[storage(0, true)],
         });
-        let density = volume.compute_pipeline(
-            device,
-            "vdbcook light density",
-            &module,
-            "lv_density_main",
-            &[&build_layout],
-        );
-        let tau = volume.compute_pipeline(
-            device,
-            "vdbcook light tau",
-            &module,
-            "lv_tau_main",
-            &[&build_layout],
-        );
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vdbcook light params"),
-            size: std::mem::size_of::<LightParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let pipeline = |label, entry| {
+            volume.compute_pipeline(device, label, &module, entry, &[&build_layout])
+        };
+        let density = pipeline("vdbcook light density", "lv_density_main");
+        let tau = pipeline("vdbcook light tau", "lv_tau_main");
         let empty = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook light volume (none)"),
             size: 8,
@@ -170,96 +166,134 @@ impl LightPass {
             tau,
             build_layout,
             read_layout,
-            params,
             empty_group,
-            state: Mutex::new((None, None)),
+            state: Mutex::new(State::default()),
         }
     }
 
-    /// Forgets the cached light volume (the volume behind it changed).
+    /// Forgets the cached light volumes (the volume behind them changed, or a recording was
+    /// dropped unsubmitted).
     pub fn invalidate(&self) {
-        self.state.lock().expect("light state").1 = None;
+        self.state.lock().expect("light state").built = None;
     }
 
-    /// Records the pass for `lp` unless the last one recorded was for the same uniform, and
-    /// returns the bind group the trace reads it through.
+    /// Records the passes that build `volumes` one after the other into one buffer, unless the
+    /// last call built the same ones (and its recording was submitted), and returns the bind
+    /// group that reads them and each one's base element.
     pub fn record(
         &self,
         device: &wgpu::Device,
-        queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
         volume_group: &wgpu::BindGroup,
-        lp: LightParams,
-    ) -> wgpu::BindGroup {
+        volumes: &[LightParams],
+    ) -> (wgpu::BindGroup, Vec<u32>) {
+        let mut placed = volumes.to_vec();
+        let mut total = 0usize;
+        for lp in &mut placed {
+            lp.base = total as u32;
+            total += lp.cells();
+        }
+        let bases = placed.iter().map(|lp| lp.base).collect();
+        let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
         let mut state = self.state.lock().expect("light state");
-        let cells = lp.dims[..3].iter().map(|&d| d as usize).product::<usize>();
-        if state.0.as_ref().is_none_or(|b| b.cells < cells) {
-            let buffer = |label: &str, bytes: usize| {
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size: bytes as u64,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                })
-            };
-            let density = buffer("vdbcook light density", 4 * cells);
-            let tau = buffer("vdbcook light volume", 8 * cells);
-            let build_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vdbcook light build"),
-                layout: &self.build_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: density.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: tau.as_entire_binding(),
-                    },
-                ],
-            });
-            let read_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let buffer = |label: &str, bytes: usize| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(8) as u64,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        if state.pool.as_ref().is_none_or(|p| p.1 < total) {
+            let pool = buffer("vdbcook light volumes", 8 * total);
+            let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("vdbcook light read"),
                 layout: &self.read_layout,
                 entries: &[wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: tau.as_entire_binding(),
+                    resource: pool.as_entire_binding(),
                 }],
             });
-            *state = (
-                Some(Buffers {
-                    cells,
-                    build_group,
-                    read_group,
-                }),
-                None,
-            );
+            state.pool = Some((pool, total, read));
+            state.built = None;
         }
-        let (Some(buffers), last) = &mut *state else {
-            unreachable!("buffers were just made")
-        };
-        if *last != Some(lp) {
-            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&lp));
-            let groups = lp.dims.map(|d| d.div_ceil(WORKGROUP));
-            for (label, pipeline) in [
-                ("vdbcook light density", &self.density),
-                ("vdbcook light tau", &self.tau),
-            ] {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some(label),
-                    timestamp_writes: None,
+        if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
+            state.scratch = Some((buffer("vdbcook light density", 4 * largest), largest));
+        }
+        let (pool, _, read) = state.pool.as_ref().expect("just made");
+        let (scratch, _) = state.scratch.as_ref().expect("just made");
+        if state.built.as_ref() != Some(&placed) {
+            for lp in &placed {
+                let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("vdbcook light params"),
+                    contents: bytemuck::bytes_of(lp),
+                    usage: wgpu::BufferUsages::UNIFORM,
                 });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, volume_group, &[]);
-                pass.set_bind_group(1, &buffers.build_group, &[]);
-                pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("vdbcook light build"),
+                    layout: &self.build_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: uniform.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: scratch.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: pool.as_entire_binding(),
+                        },
+                    ],
+                });
+                let groups = lp.dims.map(|d| d.div_ceil(WORKGROUP));
+                for (label, pipeline) in [
+                    ("vdbcook light density", &self.density),
+                    ("vdbcook light tau", &self.tau),
+                ] {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some(label),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, volume_group, &[]);
+                    pass.set_bind_group(1, &group, &[]);
+                    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+                }
             }
-            *last = Some(lp);
         }
-        buffers.read_group.clone()
+        let read = read.clone();
+        state.built = Some(placed);
+        (read, bases)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout_check::{assert_mirrors, rust_layout};
+
+    #[test]
+    fn light_params_mirror_the_wgsl() {
+        assert_mirrors(
+            &format!(
+                "{}\n{}\n{}",
+                crate::VOLUME_WGSL,
+                crate::LIGHT_WGSL,
+                crate::LIGHT_BUILD_WGSL
+            ),
+            "LightParams",
+            rust_layout!(LightParams {
+                lo,
+                dims,
+                sun,
+                axis_len,
+                frame_root,
+                base,
+                _pad1,
+                _pad2,
+            }),
+        );
     }
 }

@@ -490,9 +490,18 @@ impl Renderer {
         let params = self.params(width, height, out_flags, frame, camera, settings)?;
         let light_group = if settings.mode == Mode::Lit {
             let grid = self.light_grid(frame, settings);
-            let lp = LightParams::new(&grid, &self.xf, settings, params.frame_root);
+            let extinction = settings.absorb as f64 + settings.scatter as f64;
+            let lp = LightParams::new(
+                &grid,
+                &self.xf,
+                settings.light_dir,
+                extinction,
+                settings.unit,
+                params.frame_root,
+            );
             self.light
-                .record(&self.device, queue, encoder, &self.vol.group, lp)
+                .record(&self.device, encoder, &self.vol.group, &[lp])
+                .0
         } else {
             self.light.empty_group.clone()
         };
