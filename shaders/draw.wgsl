@@ -7,11 +7,16 @@
 //   texture, standard or reversed Z, `textureLoad`), and marches every instance of the volume
 //   with the density march (`vdb_optical_depth` in `volume.wgsl`: the CPU tracer's Density mode),
 //   front to back in the order the CPU sorted them, writing premultiplied radiance and
-//   transmittance (L, T) to an `Rgba16Float` storage texture.
+//   transmittance (L, T) to an `Rgba16Float` storage texture. With lighting (`DRAW_LIT`, a
+//   second pipeline) each lit instance is marched as the tracer's lit mode (`lit_primary` in
+//   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest lookup
+//   (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
+//   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths).
 // The composite that blends (L, T) over the engine's colour target is `composite.wgsl`.
 //
-// Concatenated after `volume.wgsl` (group 0: the volume). Group 1: the view (uniform), the
-// instances (storage), the scene depth, the (L, T) output. The structs mirror `runtime/src/
+// Concatenated after `volume.wgsl` and `light.wgsl` (group 0: the volume). Group 1: the view
+// (uniform), the instances (storage), the scene depth, the (L, T) output. Group 2: the light
+// volumes, (τ_sun, τ_sky) per cell, each instance's at its own base elements. The structs mirror `runtime/src/
 // draw.rs` (`DrawView`, `DrawInstance`; sizes checked by its unit tests and by the bindings'
 // minimum sizes).
 
@@ -30,6 +35,18 @@ struct DrawView {
     instance_count: u32,
     has_depth: u32,
     voxel_units: u32,
+    // Lighting (lit instances only): xyz the unit world direction toward the light, w the march
+    // step (length unit); xyz the light colour, w unused; xyz the sky radiance; the phase
+    // (g0, g1, weight); the octave falloff (a, b, c).
+    light_dir: vec4<f32>,
+    light_color: vec4<f32>,
+    sky: vec4<f32>,
+    phase: vec4<f32>,
+    ms: vec4<f32>,
+    ms_octaves: u32,
+    seed: u32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 struct DrawInstance {
@@ -46,14 +63,96 @@ struct DrawInstance {
     // Root offsets (frame · root_len) of frames floor(time) and floor(time) + 1.
     frame_root0: u32,
     frame_root1: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // 1: marched lit (`lv_*` hold its light volumes), 0: the flat density march.
+    lit: u32,
+    // Lit: albedo; extinction is `(absorb + scatter) · density scale` per unit density.
+    albedo: f32,
+    extinction: f32,
+    // Base elements of the light volumes of frames floor(time) and floor(time) + 1.
+    lv_base0: u32,
+    lv_base1: u32,
+    _pad2: u32,
+    // Their grids: xyz corner of cell 0 (cell space), w cell edge; xyz cells per axis.
+    lv_lo0: vec4<f32>,
+    lv_dims0: vec4<u32>,
+    lv_lo1: vec4<f32>,
+    lv_dims1: vec4<u32>,
 }
 
 @group(1) @binding(0) var<uniform> draw_view: DrawView;
 @group(1) @binding(1) var<storage, read> draw_instances: array<DrawInstance>;
 @group(1) @binding(2) var draw_depth: texture_depth_2d;
 @group(1) @binding(3) var draw_out: texture_storage_2d<rgba16float, write>;
+@group(2) @binding(0) var<storage, read> draw_lv: array<vec2<f32>>;
+
+// Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
+const DRAW_LIT: bool = {{DRAW_LIT}};
+// Most samples of one lit instance march (`vdbcook_trace::MAX_MARCH_SAMPLES`).
+const DRAW_MAX_SAMPLES: u32 = 1048576u;
+
+// (τ_sun, τ_sky) of the light volume at `base` over the grid (lo.xyz, cell lo.w; dims) at `p`.
+fn draw_lv_lookup(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> vec2<f32> {
+    let t = lv_taps(p, lo.xyz, lo.w, dims.xyz);
+    var out = vec2<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        out += t.w[k] * draw_lv[base + t.idx[k]];
+    }
+    return out;
+}
+
+// The lit march of one instance for t in [t0, t1]: (radiance before the tint, transmittance).
+fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pixel: u32) -> vec4<f32> {
+    let step = draw_view.light_dir.w;
+    let ms = draw_view.ms.xyz;
+    let octaves = draw_view.ms_octaves;
+    let mu = dot(dw, draw_view.light_dir.xyz);
+    var sun_ph: array<f32, 8>;
+    var sky_ph: array<f32, 8>;
+    var ci = 1.0;
+    for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
+        sun_ph[i] = lv_phase(draw_view.phase.xyz, ci, mu);
+        sky_ph[i] = 1.0;
+        ci *= ms.z;
+    }
+    let jitter = lv_jitter(draw_view.seed, pixel);
+    let ext = inst.extinction;
+    let a = inst.box_lo.w;
+    let sb = t1 * ray.per_t;
+    var k = max(ceil(t0 * ray.per_t / step - jitter), 0.0);
+    var trans = 1.0;
+    var rad = vec3<f32>(0.0);
+    for (var n = 0u; n < DRAW_MAX_SAMPLES; n++) {
+        let s = (k + jitter) * step;
+        if (!(s < sb)) {
+            break;
+        }
+        k += 1.0;
+        let p = ray.o + (s / ray.per_t) * ray.d;
+        let cell = vec3<i32>(floor(p));
+        var rho = max(vdb_value(inst.frame_root0, cell), 0.0);
+        if (a > 0.0) {
+            rho = mix(rho, max(vdb_value(inst.frame_root1, cell), 0.0), a);
+        }
+        if (!(rho > 0.0)) {
+            continue;
+        }
+        let x = ext * rho * step;
+        let e = exp(-x);
+        let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
+        var tau = draw_lv_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q);
+        if (a > 0.0) {
+            tau = mix(tau, draw_lv_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q), a);
+        }
+        let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+        let sky = lv_octaves(ext * tau.y, ms, octaves, &sky_ph);
+        rad += trans * inst.albedo * (1.0 - e) * (draw_view.light_color.xyz * sun + draw_view.sky.xyz * sky);
+        trans *= e;
+        if (trans < LV_MIN_TRANS) {
+            break;
+        }
+    }
+    return vec4<f32>(rad, trans);
+}
 
 // The view-space point of NDC `(xy, z)`, or w = 0 when it is at infinity.
 fn draw_unproject(xy: vec2<f32>, z: f32) -> vec4<f32> {
@@ -117,6 +216,12 @@ fn draw_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let clip = vdb_clip_box(ray, inst.box_lo.xyz, inst.box_hi.xyz);
         let t1 = min(clip.y, t_max);
         if (!(t1 > clip.x)) {
+            continue;
+        }
+        if (DRAW_LIT && inst.lit != 0u) {
+            let r = draw_lit(inst, ray, clip.x, t1, dw, gid.y * size.x + gid.x);
+            lum += trans * inst.tint_absorb.xyz * r.xyz;
+            trans *= r.w;
             continue;
         }
         let absorb = inst.tint_absorb.w;

@@ -52,3 +52,34 @@ fn lv_octaves(x: f32, ms: vec3<f32>, octaves: u32, ph: ptr<function, array<f32, 
     }
     return s;
 }
+
+// Transmittance below which a lit march stops (`vdbcook_trace::LIT_MIN_TRANS`).
+const LV_MIN_TRANS: f32 = 1e-4;
+
+// `vdbcook_trace::pcg_hash`.
+fn pcg_hash(x: u32) -> u32 {
+    let state = x * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// `vdbcook_trace::lit_jitter`: the per-pixel offset of the lit march's samples, in [0, 1).
+fn lv_jitter(seed: u32, pixel: u32) -> f32 {
+    return f32(pcg_hash(seed ^ pcg_hash(pixel)) >> 8u) / 16777216.0;
+}
+
+// `vdbcook_trace::lit::mean_depth`: where in a step of optical depth x light is scattered on
+// average, as a fraction of the step.
+fn lv_mean_depth(x: f32) -> f32 {
+    return select(1.0 / x - 1.0 / (exp(x) - 1.0), 0.5 - x / 12.0, x < 1e-3);
+}
+
+fn lv_hg(g: f32, mu: f32) -> f32 {
+    let d = 1.0 + g * g - 2.0 * g * mu;
+    return (1.0 - g * g) / (12.566370614359172 * d * sqrt(d));
+}
+
+// The dual-lobe phase (g0, g1, weight) with both g scaled by `scale`, at cosine `mu`.
+fn lv_phase(phase: vec3<f32>, scale: f32, mu: f32) -> f32 {
+    return phase.z * lv_hg(phase.x * scale, mu) + (1.0 - phase.z) * lv_hg(phase.y * scale, mu);
+}

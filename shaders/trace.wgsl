@@ -487,14 +487,6 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
 
 // ---- The lit mode (`vdbcook_trace`'s `lit` module) -----------------------------------------
 
-// Transmittance below which a lit ray stops (`vdbcook_trace::LIT_MIN_TRANS`).
-const LIT_MIN_TRANS: f32 = 1e-4;
-
-fn hg(g: f32, mu: f32) -> f32 {
-    let d = 1.0 + g * g - 2.0 * g * mu;
-    return (1.0 - g * g) / (12.566370614359172 * d * sqrt(d));
-}
-
 fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
     let t = lv_taps(p, params.lv_lo.xyz, params.lv_lo.w, params.lv_dims.xyz);
     var out = vec2<f32>(0.0);
@@ -515,12 +507,11 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     var sky_ph: array<f32, 8>;
     var ci = 1.0;
     for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
-        let pw = params.phase.z;
-        sun_ph[i] = pw * hg(params.phase.x * ci, mu) + (1.0 - pw) * hg(params.phase.y * ci, mu);
+        sun_ph[i] = lv_phase(params.phase.xyz, ci, mu);
         sky_ph[i] = 1.0;
         ci *= ms.z;
     }
-    let jitter = f32(pcg_hash(params.seed ^ pcg_hash(pixel)) >> 8u) / 16777216.0;
+    let jitter = lv_jitter(params.seed, pixel);
     let ext = params.extinction;
     var w = wk_init(ray, t0, t1);
     var budget = MAX_MARCH_SAMPLES;
@@ -557,13 +548,13 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
                 v_emit += trans * step * phi * emit_radiance(rho);
             }
             // The source where the step's light is scattered on average (`lit::mean_depth`).
-            let m = step * select(1.0 / x - 1.0 / (exp(x) - 1.0), 0.5 - x / 12.0, x < 1e-3);
+            let m = step * lv_mean_depth(x);
             let tau = lit_lookup(ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d);
             let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
             let sky = lv_octaves(ext * tau.y, ms, octaves, &sky_ph);
             rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
             trans *= e;
-            if (trans < LIT_MIN_TRANS) {
+            if (trans < LV_MIN_TRANS) {
                 stop = true;
                 break;
             }
@@ -575,12 +566,6 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     return vec4<f32>(rad, trans);
 }
 
-// `vdbcook_trace::pcg_hash`.
-fn pcg_hash(x: u32) -> u32 {
-    let state = x * 747796405u + 2891336453u;
-    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
 
 // `Rng::uniform`: the next number of the stream in `state`, in [0, 1), 24 bits.
 fn rng_uniform(state: ptr<function, u32>) -> f32 {

@@ -1126,6 +1126,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                 &Medium {
                     absorb: s.absorb,
                     unit: s.unit,
+                    lighting: None,
                 },
             )
             .map_err(|e| e.to_string())?;

@@ -26,10 +26,11 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
-use vdbcook_scene::{Affine, MAX_SIDE};
+use vdbcook_scene::{Affine, LightGrid, MAX_SIDE};
 
+use crate::light::{LightParams, LightPass};
 use crate::upload::{Bound, GpuVolume};
-use crate::{LengthUnit, Result, RuntimeError, VOLUME_WGSL};
+use crate::{LengthUnit, Result, RuntimeError, LIGHT_WGSL, VOLUME_WGSL};
 
 /// The engine drawer's compute shader (needs [`VOLUME_WGSL`](crate::VOLUME_WGSL) before it).
 pub const DRAW_WGSL: &str = include_str!("../../shaders/draw.wgsl");
@@ -376,10 +377,13 @@ impl Instance {
 
 /// The medium of a draw: absorption per length unit (`Voxel`: per voxel of the instance, as the
 /// CPU tracer's default; `World`: per world unit). Defaults: the CPU tracer's (0.1 per voxel).
+/// `lighting`: `None` draws the flat-lit density march; `Some` marches every instance as the
+/// tracer's lit mode (sun, sky, phase, multiple-scattering octaves through light volumes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Medium {
     pub absorb: f32,
     pub unit: LengthUnit,
+    pub lighting: Option<Lighting>,
 }
 
 impl Default for Medium {
@@ -388,6 +392,83 @@ impl Default for Medium {
         Medium {
             absorb: s.absorb,
             unit: s.unit,
+            lighting: None,
+        }
+    }
+}
+
+/// The lit mode's light and medium for the drawer (the fields of `Settings` the lit mode reads,
+/// as the CPU tracer's `Mode::Lit` defines them): an instance's extinction is
+/// `(absorb + scatter) · density_scale` per unit density, its albedo `scatter / (absorb +
+/// scatter)`; its radiance is `tint ⊙ L` with `L` the lit march's. Each lit instance gets a light
+/// volume per frame of its crossfade, in its own cell space (`light_res` cells along the
+/// frame's content box), rebuilt when the frame, the instance's rotation or scale, the light or
+/// the medium changes (`docs/engine.md`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lighting {
+    pub scatter: f32,
+    /// World direction toward the sun.
+    pub light_dir: [f32; 3],
+    /// The sun's irradiance (linear RGB).
+    pub light_color: [f32; 3],
+    /// Constant sky radiance (linear RGB).
+    pub sky: [f32; 3],
+    pub phase_g: [f32; 2],
+    pub phase_w: f32,
+    /// March step, in the medium's length unit.
+    pub step: f32,
+    pub light_res: u32,
+    pub ms_octaves: u32,
+    pub ms: [f32; 3],
+    /// Seeds the per-pixel offset of the samples (change it per frame for temporal
+    /// anti-aliasing).
+    pub seed: u32,
+}
+
+impl Default for Lighting {
+    /// The CPU tracer's defaults.
+    fn default() -> Self {
+        Lighting::from_settings(&vdbcook_scene::RenderSettings::default())
+    }
+}
+
+impl Lighting {
+    /// The lighting fields of tracer settings.
+    pub fn from_settings(s: &vdbcook_scene::RenderSettings) -> Lighting {
+        Lighting {
+            scatter: s.scatter,
+            light_dir: s.light_dir,
+            light_color: s.light_color,
+            sky: s.sky,
+            phase_g: s.phase_g,
+            phase_w: s.phase_w,
+            step: s.step,
+            light_res: s.light_res,
+            ms_octaves: s.ms_octaves,
+            ms: s.ms,
+            seed: s.seed,
+        }
+    }
+
+    /// The tracer settings of a lit render with this lighting and `medium` (what the CPU
+    /// tracer draws for the drawer's instances, and what is validated).
+    pub fn settings(&self, medium: &Medium) -> vdbcook_scene::RenderSettings {
+        vdbcook_scene::RenderSettings {
+            mode: vdbcook_scene::Mode::Lit,
+            absorb: medium.absorb,
+            unit: medium.unit,
+            scatter: self.scatter,
+            light_dir: self.light_dir,
+            light_color: self.light_color,
+            sky: self.sky,
+            phase_g: self.phase_g,
+            phase_w: self.phase_w,
+            step: self.step,
+            light_res: self.light_res,
+            ms_octaves: self.ms_octaves,
+            ms: self.ms,
+            seed: self.seed,
+            ..Default::default()
         }
     }
 }
@@ -403,6 +484,15 @@ pub struct DrawTarget<'a> {
     pub depth: Option<&'a wgpu::TextureView>,
 }
 
+/// The drawer's WGSL: the volume, the light-volume helpers, the drawer with the lit march
+/// compiled in or out.
+fn draw_source(lit: bool) -> String {
+    format!(
+        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
+        DRAW_WGSL.replace("{{DRAW_LIT}}", if lit { "true" } else { "false" })
+    )
+}
+
 /// The `DrawView` uniform of `draw.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -416,6 +506,17 @@ struct DrawView {
     instance_count: u32,
     has_depth: u32,
     voxel_units: u32,
+    /// Lighting: direction toward the light and the step; light colour; sky; phase; octave
+    /// falloff; octaves; seed.
+    light_dir: [f32; 4],
+    light_color: [f32; 4],
+    sky: [f32; 4],
+    phase: [f32; 4],
+    ms: [f32; 4],
+    ms_octaves: u32,
+    seed: u32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 /// One element of the `draw_instances` array of `draw.wgsl`.
@@ -428,7 +529,18 @@ struct DrawInstance {
     box_hi: [f32; 4],
     frame_root0: u32,
     frame_root1: u32,
-    _pad: [u32; 2],
+    /// 1: lit (the light volumes below), 0: flat.
+    lit: u32,
+    albedo: f32,
+    extinction: f32,
+    lv_base0: u32,
+    lv_base1: u32,
+    _pad2: u32,
+    /// Light-volume grids of the two frames: corner and cell; cells per axis.
+    lv_lo0: [f32; 4],
+    lv_dims0: [u32; 4],
+    lv_lo1: [f32; 4],
+    lv_dims1: [u32; 4],
 }
 
 /// The `(L, T)` texture of one viewport size and the composite's bind group over it.
@@ -441,7 +553,11 @@ struct LtTexture {
 /// Draws instances of one uploaded volume into an engine's frame (one colour format). Create it
 /// once; [`VolumeDrawer::record`] each frame (any number of times per encoder).
 pub struct VolumeDrawer {
+    /// The flat pipeline (the lit march compiled out) and the one with it.
     draw_pipeline: wgpu::ComputePipeline,
+    lit_pipeline: wgpu::ComputePipeline,
+    /// The lit instances' light volumes.
+    light: LightPass,
     draw_layout: wgpu::BindGroupLayout,
     composite_pipeline: wgpu::RenderPipeline,
     composite_layout: wgpu::BindGroupLayout,
@@ -466,10 +582,12 @@ impl VolumeDrawer {
         }
         // Refuses a non-affine or singular index_to_world up front.
         Affine::cells(volume.index_to_world())?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("vdbcook draw"),
-            source: wgpu::ShaderSource::Wgsl(format!("{VOLUME_WGSL}\n{DRAW_WGSL}").into()),
-        });
+        let module = |lit: bool| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("vdbcook draw"),
+                source: wgpu::ShaderSource::Wgsl(draw_source(lit).into()),
+            })
+        };
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -517,12 +635,21 @@ impl VolumeDrawer {
                 ),
             ],
         });
+        let light = LightPass::new(device, volume);
+        let layouts = [&draw_layout, &light.read_layout];
         let draw_pipeline = volume.compute_pipeline(
             device,
             "vdbcook draw",
-            &module,
+            &module(false),
             "draw_main",
-            &[&draw_layout],
+            &layouts,
+        );
+        let lit_pipeline = volume.compute_pipeline(
+            device,
+            "vdbcook draw (lit)",
+            &module(true),
+            "draw_main",
+            &layouts,
         );
 
         let composite_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -603,6 +730,8 @@ impl VolumeDrawer {
             .create_view(&Default::default());
         Ok(VolumeDrawer {
             draw_pipeline,
+            lit_pipeline,
+            light,
             draw_layout,
             composite_pipeline,
             composite_layout,
@@ -618,7 +747,17 @@ impl VolumeDrawer {
     /// Refuses ([`RuntimeError::Rebind`]) a volume laid out differently from the one this
     /// drawer was built for. Work recorded before still reads the old window's topology.
     pub fn rebind(&mut self, volume: &GpuVolume) -> Result<()> {
-        self.vol.rebind(volume)
+        self.vol.rebind(volume)?;
+        self.light.invalidate();
+        Ok(())
+    }
+
+    /// Makes the next lit draw rebuild its light volumes: call it after dropping an encoder that
+    /// held a lit draw without submitting it (the drawer assumes what it recorded was
+    /// submitted, and rebuilds only when frames, instances' rotations or scales, the light or
+    /// the medium change).
+    pub fn invalidate_light_volumes(&self) {
+        self.light.invalidate();
     }
 
     /// The colour format this drawer blends onto.
@@ -720,9 +859,10 @@ impl VolumeDrawer {
         rays: &ViewRays,
         instances: &[Instance],
         medium: &Medium,
-    ) -> Result<Vec<DrawInstance>> {
+    ) -> Result<(Vec<DrawInstance>, Vec<LightParams>)> {
         let eye = rays.eye();
         let mut out = Vec::with_capacity(instances.len());
+        let mut volumes = Vec::new();
         for (i, inst) in instances.iter().enumerate() {
             inst.validate()
                 .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
@@ -749,21 +889,61 @@ impl VolumeDrawer {
             let v4 = |v: [f64; 3], w: f32| [v[0] as f32, v[1] as f32, v[2] as f32, w];
             let absorb = medium.absorb * inst.density_scale;
             let t = inst.tint;
-            out.push((
-                distance,
-                DrawInstance {
-                    cell_from_world: [row(0), row(1), row(2)],
-                    tint_absorb: [t.x, t.y, t.z, absorb],
-                    box_lo: v4(lo, a),
-                    box_hi: v4(hi, 0.0),
-                    frame_root0: (f0 * self.vol.root_len) as u32,
-                    frame_root1: (f1 * self.vol.root_len) as u32,
-                    _pad: [0; 2],
-                },
-            ));
+            let roots = [f0, f1].map(|f| (f * self.vol.root_len) as u32);
+            let mut d = DrawInstance {
+                cell_from_world: [row(0), row(1), row(2)],
+                tint_absorb: [t.x, t.y, t.z, absorb],
+                box_lo: v4(lo, a),
+                box_hi: v4(hi, 0.0),
+                frame_root0: roots[0],
+                frame_root1: roots[1],
+                lit: 0,
+                albedo: 0.0,
+                extinction: 0.0,
+                lv_base0: 0,
+                lv_base1: 0,
+                _pad2: 0,
+                lv_lo0: [0.0; 4],
+                lv_dims0: [1; 4],
+                lv_lo1: [0.0; 4],
+                lv_dims1: [1; 4],
+            };
+            if let Some(l) = &medium.lighting {
+                // As `vdbcook_trace::Tracer::new`: in f64, then f32.
+                let k = medium.absorb as f64 + l.scatter as f64;
+                let extinction = k * inst.density_scale as f64;
+                d.lit = 1;
+                d.albedo = if k > 0.0 { l.scatter as f64 / k } else { 0.0 } as f32;
+                d.extinction = extinction as f32;
+                // A light volume per frame of the crossfade, in the instance's cell space;
+                // `lv_base*` hold their indices in `volumes` until `record` places them.
+                for (n, f) in [f0, f1].into_iter().enumerate() {
+                    let grid = LightGrid::new(self.vol.content[f], l.light_res);
+                    let lp = LightParams::new(
+                        &grid,
+                        &xf,
+                        l.light_dir,
+                        extinction,
+                        medium.unit,
+                        roots[n],
+                    );
+                    let idx = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
+                        volumes.push(lp);
+                        volumes.len() - 1
+                    }) as u32;
+                    let lo = [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32);
+                    let dims = [grid.dims[0], grid.dims[1], grid.dims[2], 0];
+                    if n == 0 {
+                        (d.lv_base0, d.lv_lo0, d.lv_dims0) = (idx, lo, dims);
+                    } else {
+                        (d.lv_base1, d.lv_lo1, d.lv_dims1) = (idx, lo, dims);
+                    }
+                }
+            }
+            out.push((distance, d));
         }
         out.sort_by(|x, y| x.0.total_cmp(&y.0));
-        Ok(out.into_iter().map(|(_, d)| d).collect())
+        Ok((out.into_iter().map(|(_, d)| d).collect(), volumes))
     }
 
     /// Records the draw of `instances` seen through `view` into `encoder`: a compute pass that
@@ -789,13 +969,35 @@ impl VolumeDrawer {
                 medium.absorb
             )));
         }
+        if let Some(l) = &medium.lighting {
+            l.settings(medium)
+                .validate(self.vol.frames())
+                .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
+        }
         let size = view.viewport;
         self.check_targets(target, size)?;
-        let gpu_instances = self.instances(&rays, instances, medium)?;
+        let (mut gpu_instances, volumes) = self.instances(&rays, instances, medium)?;
         if gpu_instances.is_empty() {
             return Ok(());
         }
+        let light_group = if volumes.is_empty() {
+            self.light.empty_group.clone()
+        } else {
+            let (group, bases) = self
+                .light
+                .record(device, encoder, &self.vol.group, &volumes);
+            for d in gpu_instances.iter_mut().filter(|d| d.lit != 0) {
+                d.lv_base0 = bases[d.lv_base0 as usize];
+                d.lv_base1 = bases[d.lv_base1 as usize];
+            }
+            group
+        };
+        let lighting = medium.lighting.unwrap_or_default();
+        let l = lighting.light_dir.map(|c| c as f64);
+        let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+        let l = l.map(|c| (c / ln) as f32);
         let m4 = |m: &DMat4| m.as_mat4().to_cols_array_2d();
+        let v3 = |v: [f32; 3]| [v[0], v[1], v[2], 0.0];
         let params = DrawView {
             view_from_clip: m4(&rays.view_from_clip),
             world_from_view: m4(&rays.world_from_view),
@@ -811,6 +1013,20 @@ impl VolumeDrawer {
             instance_count: gpu_instances.len() as u32,
             has_depth: target.depth.is_some() as u32,
             voxel_units: (medium.unit == LengthUnit::Voxel) as u32,
+            light_dir: [l[0], l[1], l[2], lighting.step],
+            light_color: v3(lighting.light_color),
+            sky: v3(lighting.sky),
+            phase: [
+                lighting.phase_g[0],
+                lighting.phase_g[1],
+                lighting.phase_w,
+                0.0,
+            ],
+            ms: v3(lighting.ms),
+            ms_octaves: lighting.ms_octaves,
+            seed: lighting.seed,
+            _pad0: 0,
+            _pad1: 0,
         };
         let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vdbcook draw view"),
@@ -852,9 +1068,14 @@ impl VolumeDrawer {
                 label: Some("vdbcook draw"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.draw_pipeline);
+            pass.set_pipeline(if medium.lighting.is_some() {
+                &self.lit_pipeline
+            } else {
+                &self.draw_pipeline
+            });
             pass.set_bind_group(0, &self.vol.group, &[]);
             pass.set_bind_group(1, &group, &[]);
+            pass.set_bind_group(2, &light_group, &[]);
             pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -889,7 +1110,7 @@ mod tests {
     #[test]
     fn draw_structs_mirror_the_wgsl() {
         use crate::layout_check::{assert_mirrors, rust_layout};
-        let source = format!("{VOLUME_WGSL}\n{DRAW_WGSL}");
+        let source = draw_source(true);
         assert_mirrors(
             &source,
             "DrawView",
@@ -903,6 +1124,15 @@ mod tests {
                 instance_count,
                 has_depth,
                 voxel_units,
+                light_dir,
+                light_color,
+                sky,
+                phase,
+                ms,
+                ms_octaves,
+                seed,
+                _pad0,
+                _pad1,
             }),
         );
         assert_mirrors(
@@ -915,7 +1145,16 @@ mod tests {
                 box_hi,
                 frame_root0,
                 frame_root1,
-                _pad,
+                lit,
+                albedo,
+                extinction,
+                lv_base0,
+                lv_base1,
+                _pad2,
+                lv_lo0,
+                lv_dims0,
+                lv_lo1,
+                lv_dims1,
             }),
         );
     }

@@ -59,8 +59,8 @@ mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, Medium, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS,
-    DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, Lighting, Medium, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL,
+    DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};

@@ -57,8 +57,13 @@ impl LightParams {
         LightParams {
             lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
             dims: [grid.dims[0], grid.dims[1], grid.dims[2], grid.sub],
-            sun: [l[0] / n, l[1] / n, l[2] / n, if voxel { 1.0 } else { 1.0 / n }]
-                .map(|v| v as f32),
+            sun: [
+                l[0] / n,
+                l[1] / n,
+                l[2] / n,
+                if voxel { 1.0 } else { 1.0 / n },
+            ]
+            .map(|v| v as f32),
             axis_len: [axis[0], axis[1], axis[2], extinction].map(|v| v as f32),
             frame_root,
             base: 0,
@@ -142,9 +147,8 @@ impl LightPass {
             label: Some("vdbcook light read"),
             entries: &[storage(0, true)],
         });
-        let pipeline = |label, entry| {
-            volume.compute_pipeline(device, label, &module, entry, &[&build_layout])
-        };
+        let pipeline =
+            |label, entry| volume.compute_pipeline(device, label, &module, entry, &[&build_layout]);
         let density = pipeline("vdbcook light density", "lv_density_main");
         let tau = pipeline("vdbcook light tau", "lv_tau_main");
         let empty = device.create_buffer(&wgpu::BufferDescriptor {

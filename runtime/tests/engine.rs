@@ -15,7 +15,7 @@ use common::*;
 use vdbcook_asset::{Asset, PayloadFormat};
 use vdbcook_runtime::glam::{Affine3A, EulerRot, Mat4, Quat, Vec2, Vec3, Vec4};
 use vdbcook_runtime::{
-    DrawTarget, GpuVolume, Instance, Medium, RuntimeError, View, ViewRays, VolumeDrawer,
+    DrawTarget, GpuVolume, Instance, Lighting, Medium, RuntimeError, View, ViewRays, VolumeDrawer,
     DRAW_DEPTH_FORMATS,
 };
 use vdbcook_trace::{Camera, LengthUnit, RenderSettings, Scratch, Tracer};
@@ -496,6 +496,7 @@ fn moved_and_jittered_instances_match_the_cpu() {
     let medium = Medium {
         absorb: 0.2,
         unit: LengthUnit::World,
+        lighting: None,
     };
     let (view, _) = framing_view(&asset);
     let g = gpu.draw(
@@ -513,6 +514,107 @@ fn moved_and_jittered_instances_match_the_cpu() {
         None,
     );
     assert_matches("world units", &g, &cpu, TOL);
+}
+
+/// Lit instances draw what the CPU tracer's lit mode draws for the asset as the instance
+/// places it (extinction and scattering scaled by the density scale, radiance by the tint):
+/// moved, rotated and scaled, at each of two frames (each with its own light volume), with a
+/// sub-pixel jitter. The lit march's sample offsets are the tracer's per-pixel ones.
+#[test]
+fn lit_instances_match_the_cpu_lit_mode() {
+    let Some(gpu) = Gpu::new("lit_instances_match_the_cpu_lit_mode") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let lighting = Lighting {
+        light_res: 24,
+        light_dir: [0.4, 0.8, -0.3],
+        ..Default::default()
+    };
+    let medium = Medium {
+        lighting: Some(lighting),
+        ..Default::default()
+    };
+    let cases = [
+        (
+            "translated, frame 0",
+            0.0,
+            Affine3A::from_translation(Vec3::new(30.0, -12.0, 7.0)),
+        ),
+        (
+            "rotated and scaled, frame 1",
+            1.0,
+            Affine3A::from_scale_rotation_translation(
+                Vec3::splat(1.3),
+                Quat::from_euler(EulerRot::XYZ, 0.4, -0.9, 1.7),
+                Vec3::new(-5.0, 4.0, 3.0),
+            ),
+        ),
+    ];
+    for (what, time, xf) in cases {
+        let inst = Instance {
+            density_scale: 1.7,
+            tint: Vec3::new(0.5, 1.0, 2.0),
+            time,
+            ..Instance::at(xf)
+        };
+        let m = moved(&asset, &inst);
+        let (mut view, cam) = framing_view(&m);
+        view.jitter = Vec2::new(0.3, -0.45);
+        let g = gpu.draw(&mut drawer, &f, &view, &[inst], &medium, BG, None);
+        // The CPU: the lit mode on the moved asset, the medium scaled by the density.
+        let base = lighting.settings(&medium);
+        let s = RenderSettings {
+            frame: time as usize,
+            absorb: base.absorb * inst.density_scale,
+            scatter: base.scatter * inst.density_scale,
+            ..base
+        };
+        let tracer = Tracer::new(&m, &cam, &s).unwrap();
+        let rays = view.rays().unwrap();
+        let mut scratch = Scratch::default();
+        let mut cpu = Vec::new();
+        for y in 0..H {
+            for x in 0..W {
+                let (o, d) = rays.ray(x, y);
+                let px = tracer.trace(o.into(), d.into(), y * W + x, &mut scratch);
+                let t = inst.tint;
+                let l = [0, 1, 2].map(|c| (px.rgba[c] * t[c]) as f64);
+                cpu.push([l[0], l[1], l[2], px.value as f64]);
+            }
+        }
+        assert_matches(what, &g, &cpu, 2.0 * TOL);
+        assert!(cpu.iter().filter(|p| p[3] < 0.5).count() > 100, "{what}");
+        let lit = cpu.iter().filter(|p| p[0] > 0.02).count();
+        assert!(lit > 100, "{what}: the cloud is lit ({lit} pixels)");
+    }
+    // A lit setting out of range is refused, nothing recorded.
+    let bad = Medium {
+        lighting: Some(Lighting {
+            ms_octaves: 0,
+            ..lighting
+        }),
+        ..medium
+    };
+    let (view, _) = framing_view(&asset);
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let target = DrawTarget {
+        color: &f.color_view,
+        depth: None,
+    };
+    let e = drawer
+        .record(
+            &gpu.device,
+            &mut enc,
+            &target,
+            &view,
+            &[Instance::default()],
+            &bad,
+        )
+        .unwrap_err();
+    assert!(matches!(e, RuntimeError::Setting(_)), "{e}");
 }
 
 /// Three overlapping copies (equal tints: the result does not depend on their order).
