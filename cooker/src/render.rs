@@ -498,7 +498,7 @@ fn depth_to_t(d: f32, cos: f64) -> f64 {
 
 /// The density mode on the CPU with every ray cut at the scene depth (`Tracer::optical_depth`):
 /// the same pixels as `vdbcook_trace::render` in density mode where the depth does not cut.
-fn render_density_clipped(
+fn render_clipped(
     asset: &Asset,
     camera: &Camera,
     s: &RenderSettings,
@@ -522,6 +522,18 @@ fn render_density_clipped(
                 let dir = d.map(|c| c / len);
                 let cos = (0..3).map(|a| dir[a] * b.forward[a]).sum::<f64>();
                 let t_max = depth_to_t(depth[j * w as usize + i], cos);
+                if s.mode == Mode::Lit {
+                    let px = tracer.trace_until(
+                        camera.eye,
+                        dir,
+                        t_max,
+                        (j * w as usize + i) as u32,
+                        scratch,
+                    );
+                    row[4 * i..4 * i + 4].copy_from_slice(&px.rgba);
+                    vrow[i] = px.value;
+                    continue;
+                }
                 let tau = tracer.optical_depth(camera.eye, dir, t_max, scratch);
                 let t = (-(s.absorb as f64) * tau).exp() as f32;
                 let g = 1.0 - t;
@@ -655,10 +667,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 .into(),
         ));
     }
-    if a.depth.is_some() && s.mode != Mode::Density {
+    if a.depth.is_some() && !matches!(s.mode, Mode::Density | Mode::Lit) {
         return Err(CliError::Usage(format!(
-            "--depth cuts the density mode only (the other modes do not stop at a depth yet), \
-             not --mode {}",
+            "--depth cuts the density and lit modes only (the other modes do not stop at a \
+             depth yet), not --mode {}",
             s.mode.name()
         )));
     }
@@ -727,9 +739,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // `composited`: whether the plate is already under the image (the GPU drawer does it).
     let (mut image, backend, adapter, gpu_ms, composited) = match &gpu {
         #[cfg(feature = "gpu")]
-        // The drawer composites density over a plate on the GPU; it has no emission, which the
-        // renderer below draws (the plate is then composited on the CPU).
-        Some(g) if scene && s.mode == Mode::Density && s.emission.is_none() => {
+        // The drawer composites density or lit over a plate on the GPU; it has no emission,
+        // which the renderer below draws (the plate is then composited on the CPU). Lit with a
+        // depth and no plate needs its transmittance as alpha, which the drawer's blend keeps
+        // from the scene: the CPU's cut march draws it.
+        Some(g)
+            if scene
+                && s.emission.is_none()
+                && (s.mode == Mode::Density || (s.mode == Mode::Lit && plate.is_some())) =>
+        {
             s.validate(asset.frame_count()).map_err(|e| at(&e))?;
             let (image, gpu_ms) = drawer::composite(
                 g,
@@ -743,6 +761,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             )
             .map_err(|e| at(&e))?;
             (image, "gpu", Some(g.describe()), gpu_ms, true)
+        }
+        Some(_) if s.mode == Mode::Lit && depth.is_some() => {
+            let image = render_clipped(&asset, &camera, &s, depth.as_deref().unwrap_or_default())
+                .map_err(|e| at(&e))?;
+            (image, "cpu", None, None, false)
         }
         Some(g) => {
             let up = g
@@ -759,7 +782,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         None => {
             let image = match &depth {
-                Some(d) => render_density_clipped(&asset, &camera, &s, d),
+                Some(d) => render_clipped(&asset, &camera, &s, d),
                 None => vdbcook_trace::render(&asset, &camera, &s),
             }
             .map_err(|e| at(&e))?;
@@ -875,7 +898,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 #[cfg(feature = "gpu")]
 mod drawer {
     use vdbcook_runtime::glam::Mat4;
-    use vdbcook_runtime::{DrawTarget, GpuTimer, GpuVolume, Instance, Medium, View, VolumeDrawer};
+    use vdbcook_runtime::{
+        DrawTarget, GpuTimer, GpuVolume, Instance, Lighting, Medium, View, VolumeDrawer,
+    };
 
     use super::*;
 
@@ -1126,7 +1151,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                 &Medium {
                     absorb: s.absorb,
                     unit: s.unit,
-                    lighting: None,
+                    lighting: (s.mode == Mode::Lit).then(|| Lighting::from_settings(s)),
                 },
             )
             .map_err(|e| e.to_string())?;

@@ -206,6 +206,17 @@ fn composite_is_radiance_plus_transmittance_times_the_plate() {
 
 #[test]
 fn depth_planes_in_front_beyond_and_through_the_cloud() {
+    depth_planes("density");
+}
+
+/// The lit mode stops at a depth as the density mode does (CPU: the cut lit march; GPU: the
+/// engine drawer with lighting).
+#[test]
+fn lit_depth_planes_in_front_beyond_and_through_the_cloud() {
+    depth_planes("lit");
+}
+
+fn depth_planes(mode: &str) {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let [(plate, px), _] = plates(dir.path());
@@ -247,6 +258,8 @@ fn depth_planes_in_front_beyond_and_through_the_cloud() {
             ("mid_alone", vec!["--depth", &mid]),
         ] {
             let out = dir.path().join(format!("{backend}-{name}.png"));
+            let mut extra = extra;
+            extra.extend(["--mode", mode]);
             if render(&asset, &out, backend, &extra).is_none() {
                 break;
             }
@@ -272,7 +285,7 @@ fn depth_planes_in_front_beyond_and_through_the_cloud() {
     );
     // Without a plate the cut density is the display grey (1 − T), and lighter nowhere.
     let alone = dir.path().join("alone.png");
-    render(&asset, &alone, "cpu", &[]).unwrap();
+    render(&asset, &alone, "cpu", &["--mode", mode]).unwrap();
     let alone = read_png(&alone);
     assert!(cpu("mid_alone").iter().zip(&alone).all(|(c, a)| c <= a));
     assert!(differ(cpu("mid_alone"), &alone) > 50);
@@ -287,7 +300,7 @@ fn depth_planes_in_front_beyond_and_through_the_cloud() {
                 .map(|(a, b)| (*a as i32 - *b as i32).abs())
                 .max()
                 .unwrap();
-            assert!(max <= 2, "{n}: GPU and CPU differ by {max}/255");
+            assert!(max <= 2, "{mode} {n}: GPU and CPU differ by {max}/255");
         }
     }
 }

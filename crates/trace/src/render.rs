@@ -297,19 +297,7 @@ impl<'a> Tracer<'a> {
                     steps: 0,
                 }
             }
-            Mode::Lit => {
-                let (Some((t0, t1)), Some(lv)) = (clip, self.light.as_ref()) else {
-                    return miss(1.0, 0.0);
-                };
-                let mut v = LitMarch::new(self, lv, ray, dir, pixel);
-                walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
-                let c = [0, 1, 2].map(|i| (v.rad[i] + v.emit[i]) as f32);
-                Sample {
-                    rgba: [c[0], c[1], c[2], (1.0 - v.trans) as f32],
-                    value: v.trans as f32,
-                    steps: 0,
-                }
-            }
+            Mode::Lit => self.lit(ray, dir, clip, f64::INFINITY, pixel, scratch),
             Mode::Reference => {
                 if clip.is_none() {
                     return miss(1.0, 0.0);
@@ -334,6 +322,62 @@ impl<'a> Tracer<'a> {
                 }
             }
         }
+    }
+}
+
+impl Tracer<'_> {
+    /// `Mode::Lit` along `ray` (world direction `dir`), clipped to `clip` and cut at world
+    /// distance `t_max` (a scene's depth: samples beyond are not taken).
+    fn lit(
+        &self,
+        ray: IndexRay,
+        dir: [f64; 3],
+        clip: Option<(f64, f64)>,
+        t_max: f64,
+        pixel: u32,
+        scratch: &mut Scratch,
+    ) -> Sample {
+        let (Some((t0, t1)), Some(lv)) = (clip, self.light.as_ref()) else {
+            return Sample {
+                rgba: [0.0; 4],
+                value: 1.0,
+                steps: 0,
+            };
+        };
+        let mut v = LitMarch::new(self, lv, ray, dir, pixel);
+        let t1 = t1.min(t_max);
+        if t1 > t0 {
+            walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
+        }
+        let c = [0, 1, 2].map(|i| (v.rad[i] + v.emit[i]) as f32);
+        Sample {
+            rgba: [c[0], c[1], c[2], (1.0 - v.trans) as f32],
+            value: v.trans as f32,
+            steps: 0,
+        }
+    }
+
+    /// [`Tracer::trace`] with the ray cut at world distance `t_max` from `eye` (what an
+    /// engine's depth buffer allows; the samples are those of the uncut ray before `t_max`), for
+    /// `Mode::Lit` only: other modes are traced uncut (the density mode's cut march is
+    /// [`Tracer::optical_depth`]).
+    pub fn trace_until(
+        &self,
+        eye: [f64; 3],
+        dir: [f64; 3],
+        t_max: f64,
+        pixel: u32,
+        scratch: &mut Scratch,
+    ) -> Sample {
+        if self.settings.mode != Mode::Lit {
+            return self.trace(eye, dir, pixel, scratch);
+        }
+        let ray = IndexRay::new(
+            self.xf.index_of(eye),
+            self.xf.dir_to_index(normalize(dir)),
+            self.voxel_units(),
+        );
+        self.lit(ray, dir, ray.clip(self.extent), t_max, pixel, scratch)
     }
 }
 
