@@ -16,7 +16,9 @@ use std::process::ExitCode;
 
 use vdbcook_runtime::glam::{Affine3A, Quat, Vec3};
 use vdbcook_runtime::wgpu::util::DeviceExt;
-use vdbcook_runtime::{wgpu, Asset, DrawTarget, GpuVolume, Instance, Medium, View, VolumeDrawer};
+use vdbcook_runtime::{
+    wgpu, Asset, DrawTarget, GpuVolume, Instance, Lighting, Medium, View, VolumeDrawer,
+};
 
 /// The colour target's format: 8-bit sRGB, as a swapchain (the drawer blends in linear space).
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -264,9 +266,10 @@ pub fn render_scene(
         (width, height),
     )?;
 
+    let sun = Vec3::new(0.4, 0.8, 0.3).normalize();
     let uniform = SceneUniform {
         view_proj: (view.proj * view.view).to_cols_array_2d(),
-        sun: Vec3::new(0.4, 0.8, 0.3).normalize().extend(0.0).to_array(),
+        sun: sun.extend(0.0).to_array(),
         checker: [0.25 * size.x.max(size.z), 0.0, 0.0, 0.0],
     };
     let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -442,7 +445,18 @@ pub fn render_scene(
         },
         &view,
         &instances,
-        &Medium::default(),
+        // Lit by the scene's sun (the same direction its Lambert shading uses) and a bright
+        // sky: the tracer's lit mode, per instance, through light volumes the drawer builds.
+        &Medium {
+            lighting: Some(Lighting {
+                light_dir: sun.to_array(),
+                light_color: [2.6, 2.5, 2.3],
+                sky: [0.55, 0.62, 0.75],
+                light_res: 48,
+                ..Default::default()
+            }),
+            ..Default::default()
+        },
     )?;
     copy(&mut encoder, &composite_buffer);
     queue.submit([encoder.finish()]);
