@@ -1,7 +1,8 @@
-// light_build.wgsl — the lit mode's light-volume pass (`vdbcook_trace::LightVolume::build` on the
-// GPU): `lv_density` box-filters the frame's voxels into the coarse cells, then `lv_tau` marches
-// each cell's centre toward the sun through that density and sums it along the six axes into the
-// sky's depth. Concatenated after `volume.wgsl` and `light.wgsl`; group 0 is the volume.
+// light_build.wgsl — the lit mode's light-volume passes (`vdbcook_trace::LightVolume::build` on
+// the GPU), in this order: `lv_density_main` box-filters the frame's voxels into the coarse
+// cells; `lv_sun_main` integrates each cell's density toward the sun; `lv_axis{0,1,2}_main` sum
+// it along each axis's columns in both directions into τ_sky's accumulator; `lv_sky_main` turns
+// that into τ_sky. Concatenated after `volume.wgsl` and `light.wgsl`; group 0 is the volume.
 // Run once per frame and light (the renderer and the drawer cache it), each entry one invocation
 // per cell.
 
@@ -29,8 +30,8 @@ struct LightParams {
 
 // Largest sky optical depth kept (`vdbcook_trace::LIT_MAX_SKY_DEPTH`).
 const LV_MAX_SKY_DEPTH: f32 = 80.0;
-// Most sun-march steps per cell: the diagonal of 256³ cells at half a cell per step.
-const LV_MAX_STEPS: u32 = 1024u;
+// Most slices a sun march crosses (`vdbcook_scene::MAX_LIGHT_RES`).
+const LV_MAX_SLICES: u32 = 256u;
 
 @compute @workgroup_size(4, 4, 4)
 fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -53,17 +54,39 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_density[lv_index(gid, dims)] = sum / f32(sub * sub * sub);
 }
 
-fn lv_density_at(p: vec3<f32>) -> f32 {
-    let t = lv_taps(p, lp.lo.xyz, lp.lo.w, lp.dims.xyz);
+// The density of slice `k` of axis `m` bilinear at `p` (`LightGrid::slice_taps`).
+fn lv_slice_density(p: vec3<f32>, m: u32, k: u32) -> f32 {
+    let dims = lp.dims.xyz;
+    let ua = (m + 1u) % 3u;
+    let va = (m + 2u) % 3u;
+    var i0 = vec3<u32>(k);
+    var i1 = vec3<u32>(k);
+    var f = vec3<f32>(0.0);
+    for (var n = 0u; n < 2u; n++) {
+        let a = select(ua, va, n == 1u);
+        let top = f32(dims[a] - 1u);
+        var u = clamp((p[a] - lp.lo[a]) / lp.lo.w - 0.5, 0.0, top);
+        u = select(u, 0.0, u != u);
+        let base = min(floor(u), max(top - 1.0, 0.0));
+        i0[a] = u32(base);
+        i1[a] = min(u32(base) + 1u, dims[a] - 1u);
+        f[a] = u - base;
+    }
     var d = 0.0;
-    for (var k = 0u; k < 8u; k++) {
-        d += t.w[k] * lv_density[t.idx[k]];
+    for (var q = 0u; q < 4u; q++) {
+        var c = i0;
+        var w = 1.0;
+        if ((q & 1u) == 0u) { w *= 1.0 - f[ua]; } else { c[ua] = i1[ua]; w *= f[ua]; }
+        if ((q & 2u) == 0u) { w *= 1.0 - f[va]; } else { c[va] = i1[va]; w *= f[va]; }
+        d += w * lv_density[lv_index(c, dims)];
     }
     return d;
 }
 
+// τ_sun per cell (`LightGrid::sun_depth`: the trapezoid rule between the crossings of the next
+// slices' centre planes along the light's major axis); τ_sky's accumulator cleared.
 @compute @workgroup_size(4, 4, 4)
-fn lv_tau_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = lp.dims.xyz;
     if (any(gid >= dims)) {
         return;
@@ -71,8 +94,16 @@ fn lv_tau_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cell = lp.lo.w;
     let lo = lp.lo.xyz;
     let p = lo + (vec3<f32>(gid) + vec3<f32>(0.5)) * cell;
-    // The grid's far side along the light (`LightGrid::exit`).
     let l = lp.sun.xyz;
+    let al = abs(l);
+    var m = 0u;
+    if (al.y > al[m]) {
+        m = 1u;
+    }
+    if (al.z > al[m]) {
+        m = 2u;
+    }
+    // The grid's far side along the light (`LightGrid::exit`).
     let hi = lo + vec3<f32>(dims) * cell;
     var t_exit = 3.0e38;
     for (var a = 0; a < 3; a++) {
@@ -82,41 +113,89 @@ fn lv_tau_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             t_exit = min(t_exit, (lo[a] - p[a]) / l[a]);
         }
     }
-    let h = cell / 2.0;
-    var sum = 0.0;
-    for (var k = 0u; k < LV_MAX_STEPS; k++) {
-        let t = (f32(k) + 0.5) * h;
-        if (!(t < t_exit)) {
+    t_exit = max(t_exit, 0.0);
+    let seg = cell / al[m];
+    let up = l[m] > 0.0;
+    var tau = 0.0;
+    var prev = lv_density[lv_index(gid, dims)];
+    var t_prev = 0.0;
+    var k = i32(gid[m]);
+    for (var j = 1u; j <= LV_MAX_SLICES; j++) {
+        let t = f32(j) * seg;
+        k += select(-1, 1, up);
+        if (!(t <= t_exit) || k < 0 || k >= i32(dims[m])) {
             break;
         }
-        sum += lv_density_at(p + t * l);
+        let d = lv_slice_density(p + t * l, m, u32(k));
+        tau += 0.5 * (prev + d) * (t - t_prev);
+        prev = d;
+        t_prev = t;
     }
-    let tau_sun = sum * h * lp.sun.w;
-    // The six axis directions: half this cell plus every cell beyond it.
+    tau += prev * max(t_exit - t_prev, 0.0);
+    lv_tau[lp.base + lv_index(gid, dims)] = vec2<f32>(tau * lp.sun.w, 0.0);
+}
+
+// One column along `axis` (one invocation per cell of the other two axes): the depths toward
+// −axis and +axis of each of its cells, added to τ_sky's accumulator as the mean transmittance
+// (extinction > 0) or the mean depth (`LightVolume::build`'s running sums).
+fn lv_axis(gid: vec3<u32>, axis: u32) {
+    let dims = lp.dims.xyz;
+    let ua = (axis + 1u) % 3u;
+    let va = (axis + 2u) % 3u;
+    if (gid.x >= dims[ua] || gid.y >= dims[va]) {
+        return;
+    }
+    var c = vec3<u32>(0u);
+    c[ua] = gid.x;
+    c[va] = gid.y;
+    var total = 0.0;
+    for (var k = 0u; k < dims[axis]; k++) {
+        c[axis] = k;
+        total += lv_density[lv_index(c, dims)];
+    }
+    let len = lp.lo.w * lp.axis_len[axis];
     let ext = lp.axis_len.w;
-    let own = lv_density[lv_index(gid, dims)] / 2.0;
-    var t_mean = 0.0;
-    var tau_mean = 0.0;
-    for (var a = 0; a < 3; a++) {
-        for (var s = 0; s < 2; s++) {
-            var acc = own;
-            var c = vec3<i32>(gid);
-            let dir = select(1, -1, s == 0);
-            for (var n = 0u; n < 256u; n++) {
-                c[a] += dir;
-                if (c[a] < 0 || c[a] >= i32(dims[a])) {
-                    break;
-                }
-                acc += lv_density[lv_index(vec3<u32>(c), dims)];
-            }
-            let tau = acc * cell * lp.axis_len[a];
-            tau_mean += tau / 6.0;
-            t_mean += exp(-ext * tau) / 6.0;
+    var before = 0.0;
+    for (var k = 0u; k < dims[axis]; k++) {
+        c[axis] = k;
+        let i = lp.base + lv_index(c, dims);
+        let own = lv_density[lv_index(c, dims)];
+        var acc = lv_tau[i].y;
+        for (var s = 0u; s < 2u; s++) {
+            let d = select(before + own / 2.0, total - before - own / 2.0, s == 1u);
+            let t = max(d, 0.0) * len;
+            acc += select(t, exp(-ext * t), ext > 0.0) / 6.0;
         }
+        lv_tau[i].y = acc;
+        before += own;
     }
-    var tau_sky = tau_mean;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn lv_axis0_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    lv_axis(gid, 0u);
+}
+@compute @workgroup_size(8, 8, 1)
+fn lv_axis1_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    lv_axis(gid, 1u);
+}
+@compute @workgroup_size(8, 8, 1)
+fn lv_axis2_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    lv_axis(gid, 2u);
+}
+
+// τ_sky from its accumulator (`vdbcook_trace::sky_depth`).
+@compute @workgroup_size(4, 4, 4)
+fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = lp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lp.base + lv_index(gid, dims);
+    let ext = lp.axis_len.w;
+    var tau_sky = lv_tau[i].y;
     if (ext > 0.0) {
-        tau_sky = max(-log(max(t_mean, exp(-LV_MAX_SKY_DEPTH))) / ext, 0.0);
+        tau_sky = max(-log(max(tau_sky, exp(-LV_MAX_SKY_DEPTH))) / ext, 0.0);
     }
-    lv_tau[lp.base + lv_index(gid, dims)] = vec2<f32>(tau_sun, tau_sky);
+    lv_tau[i].y = tau_sky;
 }

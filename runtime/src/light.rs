@@ -90,8 +90,8 @@ struct State {
 
 /// The light-volume passes of one renderer or drawer.
 pub(crate) struct LightPass {
-    density: wgpu::ComputePipeline,
-    tau: wgpu::ComputePipeline,
+    /// `light_build.wgsl`'s passes in their order: density, sun, the three axes, sky.
+    passes: [wgpu::ComputePipeline; 6],
     build_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
     /// Bound at group 3 by draws that read no light volume.
@@ -149,8 +149,15 @@ impl LightPass {
         });
         let pipeline =
             |label, entry| volume.compute_pipeline(device, label, &module, entry, &[&build_layout]);
-        let density = pipeline("vdbcook light density", "lv_density_main");
-        let tau = pipeline("vdbcook light tau", "lv_tau_main");
+        let passes = [
+            "lv_density_main",
+            "lv_sun_main",
+            "lv_axis0_main",
+            "lv_axis1_main",
+            "lv_axis2_main",
+            "lv_sky_main",
+        ]
+        .map(|entry| pipeline("vdbcook light volume", entry));
         let empty = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook light volume (none)"),
             size: 8,
@@ -166,8 +173,7 @@ impl LightPass {
             }],
         });
         LightPass {
-            density,
-            tau,
+            passes,
             build_layout,
             read_layout,
             empty_group,
@@ -251,19 +257,27 @@ impl LightPass {
                         },
                     ],
                 });
-                let groups = lp.dims.map(|d| d.div_ceil(WORKGROUP));
-                for (label, pipeline) in [
-                    ("vdbcook light density", &self.density),
-                    ("vdbcook light tau", &self.tau),
-                ] {
+                // Per cell (4³ groups) or per column of an axis (8² groups over the other two).
+                let [x, y, z, _] = lp.dims;
+                let cells = [x, y, z].map(|d| d.div_ceil(WORKGROUP));
+                let columns = |u: u32, v: u32| [u.div_ceil(8), v.div_ceil(8), 1];
+                let sizes = [
+                    cells,
+                    cells,
+                    columns(y, z),
+                    columns(z, x),
+                    columns(x, y),
+                    cells,
+                ];
+                for (pipeline, size) in self.passes.iter().zip(sizes) {
                     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some(label),
+                        label: Some("vdbcook light volume"),
                         timestamp_writes: None,
                     });
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(0, volume_group, &[]);
                     pass.set_bind_group(1, &group, &[]);
-                    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+                    pass.dispatch_workgroups(size[0], size[1], size[2]);
                 }
             }
         }

@@ -6,8 +6,10 @@
 //!    - density pass: a cell's density `D` is the mean of `max(v, 0)` over `sub³` nearest-voxel
 //!      reads at the centres of its `sub³` sub-cells (a box filter, so a coarse cell does not
 //!      alias the voxels it covers);
-//!    - sun pass: `τ_sun` at a cell centre is `Σ D(c + (k + ½)·h·l̂)·h` (trilinear `D`,
-//!      `h = cell/2`, `l̂` the cell-space direction toward the light) up to the grid's far side;
+//!    - sun pass: `τ_sun` at a cell centre is the integral of `D` toward the light (`l̂`, in
+//!      cell space) to the grid's far side by the trapezoid rule between the crossings of the
+//!      next slices' centre planes along `l̂`'s major axis, `D` bilinear in each
+//!      (`LightGrid::sun_depth`): about `n/2` bilinear reads per cell for `n` slices;
 //!    - sky pass: the optical depths toward the six axis directions (`cell·(D(c)/2 + Σ D beyond)`,
 //!      exact for the piecewise-constant `D`), combined into the one depth `τ_sky` whose
 //!      transmittance is their mean: `e^{−σ·τ_sky} = ⅙ Σ e^{−σ·τ_axis}` (σ the extinction).
@@ -110,57 +112,55 @@ impl LightVolume {
         #[cfg(not(feature = "parallel"))]
         density.chunks_mut(slab).enumerate().for_each(fill);
 
-        // Sun and sky passes.
+        // Sun pass, per cell (`LightGrid::sun_depth`).
         let ((l, sun_len), axis_len) = light_dirs(xf, s);
-        let h = grid.cell / 2.0;
-        let d_at = |p: [f64; 3]| -> f64 {
-            grid.taps(p)
-                .iter()
-                .map(|&(i, w)| w * density[i] as f64)
-                .sum()
-        };
         let mut tau = vec![[0.0f32; 2]; n];
-        let pass = |(z, out): (usize, &mut [[f32; 2]])| {
+        let sun = |(z, out): (usize, &mut [[f32; 2]])| {
             for y in 0..ny {
                 for x in 0..nx {
                     let c = [x as u32, y as u32, z as u32];
-                    let p = grid.centre(c);
-                    let t_exit = grid.exit(p, l);
-                    let mut sum = 0.0f64;
-                    let mut k = 0.0f64;
-                    while (k + 0.5) * h < t_exit {
-                        let t = (k + 0.5) * h;
-                        sum += d_at([0, 1, 2].map(|i| p[i] + t * l[i]));
-                        k += 1.0;
-                    }
-                    let tau_sun = sum * h * sun_len;
-                    let mut t_mean = 0.0f64;
-                    let mut tau_mean = 0.0f64;
-                    for a in 0..3 {
-                        for dir in [-1i64, 1] {
-                            let mut q = c.map(|v| v as i64);
-                            let mut acc = density[grid.index(c)] as f64 / 2.0;
-                            loop {
-                                q[a] += dir;
-                                if q[a] < 0 || q[a] >= grid.dims[a] as i64 {
-                                    break;
-                                }
-                                acc += density[grid.index(q.map(|v| v as u32))] as f64;
-                            }
-                            let t = acc * grid.cell * axis_len[a];
-                            tau_mean += t / 6.0;
-                            t_mean += (-extinction * t).exp() / 6.0;
-                        }
-                    }
-                    let tau_sky = sky_depth(t_mean, tau_mean, extinction);
-                    out[x + nx * y] = [tau_sun as f32, tau_sky as f32];
+                    let t = grid.sun_depth(c, l, |i| density[i] as f64) * sun_len;
+                    out[x + nx * y][0] = t as f32;
                 }
             }
         };
         #[cfg(feature = "parallel")]
-        tau.par_chunks_mut(slab).enumerate().for_each(pass);
+        tau.par_chunks_mut(slab).enumerate().for_each(sun);
         #[cfg(not(feature = "parallel"))]
-        tau.chunks_mut(slab).enumerate().for_each(pass);
+        tau.chunks_mut(slab).enumerate().for_each(sun);
+
+        // Sky: the depths toward the six axis directions, half the cell's own density plus the
+        // cells beyond, from running sums along each axis.
+        let mut t_mean = vec![0.0f64; n];
+        let mut tau_mean = vec![0.0f64; n];
+        for a in 0..3 {
+            let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+            let len = grid.cell * axis_len[a];
+            for v in 0..grid.dims[va] {
+                for u in 0..grid.dims[ua] {
+                    let cell = |k: u32| {
+                        let mut c = [0u32; 3];
+                        (c[a], c[ua], c[va]) = (k, u, v);
+                        grid.index(c)
+                    };
+                    let total: f64 = (0..grid.dims[a]).map(|k| density[cell(k)] as f64).sum();
+                    let mut before = 0.0f64;
+                    for k in 0..grid.dims[a] {
+                        let i = cell(k);
+                        let own = density[i] as f64;
+                        for d in [before + own / 2.0, total - before - own / 2.0] {
+                            let t = d.max(0.0) * len;
+                            tau_mean[i] += t / 6.0;
+                            t_mean[i] += (-extinction * t).exp() / 6.0;
+                        }
+                        before += own;
+                    }
+                }
+            }
+        }
+        for (i, t) in tau.iter_mut().enumerate() {
+            t[1] = sky_depth(t_mean[i], tau_mean[i], extinction) as f32;
+        }
         LightVolume { grid, density, tau }
     }
 
