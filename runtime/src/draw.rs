@@ -543,6 +543,29 @@ struct DrawInstance {
     lv_dims1: [u32; 4],
 }
 
+/// One element of `vdb_shadow_instances` (`shaders/shadow.wgsl`): a lit instance's world → cell
+/// rows, the cell-space direction toward the sun with the extinction, and its light volumes.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct ShadowInstance {
+    cell_from_world: [[f32; 4]; 3],
+    sun: [f32; 4],
+    lo0: [f32; 4],
+    dims0: [u32; 4],
+    lo1: [f32; 4],
+    dims1: [u32; 4],
+    weight: [f32; 4],
+}
+
+/// The sun's shadows of one frame's lit instances for an engine's own shaders: bind
+/// `bind_group` at the group given to [`crate::shadow_wgsl`], in a pipeline whose layout has
+/// [`VolumeDrawer::shadow_layout`] there, and call `vdb_sun_transmittance(world_position)`.
+pub struct SunShadows {
+    pub bind_group: wgpu::BindGroup,
+    /// How many instances cast shadows (the lit ones with content in their frames).
+    pub casters: usize,
+}
+
 /// The `(L, T)` texture of one viewport size and the composite's bind group over it.
 struct LtTexture {
     size: (u32, u32),
@@ -558,6 +581,8 @@ pub struct VolumeDrawer {
     lit_pipeline: wgpu::ComputePipeline,
     /// The lit instances' light volumes.
     light: LightPass,
+    /// The layout of `SunShadows::bind_group`.
+    shadow_layout: wgpu::BindGroupLayout,
     draw_layout: wgpu::BindGroupLayout,
     composite_pipeline: wgpu::RenderPipeline,
     composite_layout: wgpu::BindGroupLayout,
@@ -728,9 +753,23 @@ impl VolumeDrawer {
                 view_formats: &[],
             })
             .create_view(&Default::default());
+        let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook sun shadows"),
+            entries: &[0, 1].map(|binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::all(),
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }),
+        });
         Ok(VolumeDrawer {
             draw_pipeline,
             lit_pipeline,
+            shadow_layout,
             light,
             draw_layout,
             composite_pipeline,
@@ -758,6 +797,102 @@ impl VolumeDrawer {
     /// the medium change).
     pub fn invalidate_light_volumes(&self) {
         self.light.invalidate();
+    }
+
+    /// The layout of [`SunShadows::bind_group`] (for an engine's pipeline layout).
+    pub fn shadow_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.shadow_layout
+    }
+
+    /// Records the light volumes of `instances` under `medium`'s lighting (as [`record`]
+    /// would; a later `record` of the same instances and medium reuses them) and returns the
+    /// bind group through which an engine's shaders read the sun's transmittance at any world
+    /// point (`vdb_sun_transmittance` in [`crate::shadow_wgsl`]): call it before the engine's
+    /// opaque pass in the same encoder, then `record` after it. Refuses a medium without
+    /// lighting (`RuntimeError::Setting`). Creates one small buffer and a bind group.
+    ///
+    /// [`record`]: VolumeDrawer::record
+    pub fn sun_shadows(
+        &mut self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        instances: &[Instance],
+        medium: &Medium,
+    ) -> Result<SunShadows> {
+        let Some(l) = &medium.lighting else {
+            return Err(RuntimeError::Setting(
+                "sun shadows need Medium::lighting (the light volumes of the lit mode)".into(),
+            ));
+        };
+        l.settings(medium)
+            .validate(self.vol.frames())
+            .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
+        let (draws, volumes) = self.instances(DVec3::ZERO, instances, medium)?;
+        let (bases, pool) = if volumes.is_empty() {
+            (Vec::new(), None)
+        } else {
+            let (_, bases, pool) = self
+                .light
+                .record(device, encoder, &self.vol.group, &volumes);
+            (bases, Some(pool))
+        };
+        let lw = DVec3::from(l.light_dir.map(|c| c as f64)).normalize();
+        let mut casters: Vec<ShadowInstance> = draws
+            .iter()
+            .filter(|d| d.lit != 0)
+            .map(|d| {
+                let r = d.cell_from_world;
+                let row = |i: usize| (0..3).map(|k| r[i][k] as f64 * lw[k]).sum::<f64>();
+                let dir = DVec3::new(row(0), row(1), row(2)).normalize();
+                let with_base =
+                    |dims: [u32; 4], idx: u32| [dims[0], dims[1], dims[2], bases[idx as usize]];
+                ShadowInstance {
+                    cell_from_world: r,
+                    sun: [dir.x as f32, dir.y as f32, dir.z as f32, d.extinction],
+                    lo0: d.lv_lo0,
+                    dims0: with_base(d.lv_dims0, d.lv_base0),
+                    lo1: d.lv_lo1,
+                    dims1: with_base(d.lv_dims1, d.lv_base1),
+                    weight: [d.box_lo[3], 0.0, 0.0, 0.0],
+                }
+            })
+            .collect();
+        let count = casters.len();
+        if casters.is_empty() {
+            // An array of one instance that casts nothing (extinction 0).
+            casters.push(ShadowInstance::zeroed());
+        }
+        let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vdbcook sun shadows"),
+            contents: bytemuck::cast_slice(&casters),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let pool = pool.unwrap_or_else(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vdbcook sun shadows (no light volume)"),
+                size: 8,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook sun shadows"),
+            layout: &self.shadow_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: pool.as_entire_binding(),
+                },
+            ],
+        });
+        Ok(SunShadows {
+            bind_group,
+            casters: count,
+        })
     }
 
     /// The colour format this drawer blends onto.
@@ -856,11 +991,10 @@ impl VolumeDrawer {
     /// leaving out instances with nothing > 0 in their frames.
     fn instances(
         &self,
-        rays: &ViewRays,
+        eye: DVec3,
         instances: &[Instance],
         medium: &Medium,
     ) -> Result<(Vec<DrawInstance>, Vec<LightParams>)> {
-        let eye = rays.eye();
         let mut out = Vec::with_capacity(instances.len());
         let mut volumes = Vec::new();
         for (i, inst) in instances.iter().enumerate() {
@@ -976,14 +1110,14 @@ impl VolumeDrawer {
         }
         let size = view.viewport;
         self.check_targets(target, size)?;
-        let (mut gpu_instances, volumes) = self.instances(&rays, instances, medium)?;
+        let (mut gpu_instances, volumes) = self.instances(rays.eye(), instances, medium)?;
         if gpu_instances.is_empty() {
             return Ok(());
         }
         let light_group = if volumes.is_empty() {
             self.light.empty_group.clone()
         } else {
-            let (group, bases) = self
+            let (group, bases, _) = self
                 .light
                 .record(device, encoder, &self.vol.group, &volumes);
             for d in gpu_instances.iter_mut().filter(|d| d.lit != 0) {
@@ -1155,6 +1289,24 @@ mod tests {
                 lv_dims0,
                 lv_lo1,
                 lv_dims1,
+            }),
+        );
+    }
+
+    #[test]
+    fn shadow_instance_mirrors_the_wgsl() {
+        use crate::layout_check::{assert_mirrors, rust_layout};
+        assert_mirrors(
+            &crate::shadow_wgsl(0),
+            "VdbShadowInstance",
+            rust_layout!(ShadowInstance {
+                cell_from_world,
+                sun,
+                lo0,
+                dims0,
+                lo1,
+                dims1,
+                weight,
             }),
         );
     }

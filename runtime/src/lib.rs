@@ -59,8 +59,8 @@ mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, Lighting, Medium, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL,
-    DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, Lighting, Medium, SunShadows, View, ViewRays, VolumeDrawer,
+    COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
@@ -70,7 +70,7 @@ pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };
 pub use vdbcook_asset::Asset;
-pub use wgsl::{volume_wgsl, world_to_index};
+pub use wgsl::{shadow_wgsl, volume_wgsl, world_to_index};
 /// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
 /// to be sure of matching versions.
 pub use {glam, wgpu};
@@ -87,6 +87,10 @@ pub const LIGHT_WGSL: &str = include_str!("../../shaders/light.wgsl");
 /// The lit mode's light-volume pass (group 1, entry points `lv_density_main`, `lv_tau_main`);
 /// needs [`VOLUME_WGSL`] and [`LIGHT_WGSL`] before it.
 pub const LIGHT_BUILD_WGSL: &str = include_str!("../../shaders/light_build.wgsl");
+
+/// The sun's transmittance through a drawer's lit volumes for an engine's shaders (group 0,
+/// `vdb_sun_transmittance`); use [`shadow_wgsl`], which puts [`LIGHT_WGSL`] before it.
+pub const SHADOW_WGSL: &str = include_str!("../../shaders/shadow.wgsl");
 
 /// Result of the runtime's calls.
 pub type Result<T> = std::result::Result<T, RuntimeError>;

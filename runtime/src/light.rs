@@ -189,14 +189,14 @@ impl LightPass {
 
     /// Records the passes that build `volumes` one after the other into one buffer, unless the
     /// last call built the same ones (and its recording was submitted), and returns the bind
-    /// group that reads them and each one's base element.
+    /// group that reads them, each one's base element, and the buffer.
     pub fn record(
         &self,
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         volume_group: &wgpu::BindGroup,
         volumes: &[LightParams],
-    ) -> (wgpu::BindGroup, Vec<u32>) {
+    ) -> (wgpu::BindGroup, Vec<u32>, wgpu::Buffer) {
         let mut placed = volumes.to_vec();
         let mut total = 0usize;
         for lp in &mut placed {
@@ -281,9 +281,9 @@ impl LightPass {
                 }
             }
         }
-        let read = read.clone();
+        let (read, pool) = (read.clone(), pool.clone());
         state.built = Some(placed);
-        (read, bases)
+        (read, bases, pool)
     }
 }
 

@@ -6,13 +6,24 @@
 
 use glam::{DMat4, Mat4};
 
-use crate::{GpuVolume, VOLUME_WGSL};
+use crate::{GpuVolume, LIGHT_WGSL, SHADOW_WGSL, VOLUME_WGSL};
 
 /// [`VOLUME_WGSL`] with the volume's bindings in bind group `group` instead of 0. Bind
 /// [`GpuVolume::bind_group`] at that index of the engine's pipeline layout, and pass
 /// [`GpuVolume::pipeline_constants`] as the pipeline's constants.
 pub fn volume_wgsl(group: u32) -> String {
     VOLUME_WGSL.replace("@group(0)", &format!("@group({group})"))
+}
+
+/// The sun's shadows for an engine's own shaders: [`LIGHT_WGSL`] and [`SHADOW_WGSL`] with the
+/// shadow bindings in bind group `group`, defining `vdb_sun_transmittance(world) -> f32`. Bind
+/// [`crate::SunShadows::bind_group`] at that index ([`crate::VolumeDrawer::shadow_layout`] in
+/// the pipeline layout). Independent of [`volume_wgsl`]: a shader may include both.
+pub fn shadow_wgsl(group: u32) -> String {
+    format!(
+        "{LIGHT_WGSL}\n{}",
+        SHADOW_WGSL.replace("@group(0)", &format!("@group({group})"))
+    )
 }
 
 /// The matrix `vdb_sample` takes for an instance placed by `world_from_volume`: world space to

@@ -1110,3 +1110,217 @@ fn srgb_8_bit_targets_blend_in_linear_space() {
     // Half-float (L, T), then 8-bit sRGB: at most one level plus rounding.
     assert!(worst <= 1.6, "{worst} levels");
 }
+
+/// The sun's shadows an engine reads (`shadow_wgsl`'s `vdb_sun_transmittance`, bound through
+/// `VolumeDrawer::sun_shadows`) against the CPU's `Tracer::sun_transmittance` of each lit
+/// instance on the moved asset, multiplied: at a lattice of world points around, inside and under
+/// two instances (one translated at frame 0, one rotated and scaled in a crossfade at time 1.5,
+/// whose optical depths lerp).
+#[test]
+fn sun_shadows_match_the_cpu() {
+    let Some(gpu) = Gpu::new("sun_shadows_match_the_cpu") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let lighting = Lighting {
+        light_res: 24,
+        light_dir: [0.3, 0.9, -0.2],
+        ..Default::default()
+    };
+    let medium = Medium {
+        lighting: Some(lighting),
+        ..Default::default()
+    };
+    let instances = [
+        Instance {
+            density_scale: 1.0,
+            ..Instance::at(Affine3A::from_translation(Vec3::new(30.0, -12.0, 7.0)))
+        },
+        Instance {
+            density_scale: 1.5,
+            time: 1.5,
+            ..Instance::at(Affine3A::from_scale_rotation_translation(
+                Vec3::splat(1.3),
+                Quat::from_euler(EulerRot::XYZ, 0.4, -0.9, 1.7),
+                Vec3::new(-5.0, 4.0, 3.0),
+            ))
+        },
+    ];
+    // Without lighting: refused.
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let e = drawer
+        .sun_shadows(&gpu.device, &mut enc, &instances, &Medium::default())
+        .err()
+        .expect("no lighting, no shadows");
+    assert!(matches!(e, RuntimeError::Setting(_)), "{e}");
+
+    // The CPU: per instance and frame a lit tracer on the moved asset.
+    let mut tracers = Vec::new();
+    for inst in &instances {
+        let m = moved(&asset, inst);
+        let (f0, f1, a) = inst.frames(asset.frame_count()).unwrap();
+        let base = lighting.settings(&medium);
+        let s = RenderSettings {
+            absorb: base.absorb * inst.density_scale,
+            scatter: base.scatter * inst.density_scale,
+            ..base
+        };
+        let ext = (s.absorb + s.scatter) as f64;
+        tracers.push((m, [f0, f1], a as f64, s, ext));
+    }
+    // World points: a lattice over the instances' world boxes, grown by half.
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for (m, ..) in &tracers {
+        let (blo, bhi) = vdbcook_trace::content_box(m, 0).unwrap();
+        let xf = vdbcook_trace::Affine::cells(&m.header.index_to_world).unwrap();
+        for c in 0..8 {
+            let p = [0, 1, 2].map(|k| if c >> k & 1 == 0 { blo[k] } else { bhi[k] });
+            let w = xf.world_of(p);
+            let w = Vec3::new(w[0] as f32, w[1] as f32, w[2] as f32);
+            (lo, hi) = (lo.min(w), hi.max(w));
+        }
+    }
+    let (c, h) = (0.5 * (lo + hi), 0.75 * (hi - lo));
+    let n = 12;
+    let points: Vec<[f32; 4]> = (0..n * n * n)
+        .map(|i| {
+            let f = |k: usize| (k as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+            let p = c + h * Vec3::new(f(i % n), f(i / n % n), f(i / (n * n)));
+            [p.x, p.y, p.z, 0.0]
+        })
+        .collect();
+    // One lit tracer per instance and frame (each builds its light volume once).
+    let lit: Vec<(Vec<Tracer>, f64, f64)> = tracers
+        .iter()
+        .map(|(m, frames, a, s, ext)| {
+            let cam = Camera::framing(m, 0, 1.0).unwrap();
+            let t = frames
+                .iter()
+                .map(|&frame| Tracer::new(m, &cam, &RenderSettings { frame, ..s.clone() }).unwrap())
+                .collect();
+            (t, *a, *ext)
+        })
+        .collect();
+    let cpu: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            let w = [p[0] as f64, p[1] as f64, p[2] as f64];
+            lit.iter()
+                .map(|(t, a, ext)| {
+                    let tau: Vec<f64> = t
+                        .iter()
+                        .map(|t| -t.sun_transmittance(w).unwrap().ln() / ext)
+                        .collect();
+                    (-ext * ((1.0 - a) * tau[0] + a * tau[1])).exp()
+                })
+                .product()
+        })
+        .collect();
+
+    // The GPU: a compute shader over the points, the shadows bound at group 0.
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let shadows = drawer
+        .sun_shadows(&gpu.device, &mut enc, &instances, &medium)
+        .unwrap();
+    assert_eq!(shadows.casters, 2);
+    let source = format!(
+        "{}\n@group(1) @binding(0) var<storage, read> pts: array<vec4<f32>>;\n\
+         @group(1) @binding(1) var<storage, read_write> out_t: array<f32>;\n\
+         @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n\
+         if (id.x >= arrayLength(&pts)) {{ return; }}\n\
+         out_t[id.x] = vdb_sun_transmittance(pts[id.x].xyz);\n}}\n",
+        vdbcook_runtime::shadow_wgsl(0)
+    );
+    let d = &gpu.device;
+    let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: None,
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let io_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[storage(0, true), storage(1, false)],
+    });
+    let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(drawer.shadow_layout()), Some(&io_layout)],
+        immediate_size: 0,
+    });
+    let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: None,
+        layout: Some(&layout),
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    use wgpu::util::DeviceExt;
+    let pts = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&points),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let size = 4 * points.len() as u64;
+    let out = d.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let read = d.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let io = d.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &io_layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: pts.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: out.as_entire_binding(),
+            },
+        ],
+    });
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &shadows.bind_group, &[]);
+        pass.set_bind_group(1, &io, &[]);
+        pass.dispatch_workgroups((points.len() as u32).div_ceil(64), 1, 1);
+    }
+    enc.copy_buffer_to_buffer(&out, 0, &read, 0, size);
+    gpu.queue.submit([enc.finish()]);
+    read.slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    d.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let got: Vec<f32> = bytemuck::cast_slice(&read.slice(..).get_mapped_range().unwrap()).to_vec();
+
+    let mut worst = 0.0f64;
+    for (g, c) in got.iter().zip(&cpu) {
+        worst = worst.max((*g as f64 - c).abs());
+    }
+    let dark = cpu.iter().filter(|t| **t < 0.9).count();
+    let clear = cpu.iter().filter(|t| **t > 0.999).count();
+    eprintln!("sun shadows: worst |gpu − cpu| {worst:.2e}; {dark} points below 0.9, {clear} unshadowed of {}", cpu.len());
+    assert!(worst < 1e-3, "worst {worst}");
+    assert!(
+        dark > 50 && clear > 50,
+        "a lattice with shadow and light ({dark}, {clear})"
+    );
+}

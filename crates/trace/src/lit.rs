@@ -164,6 +164,32 @@ impl LightVolume {
         LightVolume { grid, density, tau }
     }
 
+    /// The sun's optical depth (length units) at cell-space point `p`, anywhere: inside the
+    /// grid the lookup at `p`; outside it, the lookup where the ray from `p` toward the sun
+    /// (unit cell-space `l`) enters the grid (the depth stored there is the rest of that ray);
+    /// 0 when that ray misses the grid. What an engine's shadow lookup
+    /// (`vdb_sun_transmittance` in `shaders/shadow.wgsl`) computes.
+    pub fn sun_depth_at(&self, p: [f64; 3], l: [f64; 3]) -> f64 {
+        let g = &self.grid;
+        let hi = [0, 1, 2].map(|a| g.lo[a] + g.dims[a] as f64 * g.cell);
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for a in 0..3 {
+            if l[a] == 0.0 {
+                if !(p[a] >= g.lo[a] && p[a] <= hi[a]) {
+                    return 0.0;
+                }
+            } else {
+                let (u, v) = ((g.lo[a] - p[a]) / l[a], (hi[a] - p[a]) / l[a]);
+                t0 = t0.max(u.min(v));
+                t1 = t1.min(u.max(v));
+            }
+        }
+        if !(t1 >= t0) {
+            return 0.0;
+        }
+        self.lookup([0, 1, 2].map(|a| p[a] + t0 * l[a]))[0]
+    }
+
     /// `(τ_sun, τ_sky)` at cell-space point `p` (trilinear).
     pub fn lookup(&self, p: [f64; 3]) -> [f64; 2] {
         let mut out = [0.0f64; 2];

@@ -104,6 +104,19 @@ impl<'a> Tracer<'a> {
         })
     }
 
+    /// The sun's transmittance through the volume at world point `p` (`Mode::Lit` only: `None`
+    /// in the other modes): `exp(−(absorb + scatter)·τ)` with `τ` the light volume's depth
+    /// toward the sun there (`LightVolume::sun_depth_at`) — what an engine darkens its own
+    /// geometry with under the smoke.
+    pub fn sun_transmittance(&self, p: [f64; 3]) -> Option<f64> {
+        let lv = self.light.as_ref()?;
+        let l = self
+            .xf
+            .dir_to_index(normalize(self.settings.light_dir.map(|c| c as f64)));
+        let tau = lv.sun_depth_at(self.xf.index_of(p), normalize(l));
+        Some((-self.extinction * tau).exp())
+    }
+
     /// The light volume (`Mode::Lit` only).
     pub fn light_volume(&self) -> Option<&LightVolume> {
         self.light.as_ref()
