@@ -60,7 +60,10 @@ fn scene_fs(i: VsOut) -> @location(0) vec4<f32> {
         if ((i32(c.x) + i32(c.y)) % 2 == 0) { albedo = albedo * 0.6; }
     }
     let lambert = max(dot(normalize(i.normal), scene.sun.xyz), 0.0);
-    return vec4<f32>(albedo * (0.25 + 0.75 * lambert), 1.0);
+    // The smoke's shadow: the sun's transmittance through the drawer's lit volumes
+    // (`vdbcook_runtime::shadow_wgsl`, prepended to this shader, bound at group 1).
+    let shadow = vdb_sun_transmittance(i.world);
+    return vec4<f32>(albedo * (0.25 + 0.75 * lambert * shadow), 1.0);
 }
 "#;
 
@@ -284,7 +287,9 @@ pub fn render_scene(
     });
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("engine_scene"),
-        source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),
+        source: wgpu::ShaderSource::Wgsl(
+            format!("{}\n{SCENE_WGSL}", vdbcook_runtime::shadow_wgsl(1)).into(),
+        ),
     });
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("engine_scene"),
@@ -309,7 +314,7 @@ pub fn render_scene(
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("engine_scene"),
-        bind_group_layouts: &[Some(&layout)],
+        bind_group_layouts: &[Some(&layout), Some(drawer.shadow_layout())],
         immediate_size: 0,
     });
     let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -399,8 +404,22 @@ pub fn render_scene(
         );
     };
 
-    // One encoder for the whole frame: opaque pass, copy, volumes, copy.
+    // Lit by the scene's sun (the same direction its Lambert shading uses) and a bright sky:
+    // the tracer's lit mode, per instance, through light volumes the drawer builds.
+    let medium = Medium {
+        lighting: Some(Lighting {
+            light_dir: sun.to_array(),
+            light_color: [2.6, 2.5, 2.3],
+            sky: [0.55, 0.62, 0.75],
+            light_res: 48,
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    // One encoder for the whole frame: the volumes' light (which the opaque pass reads for the
+    // smoke's shadows), opaque pass, copy, volumes, copy.
     let mut encoder = device.create_command_encoder(&Default::default());
+    let shadows = drawer.sun_shadows(device, &mut encoder, &instances, &medium)?;
     {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("engine_scene opaque"),
@@ -432,6 +451,7 @@ pub fn render_scene(
         });
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &group, &[]);
+        pass.set_bind_group(1, &shadows.bind_group, &[]);
         pass.set_vertex_buffer(0, vertex_buffer.slice(..));
         pass.draw(0..vertices.len() as u32, 0..1);
     }
@@ -445,18 +465,7 @@ pub fn render_scene(
         },
         &view,
         &instances,
-        // Lit by the scene's sun (the same direction its Lambert shading uses) and a bright
-        // sky: the tracer's lit mode, per instance, through light volumes the drawer builds.
-        &Medium {
-            lighting: Some(Lighting {
-                light_dir: sun.to_array(),
-                light_color: [2.6, 2.5, 2.3],
-                sky: [0.55, 0.62, 0.75],
-                light_res: 48,
-                ..Default::default()
-            }),
-            ..Default::default()
-        },
+        &medium,
     )?;
     copy(&mut encoder, &composite_buffer);
     queue.submit([encoder.finish()]);

@@ -14,6 +14,7 @@ mod engine_scene;
 
 use common::*;
 use vdbcook_asset::PayloadFormat;
+use vdbcook_runtime::glam::Vec3;
 
 #[test]
 fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
@@ -128,6 +129,49 @@ fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
         .filter(|&i| img.scene[4 * i..4 * i + 4] != img.composite[4 * i..4 * i + 4])
         .count();
     assert!(brighter * 10 >= changed * 9, "{brighter} of {changed}");
+    // The smoke's shadow on the ground (the scene shader reads `vdb_sun_transmittance`): ground
+    // points whose ray toward the sun crosses a cloud's core are darker than every ground point
+    // whose ray toward the sun meets no cloud at all (the ground's Lambert term is constant, so
+    // unshadowed ground pixels take one of the two checker colours).
+    let sun = Vec3::new(0.4, 0.8, 0.3).normalize();
+    let luminance = |k: usize| img.scene[k..k + 3].iter().map(|&v| v as u32).sum::<u32>();
+    let (mut lit_min, mut shadowed) = (u32::MAX, Vec::new());
+    for py in 0..h {
+        for px in 0..w {
+            let (o, d) = rays.ray(px, py);
+            let (o, d) = (o.as_vec3(), d.as_vec3());
+            if !(d.y < 0.0) || img.block.hit(o, d).is_some() {
+                continue;
+            }
+            let g = o + d * ((img.ground_y - o.y) / d.y);
+            let k = 4 * (py * w + px) as usize;
+            let cores = img.clouds.iter().any(|c| {
+                let (mid, size) = (0.5 * (c.lo + c.hi), c.hi - c.lo);
+                let core = engine_scene::Aabb {
+                    lo: mid - 0.2 * size,
+                    hi: mid + 0.2 * size,
+                };
+                core.hit(g, sun).is_some()
+            });
+            if cores {
+                shadowed.push(luminance(k));
+            } else if img.clouds.iter().all(|c| c.hit(g, sun).is_none())
+                && img.block.hit(g, sun).is_none()
+            {
+                lit_min = lit_min.min(luminance(k));
+            }
+        }
+    }
+    let darker = shadowed.iter().filter(|&&l| l < lit_min).count();
+    eprintln!(
+        "shadowed ground pixels {}, darker than any lit one: {darker}; lit min {lit_min}",
+        shadowed.len()
+    );
+    assert!(
+        shadowed.len() > 50 && darker * 10 >= shadowed.len() * 9,
+        "{darker} of {}",
+        shadowed.len()
+    );
     // Alpha is the scene's (opaque) everywhere.
     assert!(img.composite.chunks(4).all(|p| p[3] == 255));
 }
