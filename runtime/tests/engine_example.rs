@@ -140,7 +140,7 @@ fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
         for px in 0..w {
             let (o, d) = rays.ray(px, py);
             let (o, d) = (o.as_vec3(), d.as_vec3());
-            if !(d.y < 0.0) || img.block.hit(o, d).is_some() {
+            if d.y >= 0.0 || img.block.hit(o, d).is_some() {
                 continue;
             }
             let g = o + d * ((img.ground_y - o.y) / d.y);
