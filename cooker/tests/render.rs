@@ -294,3 +294,39 @@ fn gpu_backend_draws_what_the_cpu_reference_draws() {
         assert!(max <= 2, "{mode}: GPU and CPU PNGs differ by {max}/255");
     }
 }
+
+/// The CPU's shaded modes write the same bytes whatever the thread count (the lit mode's light
+/// volume is built in parallel slabs, the reference's paths per pixel): 1 and 3 threads.
+#[test]
+fn cpu_renders_are_byte_identical_at_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    for mode in ["lit", "reference", "scatter"] {
+        let mut outs = Vec::new();
+        for threads in ["1", "3"] {
+            let out = dir.path().join(format!("{mode}-{threads}.pfm"));
+            let o = std::process::Command::new(env!("CARGO_BIN_EXE_vdbcook"))
+                .args([
+                    "render",
+                    &asset,
+                    "-o",
+                    out.to_str().unwrap(),
+                    "--backend",
+                    "cpu",
+                ])
+                .args([
+                    "--mode", mode, "--width", "96", "--height", "54", "--spp", "4",
+                ])
+                .env("RAYON_NUM_THREADS", threads)
+                .output()
+                .unwrap();
+            assert!(
+                o.status.success(),
+                "{mode}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            outs.push(std::fs::read(&out).unwrap());
+        }
+        assert!(outs[0] == outs[1], "{mode}: 1 and 3 threads differ");
+    }
+}
