@@ -9,8 +9,8 @@
 //   front to back in the order the CPU sorted them, writing premultiplied radiance and
 //   transmittance (L, T) to an `Rgba16Float` storage texture. With lighting (`DRAW_LIT`, a
 //   second pipeline) each lit instance is marched as the tracer's lit mode (`lit_primary` in
-//   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest lookup
-//   (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
+//   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest or
+//   trilinear lookup (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
 //   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths).
 // The composite that blends (L, T) over the engine's colour target is `composite.wgsl`.
 //
@@ -37,7 +37,7 @@ struct DrawView {
     voxel_units: u32,
     // Lighting (lit instances only): xyz the unit world direction toward the light, w the march
     // step (length unit); xyz the light colour, w unused; xyz the sky radiance; the phase
-    // (g0, g1, weight); the octave falloff (a, b, c).
+    // (g0, g1, weight); the octave falloff (a, b, c), w 1 for trilinear density.
     light_dir: vec4<f32>,
     light_color: vec4<f32>,
     sky: vec4<f32>,
@@ -129,9 +129,26 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         k += 1.0;
         let p = ray.o + (s / ray.per_t) * ray.d;
         let cell = vec3<i32>(floor(p));
-        var rho = max(vdb_value(inst.frame_root0, cell), 0.0);
+        // Trilinear inside leaves the tracer's walk visits (bound > 0), as its lit march.
+        let trilinear = draw_view.ms.w != 0.0;
+        var rho = 0.0;
+        if (trilinear) {
+            if (vdb_leaf_bound(inst.frame_root0, cell) > 0.0) {
+                rho = vdb_trilinear(inst.frame_root0, p);
+            }
+        } else {
+            rho = max(vdb_value(inst.frame_root0, cell), 0.0);
+        }
         if (a > 0.0) {
-            rho = mix(rho, max(vdb_value(inst.frame_root1, cell), 0.0), a);
+            var rho1 = 0.0;
+            if (trilinear) {
+                if (vdb_leaf_bound(inst.frame_root1, cell) > 0.0) {
+                    rho1 = vdb_trilinear(inst.frame_root1, p);
+                }
+            } else {
+                rho1 = max(vdb_value(inst.frame_root1, cell), 0.0);
+            }
+            rho = mix(rho, rho1, a);
         }
         if (!(rho > 0.0)) {
             continue;

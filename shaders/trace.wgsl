@@ -61,7 +61,7 @@ struct Params {
     // The lit mode (`vdbcook_trace`'s `lit` module): the light volume's grid (xyz: corner of
     // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves), the octave
     // falloff (x, y, z: a, b, c), the sky radiance (xyz), the phase (x, y: g0, g1, z: weight) and
-    // the unit world direction toward the light (xyz).
+    // the unit world direction toward the light (xyz); ms.w: 1 for trilinear density.
     lv_lo: vec4<f32>,
     lv_dims: vec4<u32>,
     ms: vec4<f32>,
@@ -537,7 +537,12 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
             }
             budget -= 1u;
             let p = ray.o + (s / ray.per_t) * ray.d;
-            let rho = wk_value(sp, p);
+            var rho = 0.0;
+            if (params.ms.w != 0.0) {
+                rho = vdb_trilinear(params.frame_root, p);
+            } else {
+                rho = wk_value(sp, p);
+            }
             if (!(rho > 0.0)) {
                 continue;
             }

@@ -249,6 +249,50 @@ fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
     return vdb_brick_voxel(r, a);
 }
 
+// The bound of the leaf (8³ voxels) holding asset index `a`: its brick's max, its tile's value,
+// or the background where nothing is stored (the walks pass over leaves whose bound is ≤ 0).
+fn vdb_leaf_bound(frame_root: u32, a: vec3<i32>) -> f32 {
+    let ext = vec3<i32>(vdb_info.root_dims * 128u);
+    if (any(a < vec3<i32>(0)) || any(a >= ext)) {
+        return vdb_info.background;
+    }
+    let e = vdb_root_entry(frame_root, a >> vec3<u32>(7u));
+    if (e == VDB_EMPTY) {
+        return vdb_info.background;
+    }
+    if ((e & VDB_TILE_BIT) != 0u) {
+        return vdb_tile(e & ~VDB_TILE_BIT);
+    }
+    let r = vdb_leaf_ref(e, a >> vec3<u32>(3u));
+    if (r == VDB_EMPTY) {
+        return vdb_info.background;
+    }
+    if ((r & VDB_TILE_BIT) != 0u) {
+        return vdb_tile(r & ~VDB_TILE_BIT);
+    }
+    return vdb_brick_range(r).y;
+}
+
+// The trilinear density at cell-space point `p` (cell = index + ½: voxel centres at a + ½),
+// each of the eight taps `max(v, 0)` (NaN reads 0), read through the tree so bricks, tiles and
+// unstored space join without seams: `vdbcook_trace::Tracer::trilinear_density`.
+fn vdb_trilinear(frame_root: u32, p: vec3<f32>) -> f32 {
+    let u = p - vec3<f32>(0.5);
+    let base = floor(u);
+    let f = u - base;
+    let b = vec3<i32>(base);
+    var sum = 0.0;
+    for (var k = 0u; k < 8u; k++) {
+        let hi = vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u);
+        let w = select(vec3<f32>(1.0) - f, f, hi);
+        let v = vdb_value(frame_root, b + select(vec3<i32>(0), vec3<i32>(1), hi));
+        if (v > 0.0) {
+            sum += w.x * w.y * w.z * v;
+        }
+    }
+    return sum;
+}
+
 // The value nearest to the continuous asset index point `p`, by OpenVDB's convention: voxel `a`
 // sits at index `a` and covers [a - 1/2, a + 1/2) (OpenVDB's point sampler rounds). A world point
 // maps to `p` by the inverse of the asset's `index_to_world` (`GpuVolume::index_to_world`).

@@ -12,7 +12,9 @@ use std::time::Instant;
 
 use serde_json::json;
 use vdbcook_asset::Asset;
-use vdbcook_trace::{Camera, Emission, Image, LengthUnit, Mode, RenderSettings, Scratch, Tracer};
+use vdbcook_trace::{
+    Camera, Emission, Filter, Image, LengthUnit, Mode, RenderSettings, Scratch, Tracer,
+};
 
 use crate::cook;
 use crate::errors::CliError;
@@ -112,6 +114,11 @@ pub struct Args {
     /// Multiple-scattering octaves of the lit mode (1 = single scattering, up to 8).
     #[arg(long, default_value_t = 4)]
     ms_octaves: u32,
+    /// How the lit mode reads the density: nearest (the voxel holding the sample, the medium the
+    /// reference sees) or trilinear (smooth up close, no seams between bricks; eight reads per
+    /// sample).
+    #[arg(long, default_value = "nearest", value_parser = ["nearest", "trilinear"])]
+    filter: String,
     /// Octave falloff of the lit mode's multiple scattering A,B,C: octave i scales the
     /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i
     /// (the default is fitted to the reference mode on three clouds: docs/rendering.md).
@@ -276,6 +283,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         light_res: a.light_res,
         ms_octaves: a.ms_octaves,
         ms,
+        filter: Filter::parse(&a.filter).expect("clap checked"),
     })
 }
 
@@ -859,6 +867,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "sky": s.sky.map(short), "phase_g": s.phase_g.map(short),
                 "phase_w": short(s.phase_w), "bounces": s.bounces,
                 "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
+                "filter": s.filter.name(),
                 "emission": s.emission.map(|e| json!({
                     "range_kelvin": e.range.map(short), "intensity": short(e.intensity),
                 })),

@@ -126,6 +126,7 @@ fn render_json_reports_settings_camera_and_timing() {
         "light_res",
         "ms_octaves",
         "ms",
+        "filter",
     ] {
         assert!(!doc["settings"][k].is_null(), "missing settings.{k}");
     }

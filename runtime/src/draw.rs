@@ -423,6 +423,8 @@ pub struct Lighting {
     /// Seeds the per-pixel offset of the samples (change it per frame for temporal
     /// anti-aliasing).
     pub seed: u32,
+    /// Nearest voxel or trilinear density (smooth up close; eight reads per sample).
+    pub filter: vdbcook_scene::Filter,
 }
 
 impl Default for Lighting {
@@ -447,6 +449,7 @@ impl Lighting {
             ms_octaves: s.ms_octaves,
             ms: s.ms,
             seed: s.seed,
+            filter: s.filter,
         }
     }
 
@@ -468,6 +471,7 @@ impl Lighting {
             ms_octaves: self.ms_octaves,
             ms: self.ms,
             seed: self.seed,
+            filter: self.filter,
             ..Default::default()
         }
     }
@@ -1156,7 +1160,12 @@ impl VolumeDrawer {
                 lighting.phase_w,
                 0.0,
             ],
-            ms: v3(lighting.ms),
+            ms: [
+                lighting.ms[0],
+                lighting.ms[1],
+                lighting.ms[2],
+                (lighting.filter == vdbcook_scene::Filter::Trilinear) as u32 as f32,
+            ],
             ms_octaves: lighting.ms_octaves,
             seed: lighting.seed,
             _pad0: 0,

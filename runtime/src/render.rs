@@ -7,7 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    blackbody_table, depth_range, Affine, LightGrid, Mode, BLACKBODY_TABLE_LEN, MAX_SIDE,
+    blackbody_table, depth_range, Affine, Filter, LightGrid, Mode, BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -603,7 +603,12 @@ impl Renderer {
                 grid.dims[2],
                 settings.ms_octaves,
             ],
-            ms: [settings.ms[0], settings.ms[1], settings.ms[2], 0.0],
+            ms: [
+                settings.ms[0],
+                settings.ms[1],
+                settings.ms[2],
+                (settings.filter == Filter::Trilinear) as u32 as f32,
+            ],
             sky: [settings.sky[0], settings.sky[1], settings.sky[2], 0.0],
             phase: [
                 settings.phase_g[0],

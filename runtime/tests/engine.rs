@@ -15,8 +15,8 @@ use common::*;
 use vdbcook_asset::{Asset, PayloadFormat};
 use vdbcook_runtime::glam::{Affine3A, EulerRot, Mat4, Quat, Vec2, Vec3, Vec4};
 use vdbcook_runtime::{
-    DrawTarget, GpuVolume, Instance, Lighting, Medium, RuntimeError, View, ViewRays, VolumeDrawer,
-    DRAW_DEPTH_FORMATS,
+    DrawTarget, Filter, GpuVolume, Instance, Lighting, Medium, RuntimeError, View, ViewRays,
+    VolumeDrawer, DRAW_DEPTH_FORMATS,
 };
 use vdbcook_trace::{Camera, LengthUnit, RenderSettings, Scratch, Tracer};
 
@@ -537,23 +537,31 @@ fn lit_instances_match_the_cpu_lit_mode() {
         lighting: Some(lighting),
         ..Default::default()
     };
+    let rotated = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(1.3),
+        Quat::from_euler(EulerRot::XYZ, 0.4, -0.9, 1.7),
+        Vec3::new(-5.0, 4.0, 3.0),
+    );
     let cases = [
         (
             "translated, frame 0",
             0.0,
             Affine3A::from_translation(Vec3::new(30.0, -12.0, 7.0)),
+            Filter::Nearest,
         ),
+        ("rotated and scaled, frame 1", 1.0, rotated, Filter::Nearest),
         (
-            "rotated and scaled, frame 1",
+            "rotated and scaled, frame 1, trilinear",
             1.0,
-            Affine3A::from_scale_rotation_translation(
-                Vec3::splat(1.3),
-                Quat::from_euler(EulerRot::XYZ, 0.4, -0.9, 1.7),
-                Vec3::new(-5.0, 4.0, 3.0),
-            ),
+            rotated,
+            Filter::Trilinear,
         ),
     ];
-    for (what, time, xf) in cases {
+    for (what, time, xf, filter) in cases {
+        let medium = Medium {
+            lighting: Some(Lighting { filter, ..lighting }),
+            ..medium
+        };
         let inst = Instance {
             density_scale: 1.7,
             tint: Vec3::new(0.5, 1.0, 2.0),
@@ -565,7 +573,7 @@ fn lit_instances_match_the_cpu_lit_mode() {
         view.jitter = Vec2::new(0.3, -0.45);
         let g = gpu.draw(&mut drawer, &f, &view, &[inst], &medium, BG, None);
         // The CPU: the lit mode on the moved asset, the medium scaled by the density.
-        let base = lighting.settings(&medium);
+        let base = medium.lighting.expect("lit").settings(&medium);
         let s = RenderSettings {
             frame: time as usize,
             absorb: base.absorb * inst.density_scale,

@@ -23,7 +23,7 @@ pub use content::{content_box, for_each_slot_max};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use light::{octave_source, LightGrid, MAX_SUB};
 pub use settings::{
-    LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES,
-    MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    Filter, LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_LIGHT_RES,
+    MAX_MS_OCTAVES, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

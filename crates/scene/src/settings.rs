@@ -64,6 +64,30 @@ impl Mode {
     }
 }
 
+/// How `Lit` reads the density at a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Filter {
+    /// The voxel holding the sample (the medium every other mode and the reference see).
+    Nearest,
+    /// Trilinear between the eight nearest voxel centres (each value `max(v, 0)`), read through
+    /// the tree, so bricks join without seams; smooth up close, eight reads per sample.
+    Trilinear,
+}
+
+impl Filter {
+    pub fn name(self) -> &'static str {
+        match self {
+            Filter::Nearest => "nearest",
+            Filter::Trilinear => "trilinear",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Filter> {
+        [Filter::Nearest, Filter::Trilinear]
+            .into_iter()
+            .find(|f| f.name() == s)
+    }
+}
+
 /// The length that `absorb`, `scatter`, `step`, `shadow_step` and `gain` are measured in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum LengthUnit {
@@ -126,6 +150,8 @@ pub struct RenderSettings {
     /// Octave `i` of `Lit` scales the scattering by `a^i`, the extinction toward the lights by
     /// `b^i` and the phase asymmetry by `c^i`: `[a, b, c]`, each in `[0, 1]`.
     pub ms: [f32; 3],
+    /// How `Lit` reads the density (the other modes read the nearest voxel).
+    pub filter: Filter,
 }
 
 impl Default for RenderSettings {
@@ -158,6 +184,7 @@ impl Default for RenderSettings {
             // RMSE over the WDAS cloud, a stormscape frame and a generated smoke.
             ms_octaves: 4,
             ms: [0.9, 0.6, 0.1],
+            filter: Filter::Nearest,
         }
     }
 }

@@ -16,8 +16,10 @@
 //!
 //!    Depths are in the settings' length unit, before the extinction; stored as f32.
 //! 2. **Primary march**: samples at `s = (k + j)·step` from the eye (`j ∈ [0, 1)` a per-pixel
-//!    jitter from `pcg_hash`, which turns banding at large steps into noise), nearest voxel
-//!    `ρ`, per-step energy-conserving integration: with `x = σ·ρ·step`, `L += T·α·S·(1 − e^{−x})`,
+//!    jitter from `pcg_hash`, which turns banding at large steps into noise), `ρ` the nearest
+//!    voxel or (`Filter::Trilinear`) the trilinear density (`Tracer::trilinear_density`; the
+//!    walk still passes over spans whose max is ≤ 0, so the half-voxel fringe the filter puts
+//!    outside stored content is not sampled), per-step energy-conserving integration: with `x = σ·ρ·step`, `L += T·α·S·(1 − e^{−x})`,
 //!    `T *= e^{−x}` (exact for a constant source over the step, so the image does not drift
 //!    with the step size); stops once `T < LIT_MIN_TRANS`.
 //! 3. **Source** `S = sun·Σᵢ … + sky·Σᵢ …` by `vdbcook_scene::octave_source` with the light
@@ -30,8 +32,8 @@
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
 use vdbcook_scene::{
-    content_box, length, normalize, octave_source, Affine, LengthUnit, LightGrid, RenderSettings,
-    MAX_MS_OCTAVES,
+    content_box, length, normalize, octave_source, Affine, Filter, LengthUnit, LightGrid,
+    RenderSettings, MAX_MS_OCTAVES,
 };
 
 use crate::dda::{ceil_f64, Flow};
@@ -229,6 +231,32 @@ pub fn lit_jitter(seed: u32, pixel: u32) -> f64 {
     (crate::pcg_hash(seed ^ crate::pcg_hash(pixel)) >> 8) as f64 / (1u32 << 24) as f64
 }
 
+impl Tracer<'_> {
+    /// `Filter::Trilinear`'s density at cell-space point `p`: the voxel centres sit at
+    /// `a + ½`, each tap is `max(v, 0)` (NaN reads 0), read through the tree (`Asset::value`),
+    /// so neighbouring bricks, tiles and unstored space join without seams.
+    pub fn trilinear_density(&self, p: [f64; 3]) -> f64 {
+        let u = p.map(|c| c - 0.5);
+        let base = u.map(|c| c.floor());
+        let f = [0, 1, 2].map(|a| u[a] - base[a]);
+        let mut sum = 0.0f64;
+        for k in 0..8 {
+            let mut a = [0i64; 3];
+            let mut w = 1.0f64;
+            for (axis, ax) in a.iter_mut().enumerate() {
+                let hi = k >> axis & 1 == 1;
+                *ax = base[axis] as i64 + hi as i64;
+                w *= if hi { f[axis] } else { 1.0 - f[axis] };
+            }
+            let v = self.grid.asset.value(self.grid.frame, a);
+            if v > 0.0 {
+                sum += w * v as f64;
+            }
+        }
+        sum
+    }
+}
+
 /// The primary march of one `Lit` ray.
 pub(crate) struct LitMarch<'a, 't> {
     pub tracer: &'t Tracer<'a>,
@@ -305,7 +333,10 @@ impl SpanSampler for LitMarch<'_, '_> {
             }
             self.budget -= 1;
             let p = ray.at(sd / ray.per_t);
-            let rho = value(p) as f64;
+            let rho = match s.filter {
+                Filter::Nearest => value(p) as f64,
+                Filter::Trilinear => t.trilinear_density(p),
+            };
             if !(rho > 0.0) {
                 continue;
             }
