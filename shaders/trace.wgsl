@@ -496,6 +496,28 @@ fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
     return out;
 }
 
+// `vdb_trilinear` at `p` inside span `sp`: when the eight taps lie in the span's brick (about
+// two samples in three), read from the brick directly instead of descending the tree eight times.
+fn lit_trilinear(sp: WkSpan, p: vec3<f32>) -> f32 {
+    let u = p - vec3<f32>(0.5);
+    let base = floor(u);
+    let b = vec3<i32>(base) - sp.origin;
+    if (sp.brick == NO_BRICK || any(b < vec3<i32>(0)) || any(b > vec3<i32>(6))) {
+        return vdb_trilinear(params.frame_root, p);
+    }
+    let f = u - base;
+    var sum = 0.0;
+    for (var k = 0u; k < 8u; k++) {
+        let hi = vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u);
+        let w = select(vec3<f32>(1.0) - f, f, hi);
+        let v = vdb_brick_voxel(sp.brick, b + select(vec3<i32>(0), vec3<i32>(1), hi));
+        if (v > 0.0) {
+            sum += w.x * w.y * w.z * v;
+        }
+    }
+    return sum;
+}
+
 // The lit march for t in [t0, t1]: (radiance rgb, transmittance). `dw`: the unit world direction.
 fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
     let step = params.step;
@@ -539,7 +561,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
             let p = ray.o + (s / ray.per_t) * ray.d;
             var rho = 0.0;
             if (params.ms.w != 0.0) {
-                rho = vdb_trilinear(params.frame_root, p);
+                rho = lit_trilinear(sp, p);
             } else {
                 rho = wk_value(sp, p);
             }
