@@ -47,6 +47,10 @@ struct DrawView {
     seed: u32,
     _pad0: u32,
     _pad1: u32,
+    // Emission of lit instances (`vdbcook_scene::Emission`): x, y the range in Kelvin, z the
+    // intensity, w 1 when on; the blackbody colours over the range.
+    emission: vec4<f32>,
+    emit_table: array<vec4<f32>, 32>,
 }
 
 struct DrawInstance {
@@ -155,6 +159,14 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         }
         let x = ext * rho * step;
         let e = exp(-x);
+        if (draw_view.emission.w != 0.0) {
+            // Emission over the step, absorbed as the step attenuates (the tracer's lit march).
+            let w = lv_emission_at(rho, draw_view.emission);
+            let i = u32(w.x);
+            let c0 = draw_view.emit_table[i].xyz;
+            let phi = select((1.0 - e) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
+            rad += trans * step * phi * w.z * (c0 + w.y * (draw_view.emit_table[i + 1u].xyz - c0));
+        }
         let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
         var tau = draw_lv_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q);
         if (a > 0.0) {

@@ -83,3 +83,17 @@ fn lv_hg(g: f32, mu: f32) -> f32 {
 fn lv_phase(phase: vec3<f32>, scale: f32, mu: f32) -> f32 {
     return phase.z * lv_hg(phase.x * scale, mu) + (1.0 - phase.z) * lv_hg(phase.y * scale, mu);
 }
+
+// Where a value `v` falls in the blackbody table of emission `e` (x, y: range in Kelvin, z:
+// intensity): (index i, fraction f, brightness b), the radiance being
+// `b · mix(table[i], table[i + 1], f)` (`vdbcook_scene::Emission::radiance`); b = 0 at or below
+// the range. The caller reads its own table (a uniform array cannot be passed by pointer).
+fn lv_emission_at(v: f32, e: vec4<f32>) -> vec3<f32> {
+    if (!(v > e.x)) {
+        return vec3<f32>(0.0);
+    }
+    let s = min((v - e.x) / (e.y - e.x), 1.0);
+    let x = s * 31.0;
+    let i = min(floor(x), 30.0);
+    return vec3<f32>(i, x - i, e.z * s * s * s * s);
+}

@@ -123,18 +123,10 @@ fn vis_skip(m: f32) -> bool {
 
 // The radiance per unit length emitted by value `v` (`vdbcook_scene::Emission::radiance`).
 fn emit_radiance(v: f32) -> vec3<f32> {
-    let lo = params.emission.x;
-    let hi = params.emission.y;
-    if (!(v > lo)) {
-        return vec3<f32>(0.0);
-    }
-    let s = min((v - lo) / (hi - lo), 1.0);
-    let x = s * 31.0;
-    let i = min(u32(x), 30u);
-    let f = x - f32(i);
-    let b = params.emission.z * s * s * s * s;
+    let w = lv_emission_at(v, params.emission);
+    let i = u32(w.x);
     let c0 = params.emit_table[i].xyz;
-    return b * (c0 + f * (params.emit_table[i + 1u].xyz - c0));
+    return w.z * (c0 + w.y * (params.emit_table[i + 1u].xyz - c0));
 }
 
 // A span [ta, tb] of constant value `v`; true: stop the walk.

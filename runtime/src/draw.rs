@@ -425,6 +425,10 @@ pub struct Lighting {
     pub seed: u32,
     /// Nearest voxel or trilinear density (smooth up close; eight reads per sample).
     pub filter: vdbcook_scene::Filter,
+    /// Blackbody emission of the density grid's values read as Kelvin (the tracer's
+    /// `--emission`), added by the lit march and absorbed like the rest of its light; a pure
+    /// glow with `scatter` 0, a black `light_color` and `sky`, and the medium's `absorb` small.
+    pub emission: Option<vdbcook_scene::Emission>,
 }
 
 impl Default for Lighting {
@@ -450,6 +454,7 @@ impl Lighting {
             ms: s.ms,
             seed: s.seed,
             filter: s.filter,
+            emission: s.emission,
         }
     }
 
@@ -472,6 +477,7 @@ impl Lighting {
             ms: self.ms,
             seed: self.seed,
             filter: self.filter,
+            emission: self.emission,
             ..Default::default()
         }
     }
@@ -521,6 +527,9 @@ struct DrawView {
     seed: u32,
     _pad0: u32,
     _pad1: u32,
+    /// Emission of lit instances: range, intensity, on; its blackbody table.
+    emission: [f32; 4],
+    emit_table: [[f32; 4]; vdbcook_scene::BLACKBODY_TABLE_LEN],
 }
 
 /// One element of the `draw_instances` array of `draw.wgsl`.
@@ -1170,6 +1179,14 @@ impl VolumeDrawer {
             seed: lighting.seed,
             _pad0: 0,
             _pad1: 0,
+            emission: lighting
+                .emission
+                .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 1.0]),
+            emit_table: lighting
+                .emission
+                .map_or([[0.0; 4]; vdbcook_scene::BLACKBODY_TABLE_LEN], |e| {
+                    vdbcook_scene::blackbody_table(e.range)
+                }),
         };
         let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vdbcook draw view"),
@@ -1276,6 +1293,8 @@ mod tests {
                 seed,
                 _pad0,
                 _pad1,
+                emission,
+                emit_table,
             }),
         );
         assert_mirrors(

@@ -556,10 +556,31 @@ fn lit_instances_match_the_cpu_lit_mode() {
             rotated,
             Filter::Trilinear,
         ),
+        (
+            "rotated and scaled, frame 1, emission",
+            1.0,
+            rotated,
+            Filter::Nearest,
+        ),
     ];
     for (what, time, xf, filter) in cases {
+        // The values read as Kelvin over a small range: the test is of the march, not of fire.
+        let emission = what
+            .ends_with("emission")
+            .then_some(vdbcook_trace::Emission {
+                range: [0.3, 1.5],
+                intensity: 0.8,
+            });
+        // With emission: a pure glow (no scattering, no light), thin enough to see into.
+        let glow = emission.is_some();
         let medium = Medium {
-            lighting: Some(Lighting { filter, ..lighting }),
+            lighting: Some(Lighting {
+                filter,
+                emission,
+                scatter: if glow { 0.0 } else { lighting.scatter },
+                ..lighting
+            }),
+            absorb: if glow { 0.02 } else { medium.absorb },
             ..medium
         };
         let inst = Instance {
@@ -593,8 +614,34 @@ fn lit_instances_match_the_cpu_lit_mode() {
                 cpu.push([l[0], l[1], l[2], px.value as f64]);
             }
         }
-        assert_matches(what, &g, &cpu, 2.0 * TOL);
+        if glow {
+            // Radiances up to ~10: the f32 march's voxel choice at brick boundaries (the drawer
+            // reads the tree, the tracers clamp into the span's brick) moves a pixel by up to
+            // ~1.4% (measured on lavapipe; median 0.07%), so the tolerance is relative here.
+            let mut worst = 0.0f64;
+            for (p, lt) in cpu.iter().enumerate() {
+                for c in 0..3 {
+                    let want = lt[c] + lt[3] * BG[c];
+                    let d = (g[4 * p + c] as f64 - want).abs() - 2.0 * TOL as f64;
+                    worst = worst.max(d / want.abs().max(1e-9));
+                }
+            }
+            eprintln!(
+                "{what}: worst relative difference beyond {} {worst:.2e}",
+                2.0 * TOL
+            );
+            assert!(worst < 0.02, "{what}: {worst}");
+        } else {
+            assert_matches(what, &g, &cpu, 2.0 * TOL);
+        }
         assert!(cpu.iter().filter(|p| p[3] < 0.5).count() > 100, "{what}");
+        if glow {
+            let warm = cpu
+                .iter()
+                .filter(|p| p[0] > 0.05 && p[0] > p[2] / 2.0)
+                .count();
+            assert!(warm > 100, "{what}: the glow shows ({warm} warm pixels)");
+        }
         let lit = cpu.iter().filter(|p| p[0] > 0.02).count();
         assert!(lit > 100, "{what}: the cloud is lit ({lit} pixels)");
     }
