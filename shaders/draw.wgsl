@@ -75,7 +75,8 @@ struct DrawInstance {
     // Base elements of the light volumes of frames floor(time) and floor(time) + 1.
     lv_base0: u32,
     lv_base1: u32,
-    _pad2: u32,
+    // k of the sky's source (`lv_sky_source`: it depends on the albedo).
+    sky_k: f32,
     // Their grids: xyz corner of cell 0 (cell space), w cell edge; xyz cells per axis.
     lv_lo0: vec4<f32>,
     lv_dims0: vec4<u32>,
@@ -111,11 +112,9 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
     let octaves = draw_view.ms_octaves;
     let mu = dot(dw, draw_view.light_dir.xyz);
     var sun_ph: array<f32, 8>;
-    var sky_ph: array<f32, 8>;
     var ci = 1.0;
     for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
         sun_ph[i] = lv_phase(draw_view.phase.xyz, ci, mu);
-        sky_ph[i] = 1.0;
         ci *= ms.z;
     }
     let jitter = lv_jitter(draw_view.seed, pixel);
@@ -173,7 +172,7 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             tau = mix(tau, draw_lv_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q), a);
         }
         let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
-        let sky = lv_octaves(ext * tau.y, ms, octaves, &sky_ph);
+        let sky = lv_sky_source(ext * tau.y, inst.sky_k);
         rad += trans * inst.albedo * (1.0 - e) * (draw_view.light_color.xyz * sun + draw_view.sky.xyz * sky);
         trans *= e;
         if (trans < LV_MIN_TRANS) {

@@ -53,6 +53,12 @@ fn lv_octaves(x: f32, ms: vec3<f32>, octaves: u32, ph: ptr<function, array<f32, 
     return s;
 }
 
+// `vdbcook_scene::sky_source`: the sky's source at sky optical depth y, diffusion attenuation k.
+fn lv_sky_source(y: f32, k: f32) -> f32 {
+    let direct = exp(-y);
+    return direct + (1.0 - direct) * exp(-k * y);
+}
+
 // Transmittance below which a lit march stops (`vdbcook_trace::LIT_MIN_TRANS`).
 const LV_MIN_TRANS: f32 = 1e-4;
 

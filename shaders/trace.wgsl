@@ -60,7 +60,7 @@ struct Params {
     _pad: u32,
     // The lit mode (`vdbcook_trace`'s `lit` module): the light volume's grid (xyz: corner of
     // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves), the octave
-    // falloff (x, y, z: a, b, c), the sky radiance (xyz), the phase (x, y: g0, g1, z: weight) and
+    // falloff (x, y, z: a, b, c), the sky radiance (xyz; w: k of `lv_sky_source`), the phase (x, y: g0, g1, z: weight) and
     // the unit world direction toward the light (xyz); ms.w: 1 for trilinear density.
     lv_lo: vec4<f32>,
     lv_dims: vec4<u32>,
@@ -518,11 +518,9 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     // The phase per octave at this ray's μ, the sky's (isotropic: 1).
     let mu = dot(dw, params.light_world.xyz);
     var sun_ph: array<f32, 8>;
-    var sky_ph: array<f32, 8>;
     var ci = 1.0;
     for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
         sun_ph[i] = lv_phase(params.phase.xyz, ci, mu);
-        sky_ph[i] = 1.0;
         ci *= ms.z;
     }
     let jitter = lv_jitter(params.seed, pixel);
@@ -570,7 +568,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
             let m = step * lv_mean_depth(x);
             let tau = lit_lookup(ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d);
             let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
-            let sky = lv_octaves(ext * tau.y, ms, octaves, &sky_ph);
+            let sky = lv_sky_source(ext * tau.y, params.sky.w);
             rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
             trans *= e;
             if (trans < LV_MIN_TRANS) {

@@ -111,9 +111,14 @@ pub struct Args {
     /// content box (2..=256). Coarser is faster to build and blurs shadows.
     #[arg(long, default_value_t = 64)]
     light_res: u32,
-    /// Multiple-scattering octaves of the lit mode (1 = single scattering, up to 8).
-    #[arg(long, default_value_t = 4)]
+    /// Multiple-scattering octaves of the lit mode's sun (1 = single scattering, up to 8).
+    #[arg(long, default_value_t = 8)]
     ms_octaves: u32,
+    /// Diffusion scale of the lit mode's multiply scattered sky light: 0 keeps all the sky
+    /// light the medium scatters, 1 attenuates it as diffusion theory does (default fitted to
+    /// the reference).
+    #[arg(long, default_value_t = 0.25)]
+    ms_sky: f32,
     /// How the lit mode reads the density: nearest (the voxel holding the sample, the medium the
     /// reference sees) or trilinear (smooth up close, no seams between bricks; eight reads per
     /// sample).
@@ -122,7 +127,7 @@ pub struct Args {
     /// Octave falloff of the lit mode's multiple scattering A,B,C: octave i scales the
     /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i
     /// (the default is fitted to the reference mode on three clouds: docs/rendering.md).
-    #[arg(long, default_value = "0.9,0.6,0.1", value_name = "A,B,C")]
+    #[arg(long, default_value = "0.98,0.9,0.6", value_name = "A,B,C")]
     ms: String,
     /// Blackbody emission (density, scatter, delta, reference and lit modes): the grid's values are
     /// Kelvin; LO,HI is the range over which the glow rises as ((T − LO)/(HI − LO))⁴ to full
@@ -283,6 +288,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         light_res: a.light_res,
         ms_octaves: a.ms_octaves,
         ms,
+        ms_sky: a.ms_sky,
         filter: Filter::parse(&a.filter).expect("clap checked"),
     })
 }
@@ -832,7 +838,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let seconds = t0.elapsed().as_secs_f64();
     if a.json {
         let path = |p: &Option<PathBuf>| p.as_ref().map(|p| p.display().to_string());
-        let doc = json!({
+        let mut doc = json!({
             "output": a.output.display().to_string(),
             "output_format": what.to_ascii_lowercase(),
             "asset": a.input.display().to_string(),
@@ -866,13 +872,19 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "units": a.units,
                 "sky": s.sky.map(short), "phase_g": s.phase_g.map(short),
                 "phase_w": short(s.phase_w), "bounces": s.bounces,
-                "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
-                "filter": s.filter.name(),
                 "emission": s.emission.map(|e| json!({
                     "range_kelvin": e.range.map(short), "intensity": short(e.intensity),
                 })),
             },
         });
+        // The lit mode's keys (one json! per object keeps the macro's recursion shallow).
+        let lit = json!({
+            "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
+            "ms_sky": short(s.ms_sky), "filter": s.filter.name(),
+        });
+        if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {
+            settings.extend(lit.clone());
+        }
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {
         let on = adapter.map(|d| format!(" on {d}")).unwrap_or_default();

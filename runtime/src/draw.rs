@@ -423,6 +423,8 @@ pub struct Lighting {
     /// Seeds the per-pixel offset of the samples (change it per frame for temporal
     /// anti-aliasing).
     pub seed: u32,
+    /// Scale of the multiply scattered sky light's diffusion attenuation (`Settings::ms_sky`).
+    pub ms_sky: f32,
     /// Nearest voxel or trilinear density (smooth up close; eight reads per sample).
     pub filter: vdbcook_scene::Filter,
     /// Blackbody emission of the density grid's values read as Kelvin (the tracer's
@@ -452,6 +454,7 @@ impl Lighting {
             light_res: s.light_res,
             ms_octaves: s.ms_octaves,
             ms: s.ms,
+            ms_sky: s.ms_sky,
             seed: s.seed,
             filter: s.filter,
             emission: s.emission,
@@ -475,6 +478,7 @@ impl Lighting {
             light_res: self.light_res,
             ms_octaves: self.ms_octaves,
             ms: self.ms,
+            ms_sky: self.ms_sky,
             seed: self.seed,
             filter: self.filter,
             emission: self.emission,
@@ -548,7 +552,8 @@ struct DrawInstance {
     extinction: f32,
     lv_base0: u32,
     lv_base1: u32,
-    _pad2: u32,
+    /// `k` of the sky's source (it depends on the albedo).
+    sky_k: f32,
     /// Light-volume grids of the two frames: corner and cell; cells per axis.
     lv_lo0: [f32; 4],
     lv_dims0: [u32; 4],
@@ -1049,7 +1054,7 @@ impl VolumeDrawer {
                 extinction: 0.0,
                 lv_base0: 0,
                 lv_base1: 0,
-                _pad2: 0,
+                sky_k: 0.0,
                 lv_lo0: [0.0; 4],
                 lv_dims0: [1; 4],
                 lv_lo1: [0.0; 4],
@@ -1060,7 +1065,10 @@ impl VolumeDrawer {
                 let k = medium.absorb as f64 + l.scatter as f64;
                 let extinction = k * inst.density_scale as f64;
                 d.lit = 1;
-                d.albedo = if k > 0.0 { l.scatter as f64 / k } else { 0.0 } as f32;
+                let albedo = if k > 0.0 { l.scatter as f64 / k } else { 0.0 };
+                d.albedo = albedo as f32;
+                d.sky_k =
+                    vdbcook_scene::sky_diffusion(albedo, l.phase_g, l.phase_w, l.ms_sky) as f32;
                 d.extinction = extinction as f32;
                 // A light volume per frame of the crossfade, in the instance's cell space;
                 // `lv_base*` hold their indices in `volumes` until `record` places them.
@@ -1312,7 +1320,7 @@ mod tests {
                 extinction,
                 lv_base0,
                 lv_base1,
-                _pad2,
+                sky_k,
                 lv_lo0,
                 lv_dims0,
                 lv_lo1,

@@ -7,7 +7,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    blackbody_table, depth_range, Affine, Filter, LightGrid, Mode, BLACKBODY_TABLE_LEN, MAX_SIDE,
+    blackbody_table, depth_range, sky_diffusion, Affine, Filter, LightGrid, Mode,
+    BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -609,7 +610,12 @@ impl Renderer {
                 settings.ms[2],
                 (settings.filter == Filter::Trilinear) as u32 as f32,
             ],
-            sky: [settings.sky[0], settings.sky[1], settings.sky[2], 0.0],
+            sky: [
+                settings.sky[0],
+                settings.sky[1],
+                settings.sky[2],
+                sky_diffusion(albedo, settings.phase_g, settings.phase_w, settings.ms_sky) as f32,
+            ],
             phase: [
                 settings.phase_g[0],
                 settings.phase_g[1],

@@ -198,3 +198,22 @@ pub fn octave_source(x: f64, ms: [f32; 3], octaves: u32, phase: impl Fn(u32) -> 
     }
     s
 }
+
+/// The sky's source in `Lit`, relative to the sky's radiance, at sky optical depth `y`
+/// (extinction included): the light that reaches the point unscattered, `e^{−y}`, plus the part
+/// taken out of it, `1 − e^{−y}`, brought back by multiple scattering with the attenuation
+/// `e^{−k·y}` of diffusion, `k = scale·√(3(1 − α)(1 − ḡα))` (`α` the albedo, `ḡ` the phase's mean
+/// cosine; [`sky_diffusion`]). At albedo 1, `k = 0` and the source is the sky itself: the
+/// medium disappears against a uniform sky (white furnace) at any depth.
+pub fn sky_source(y: f64, k: f64) -> f64 {
+    let direct = (-y).exp();
+    direct + (1.0 - direct) * (-k * y).exp()
+}
+
+/// `k` of [`sky_source`] for albedo `albedo`, the dual-lobe phase `(g, w)` (mean cosine
+/// `w·g₀ + (1 − w)·g₁`) and the fitted `scale` (`RenderSettings::ms_sky`).
+pub fn sky_diffusion(albedo: f64, g: [f32; 2], w: f32, scale: f32) -> f64 {
+    let mean = w as f64 * g[0] as f64 + (1.0 - w as f64) * g[1] as f64;
+    let d = 3.0 * (1.0 - albedo).max(0.0) * (1.0 - mean * albedo).max(0.0);
+    scale as f64 * d.sqrt()
+}

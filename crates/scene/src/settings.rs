@@ -147,9 +147,13 @@ pub struct RenderSettings {
     pub light_res: u32,
     /// Multiple-scattering octaves of `Lit` (1: single scattering through the light volume).
     pub ms_octaves: u32,
-    /// Octave `i` of `Lit` scales the scattering by `a^i`, the extinction toward the lights by
-    /// `b^i` and the phase asymmetry by `c^i`: `[a, b, c]`, each in `[0, 1]`.
+    /// Octave `i` of `Lit`'s sun scales the scattering by `a^i`, the extinction toward the sun
+    /// by `b^i` and the phase asymmetry by `c^i`: `[a, b, c]`, each in `[0, 1]`.
     pub ms: [f32; 3],
+    /// Scale of the diffusion attenuation of `Lit`'s multiply scattered sky light
+    /// (`vdbcook_scene::sky_source`), in `[0, MAX_MS_SKY]`: 0 keeps all the sky light the medium
+    /// scatters, 1 is diffusion theory's `√(3(1 − α)(1 − ḡα))`.
+    pub ms_sky: f32,
     /// How `Lit` reads the density (the other modes read the nearest voxel).
     pub filter: Filter,
 }
@@ -182,8 +186,9 @@ impl Default for RenderSettings {
             light_res: 64,
             // Fitted against the reference (issue 13, `docs/rendering.md`): the worst relative
             // RMSE over the WDAS cloud, a stormscape frame and a generated smoke.
-            ms_octaves: 4,
-            ms: [0.9, 0.6, 0.1],
+            ms_octaves: 8,
+            ms: [0.98, 0.9, 0.6],
+            ms_sky: 0.25,
             filter: Filter::Nearest,
         }
     }
@@ -199,6 +204,8 @@ pub const MAX_SPP: u32 = 1 << 16;
 pub const MAX_PHASE_G: f32 = 0.99;
 /// Largest light-volume resolution accepted (cells along the longest side).
 pub const MAX_LIGHT_RES: u32 = 256;
+/// Largest `ms_sky` accepted.
+pub const MAX_MS_SKY: f32 = 16.0;
 /// Most multiple-scattering octaves accepted.
 pub const MAX_MS_OCTAVES: u32 = 8;
 /// Most scattering events per `Reference` path accepted.
@@ -308,6 +315,9 @@ impl RenderSettings {
         }
         if self.ms.iter().any(|v| !(0.0..=1.0).contains(v)) {
             return bad(format!("ms {:?} (each in 0..=1)", self.ms));
+        }
+        if !(0.0..=MAX_MS_SKY).contains(&self.ms_sky) {
+            return bad(format!("ms-sky = {} (0..={MAX_MS_SKY})", self.ms_sky));
         }
         if let Some(e) = self.emission {
             if !matches!(

@@ -141,6 +141,7 @@ pub use walk::Holder;
 pub use vdbcook_scene::{
     blackbody_rgb, blackbody_table, content_box, depth_range, stored_bbox, stored_boxes, Affine,
     Basis, Camera, Emission, Filter, LengthUnit, LightGrid, Mode, RenderSettings, TraceError,
-    MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
+    MIN_STEP,
 };
-pub use vdbcook_scene::{length, normalize, octave_source};
+pub use vdbcook_scene::{length, normalize, octave_source, sky_diffusion, sky_source};

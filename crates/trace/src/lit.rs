@@ -22,9 +22,11 @@
 //!    outside stored content is not sampled), per-step energy-conserving integration: with `x = σ·ρ·step`, `L += T·α·S·(1 − e^{−x})`,
 //!    `T *= e^{−x}` (exact for a constant source over the step, so the image does not drift
 //!    with the step size); stops once `T < LIT_MIN_TRANS`.
-//! 3. **Source** `S = sun·Σᵢ … + sky·Σᵢ …` by `vdbcook_scene::octave_source` with the light
-//!    volume's depths at the sample (trilinear): the sun's octave `i` takes the dual-lobe phase
-//!    with both `g` scaled by `c^i` at `μ = d·l`, the sky's an isotropic phase (a uniform sky).
+//! 3. **Source** `S = sun·Σᵢ … + sky·…` with the light volume's depths at the sample
+//!    (trilinear): the sun's by `vdbcook_scene::octave_source`, octave `i` with the dual-lobe
+//!    phase's `g` scaled by `c^i` at `μ = d·l`; the sky's (a uniform sky, isotropic) by
+//!    `vdbcook_scene::sky_source`, which returns what the medium takes out of the sky's beam
+//!    attenuated as diffusion would (exactly the sky at albedo 1: the white furnace holds).
 //!
 //! rgba = `(L + emission, 1 − T)`, value = `T`, like the other shaded modes.
 
@@ -32,8 +34,8 @@
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
 use vdbcook_scene::{
-    content_box, length, normalize, octave_source, Affine, Filter, LengthUnit, LightGrid,
-    RenderSettings, MAX_MS_OCTAVES,
+    content_box, length, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
+    LengthUnit, LightGrid, RenderSettings, MAX_MS_OCTAVES,
 };
 
 use crate::dda::{ceil_f64, Flow};
@@ -269,6 +271,8 @@ pub(crate) struct LitMarch<'a, 't> {
     pub budget: u64,
     /// The sun's phase per octave at this ray's `μ`.
     pub sun_phase: [f64; MAX_MS_OCTAVES as usize],
+    /// `k` of the sky's source (`vdbcook_scene::sky_diffusion`).
+    pub sky_k: f64,
 }
 
 impl<'a, 't> LitMarch<'a, 't> {
@@ -300,6 +304,7 @@ impl<'a, 't> LitMarch<'a, 't> {
             emit: [0.0; 3],
             budget: crate::scatter::MAX_MARCH_SAMPLES,
             sun_phase,
+            sky_k: sky_diffusion(tracer.albedo, s.phase_g, s.phase_w, s.ms_sky),
         }
     }
 }
@@ -355,7 +360,7 @@ impl SpanSampler for LitMarch<'_, '_> {
             let m = step * mean_depth(x);
             let [ts, tk] = self.lv.lookup(ray.at((sd - 0.5 * step + m) / ray.per_t));
             let sun = octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]);
-            let sky = octave_source(ext * tk, s.ms, s.ms_octaves, |_| 1.0);
+            let sky = sky_source(ext * tk, self.sky_k);
             let w = self.trans * albedo * (1.0 - e);
             for c in 0..3 {
                 self.rad[c] += w * (s.light_color[c] as f64 * sun + s.sky[c] as f64 * sky);
