@@ -92,6 +92,8 @@ struct DrawInstance {
 
 // Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
 const DRAW_LIT: bool = {{DRAW_LIT}};
+// Whether the lit march reads trilinear density (a third pipeline, made on first use).
+const DRAW_TRILINEAR: bool = {{DRAW_TRILINEAR}};
 // Most samples of one lit instance march (`vdbcook_trace::MAX_MARCH_SAMPLES`).
 const DRAW_MAX_SAMPLES: u32 = 1048576u;
 
@@ -133,7 +135,7 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         let p = ray.o + (s / ray.per_t) * ray.d;
         let cell = vec3<i32>(floor(p));
         // Trilinear inside leaves the tracer's walk visits (bound > 0), as its lit march.
-        let trilinear = draw_view.ms.w != 0.0;
+        let trilinear = DRAW_TRILINEAR && draw_view.ms.w != 0.0;
         var rho = 0.0;
         if (trilinear) {
             if (vdb_leaf_bound(inst.frame_root0, cell) > 0.0) {

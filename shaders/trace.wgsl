@@ -82,6 +82,9 @@ struct Params {
 
 // Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
 const TRACE_EMISSION: bool = {{EMISSION}};
+// Whether this pipeline reads trilinear density in the lit mode (a variant the renderer makes on
+// the first render that asks; the nearest-voxel march does not carry its code).
+const LIT_TRILINEAR: bool = {{TRILINEAR}};
 
 const MODE_DENSITY: u32 = 0u;
 const MODE_DEPTH: u32 = 1u;
@@ -550,7 +553,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
             budget -= 1u;
             let p = ray.o + (s / ray.per_t) * ray.d;
             var rho = 0.0;
-            if (params.ms.w != 0.0) {
+            if (LIT_TRILINEAR && params.ms.w != 0.0) {
                 rho = lit_trilinear(sp, p);
             } else {
                 rho = wk_value(sp, p);

@@ -498,12 +498,15 @@ pub struct DrawTarget<'a> {
     pub depth: Option<&'a wgpu::TextureView>,
 }
 
-/// The drawer's WGSL: the volume, the light-volume helpers, the drawer with the lit march
-/// compiled in or out.
-fn draw_source(lit: bool) -> String {
+/// The drawer's WGSL: the volume, the light-volume helpers, the drawer with the lit march and
+/// its trilinear density compiled in or out.
+fn draw_source(lit: bool, trilinear: bool) -> String {
+    let flag = |on: bool| if on { "true" } else { "false" };
     format!(
         "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
-        DRAW_WGSL.replace("{{DRAW_LIT}}", if lit { "true" } else { "false" })
+        DRAW_WGSL
+            .replace("{{DRAW_LIT}}", flag(lit))
+            .replace("{{DRAW_TRILINEAR}}", flag(trilinear))
     )
 }
 
@@ -597,6 +600,8 @@ pub struct VolumeDrawer {
     /// The flat pipeline (the lit march compiled out) and the one with it.
     draw_pipeline: wgpu::ComputePipeline,
     lit_pipeline: wgpu::ComputePipeline,
+    /// The lit pipeline with trilinear density, made on the first draw that asks for it.
+    trilinear_pipeline: Option<wgpu::ComputePipeline>,
     /// The lit instances' light volumes.
     light: LightPass,
     /// The layout of `SunShadows::bind_group`.
@@ -628,7 +633,7 @@ impl VolumeDrawer {
         let module = |lit: bool| {
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("vdbcook draw"),
-                source: wgpu::ShaderSource::Wgsl(draw_source(lit).into()),
+                source: wgpu::ShaderSource::Wgsl(draw_source(lit, false).into()),
             })
         };
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
@@ -787,6 +792,7 @@ impl VolumeDrawer {
         Ok(VolumeDrawer {
             draw_pipeline,
             lit_pipeline,
+            trilinear_pipeline: None,
             shadow_layout,
             light,
             draw_layout,
@@ -1236,10 +1242,24 @@ impl VolumeDrawer {
                 label: Some("vdbcook draw"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(if medium.lighting.is_some() {
-                &self.lit_pipeline
-            } else {
-                &self.draw_pipeline
+            pass.set_pipeline(match &medium.lighting {
+                None => &self.draw_pipeline,
+                Some(l) if l.filter == vdbcook_scene::Filter::Trilinear => {
+                    self.trilinear_pipeline.get_or_insert_with(|| {
+                        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                            label: Some("vdbcook draw (trilinear)"),
+                            source: wgpu::ShaderSource::Wgsl(draw_source(true, true).into()),
+                        });
+                        self.vol.compute_pipeline(
+                            device,
+                            "vdbcook draw (lit, trilinear)",
+                            &module,
+                            "draw_main",
+                            &[&self.draw_layout, &self.light.read_layout],
+                        )
+                    })
+                }
+                Some(_) => &self.lit_pipeline,
             });
             pass.set_bind_group(0, &self.vol.group, &[]);
             pass.set_bind_group(1, &group, &[]);
@@ -1278,7 +1298,7 @@ mod tests {
     #[test]
     fn draw_structs_mirror_the_wgsl() {
         use crate::layout_check::{assert_mirrors, rust_layout};
-        let source = draw_source(true);
+        let source = draw_source(true, true);
         assert_mirrors(
             &source,
             "DrawView",

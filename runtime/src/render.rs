@@ -152,6 +152,31 @@ pub struct Renderer {
     /// render first needs them).
     light: LightPass,
     device: wgpu::Device,
+    /// Groups 1–3 of the pipelines, and the lit mode's trilinear variant (made on first use).
+    layouts: [wgpu::BindGroupLayout; 3],
+    trilinear: std::sync::OnceLock<wgpu::ComputePipeline>,
+}
+
+/// The tracer's shader for a target format, with emission and trilinear density compiled in or
+/// out.
+fn trace_module(
+    device: &wgpu::Device,
+    format: &str,
+    emission: bool,
+    trilinear: bool,
+) -> wgpu::ShaderModule {
+    let flag = |on: bool| if on { "true" } else { "false" };
+    let source = format!(
+        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
+        TRACE_WGSL
+            .replace("{{TARGET_FORMAT}}", format)
+            .replace("{{EMISSION}}", flag(emission))
+            .replace("{{TRILINEAR}}", flag(trilinear))
+    );
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("vdbcook trace"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
 }
 
 /// The WGSL name of a storage-texture format the renderer can write.
@@ -199,16 +224,7 @@ impl Renderer {
             )));
         };
         let xf = Affine::cells(volume.index_to_world())?;
-        let source = format!(
-            "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
-            TRACE_WGSL
-                .replace("{{TARGET_FORMAT}}", fmt)
-                .replace("{{EMISSION}}", if emission { "true" } else { "false" })
-        );
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("vdbcook trace"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
+        let module = trace_module(device, fmt, emission, false);
         let params_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook params"),
             entries: &[wgpu::BindGroupLayoutEntry {
@@ -255,6 +271,11 @@ impl Renderer {
             "trace_main",
             &[&params_layout, &target_layout, &light.read_layout],
         );
+        let layouts = [
+            params_layout.clone(),
+            target_layout.clone(),
+            light.read_layout.clone(),
+        ];
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook params"),
             size: std::mem::size_of::<Params>() as u64,
@@ -303,6 +324,8 @@ impl Renderer {
             emission,
             light,
             device: device.clone(),
+            layouts,
+            trilinear: std::sync::OnceLock::new(),
         })
     }
 
@@ -511,7 +534,23 @@ impl Renderer {
             label: Some("vdbcook trace"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        let trilinear = settings.mode == Mode::Lit && settings.filter == Filter::Trilinear;
+        pass.set_pipeline(if trilinear {
+            self.trilinear.get_or_init(|| {
+                let fmt = wgsl_format(self.format).expect("checked at construction");
+                let module = trace_module(&self.device, fmt, self.emission, true);
+                let [a, b, c] = &self.layouts;
+                self.vol.compute_pipeline(
+                    &self.device,
+                    "vdbcook trace (trilinear)",
+                    &module,
+                    "trace_main",
+                    &[a, b, c],
+                )
+            })
+        } else {
+            &self.pipeline
+        });
         pass.set_bind_group(0, &self.vol.group, &[]);
         pass.set_bind_group(1, &self.params_group, &[]);
         pass.set_bind_group(2, target, &[]);
@@ -648,6 +687,7 @@ mod tests {
                 TRACE_WGSL
                     .replace("{{TARGET_FORMAT}}", "rgba8unorm")
                     .replace("{{EMISSION}}", "true")
+                    .replace("{{TRILINEAR}}", "true")
             ),
             "Params",
             rust_layout!(Params {

@@ -1010,26 +1010,9 @@ impl GpuVolume {
         entry_point: &str,
         layouts: &[&wgpu::BindGroupLayout],
     ) -> wgpu::ComputePipeline {
-        let groups: Vec<Option<&wgpu::BindGroupLayout>> = std::iter::once(&self.bind_group_layout)
-            .chain(layouts.iter().copied())
-            .map(Some)
-            .collect();
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &groups,
-            immediate_size: 0,
-        });
-        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&layout),
-            module,
-            entry_point: Some(entry_point),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &self.pipeline_constants(),
-                ..Default::default()
-            },
-            cache: None,
-        })
+        let constants = self.pipeline_constants();
+        let volume = (&self.bind_group_layout, &constants[..]);
+        volume_pipeline(device, volume, label, module, entry_point, layouts)
     }
 
     /// The bind group of `VOLUME_WGSL`'s group 0 and its layout, for an engine's own pipelines.
@@ -1087,7 +1070,59 @@ pub(crate) struct Bound {
     pub frame_max: Vec<f32>,
 }
 
+/// A compute pipeline whose group 0 is a volume's (`volume`: its layout and pipeline
+/// constants) and groups 1.. are `layouts`.
+pub(crate) fn volume_pipeline(
+    device: &wgpu::Device,
+    volume: (&wgpu::BindGroupLayout, &[(&'static str, f64)]),
+    label: &str,
+    module: &wgpu::ShaderModule,
+    entry_point: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> wgpu::ComputePipeline {
+    let groups: Vec<Option<&wgpu::BindGroupLayout>> = std::iter::once(volume.0)
+        .chain(layouts.iter().copied())
+        .map(Some)
+        .collect();
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &groups,
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&layout),
+        module,
+        entry_point: Some(entry_point),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: volume.1,
+            ..Default::default()
+        },
+        cache: None,
+    })
+}
+
 impl Bound {
+    /// [`volume_pipeline`] over the bound volume (pipelines made after construction, e.g. a
+    /// variant compiled on first use).
+    pub fn compute_pipeline(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        module: &wgpu::ShaderModule,
+        entry_point: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+    ) -> wgpu::ComputePipeline {
+        volume_pipeline(
+            device,
+            (&self.layout, &self.constants),
+            label,
+            module,
+            entry_point,
+            layouts,
+        )
+    }
+
     pub fn of(volume: &GpuVolume) -> Bound {
         let frames = 0..volume.frame_count();
         Bound {
