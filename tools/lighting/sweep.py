@@ -8,7 +8,8 @@ all of them the same way, so a change to a renderer or a default can be judged b
 error per millisecond" rather than by eye:
 
   lit        the light-volume renderer (`--mode lit`), default settings, on CPU and GPU, and
-             one knob changed at a time: --ms-octaves 1 (single scattering only),
+             one knob changed at a time: --ms-octaves 1 --ms-sky 16 (about single
+             scattering),
              --light-res 16/32/128, --step 0.5/2/4
   scatter    vdb_render's single scattering with exact per-sample shadow marches (`--gain 0`,
              so the shadows are physical). It has no sky, an isotropic phase and no multiple
@@ -69,7 +70,8 @@ LIT_DEFAULT = "light-res 64, 4 oct, ms 0.9,0.6,0.1, step 1"
 # (id, mode, extra CLI args, settings shown in the table, compared with the reference?)
 LIT_METHODS = [
     ("lit", "lit", [], LIT_DEFAULT, True),
-    ("lit-ss", "lit", ["--ms-octaves", "1"], "--ms-octaves 1 (single scattering)", True),
+    ("lit-ss", "lit", ["--ms-octaves", "1", "--ms-sky", "16"],
+     "--ms-octaves 1 --ms-sky 16 (about single scattering)", True),
     ("lit-lr16", "lit", ["--light-res", "16"], "--light-res 16", True),
     ("lit-lr32", "lit", ["--light-res", "32"], "--light-res 32", True),
     ("lit-lr128", "lit", ["--light-res", "128"], "--light-res 128", True),
