@@ -38,7 +38,9 @@ run one at a time. Every run writes the same image (the renders are deterministi
 one is scored.
 
 Outputs in OUT: results.json (every run, every compare.py field, the machine), results.md (the
-table), pfm/ (one image per row), refs/ (references rendered with --ref-spp).
+table), chart_cpu.svg and chart_gpu.svg (time against rel RMSE, one point per row, see
+chart_svg), pfm/ (one image per row), refs/ (references rendered with --ref-spp).
+`--chart-only OUT` rebuilds results.md and the charts from OUT/results.json, rendering nothing.
 
 Example (the three scenes of the lit-mode tuning, converged references made beforehand):
 
@@ -51,6 +53,7 @@ Needs Python 3 and numpy (for ../mitsuba/pfm.py and compare.py). Does not build 
 import argparse
 import datetime
 import json
+import math
 import os
 import platform
 import statistics
@@ -65,7 +68,7 @@ sys.dont_write_bytecode = True  # leave no __pycache__ in tools/mitsuba
 sys.path.insert(0, MITSUBA)
 from pfm import read_pfm  # noqa: E402
 
-LIT_DEFAULT = "light-res 64, 4 oct, ms 0.9,0.6,0.1, step 1"
+LIT_DEFAULT = "light-res 64, 8 oct, ms 0.98,0.9,0.6, ms-sky 0.25, step 1"
 
 # (id, mode, extra CLI args, settings shown in the table, compared with the reference?)
 LIT_METHODS = [
@@ -187,16 +190,200 @@ def markdown(res):
     return "\n".join(lines) + "\n"
 
 
+# One (colour, marker) per scene in the charts, in scene order (then round again).
+CHART_STYLES = [("#1f77b4", "circle"), ("#d62728", "square"), ("#2ca02c", "triangle"),
+                ("#9467bd", "diamond"), ("#ff7f0e", "triangle-down"), ("#17becf", "circle"),
+                ("#8c564b", "square"), ("#e377c2", "triangle")]
+
+
+def _nice_step(span, want=6):
+    """A round tick step (1, 2, 2.5 or 5 × 10^k) giving about `want` ticks over `span`."""
+    raw = span / want
+    k = 10 ** math.floor(math.log10(raw))
+    return next(m * k for m in (1, 2, 2.5, 5, 10) if m * k >= raw)
+
+
+def chart_svg(res, backend, clip_factor=5.0):
+    """One speed-against-accuracy chart of `backend`'s rows as SVG text ('' if no row qualifies).
+
+    x: the row's time in ms on a log scale (cpu: render_seconds × 1000, so lit = light-volume
+    build + march; gpu: gpu_ms, so lit = the march alone); y: compare.py's rel_rmse against the
+    converged reference, linear from 0. Rows without an error (density, no reference) or
+    without a time are left out. Each scene gets a colour and a marker shape, each point its
+    method's name. An error above `clip_factor` × the median error (scatter's 4–6 would squash
+    everything else to the floor) is drawn on the top edge as an open marker with an arrow and
+    its value in the label.
+    """
+    from xml.sax.saxutils import escape
+    pts = []
+    for r in res["rows"]:
+        if r["backend"] != backend:
+            continue
+        err = (r.get("compare") or {}).get("rel_rmse")
+        t = r.get("gpu_ms") if backend == "gpu" else (
+            r["render_seconds"] * 1e3 if r.get("render_seconds") else None)
+        if err is not None and t:
+            pts.append((r["scene"], r["method"], t, err))
+    if not pts:
+        return ""
+    scenes = list(dict.fromkeys(p[0] for p in pts))
+    style = {s: CHART_STYLES[i % len(CHART_STYLES)] for i, s in enumerate(scenes)}
+
+    W, H = 860, 540
+    L, R, T, B = 70, 650, 58, 470  # the plot area
+    fs = 9  # label font size; a character is about 0.6 fs wide
+
+    # y: linear from 0 to a round top above every unclipped error.
+    cap = clip_factor * statistics.median(p[3] for p in pts)
+    top = max([p[3] for p in pts if p[3] <= cap] or [cap]) or 1.0
+    ystep = _nice_step(top)
+    ytop = ystep * math.ceil(top / ystep * 1.04)
+    # x: log10, from the 1-2-5 value below the fastest time to the one above the slowest.
+    ticks = [m * 10.0 ** d for d in range(-3, 7) for m in (1, 2, 5)]
+    lo = max([v for v in ticks if v <= 0.9 * min(p[2] for p in pts)] or ticks[:1])
+    hi = min([v for v in ticks if v >= 1.1 * max(p[2] for p in pts)] or ticks[-1:])
+    ticks = [v for v in ticks if lo <= v <= hi]
+    x0, x1 = math.log10(lo), math.log10(hi)
+
+    def X(ms):
+        return L + (math.log10(ms) - x0) / (x1 - x0) * (R - L)
+
+    def Y(e):
+        return B - min(e, ytop) / ytop * (B - T)
+
+    o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" '
+         f'font-family="Helvetica, Arial, sans-serif">',
+         f'<rect width="{W}" height="{H}" fill="white"/>']
+    what = ("CPU: render_seconds (lit: light-volume build + march)" if backend == "cpu"
+            else "GPU: gpu_ms (lit: the march alone, light volume cached)")
+    o.append(f'<text x="{W / 2}" y="22" text-anchor="middle" font-size="15" font-weight="bold">'
+             f'Lighting methods, {backend.upper()}: time against error from the reference</text>')
+    o.append(f'<text x="{W / 2}" y="40" text-anchor="middle" font-size="11" fill="#444">'
+             f'{escape(res["machine"])} · {escape(res["date"])} · {res["width"]}×{res["height"]}</text>')
+    # Grid, ticks, tick labels.
+    for v in ticks:
+        x = X(v)
+        major = abs(math.log10(v) - round(math.log10(v))) < 1e-9  # a power of ten
+        o.append(f'<line x1="{x:.1f}" y1="{T}" x2="{x:.1f}" y2="{B}" stroke="'
+                 + ("#ddd" if major else "#f0f0f0") + '"/>')
+        o.append(f'<line x1="{x:.1f}" y1="{B}" x2="{x:.1f}" y2="{B + (6 if major else 3)}" stroke="#333"/>')
+        if major or x1 - x0 <= 3:
+            o.append(f'<text x="{x:.1f}" y="{B + 18}" text-anchor="middle" font-size="11"'
+                     + ('' if major else ' fill="#666"') + f'>{v:g}</text>')
+    k = 0
+    while k * ystep <= ytop + 1e-12:
+        y = Y(k * ystep)
+        o.append(f'<line x1="{L}" y1="{y:.1f}" x2="{R}" y2="{y:.1f}" stroke="#ddd"/>')
+        o.append(f'<line x1="{L - 5}" y1="{y:.1f}" x2="{L}" y2="{y:.1f}" stroke="#333"/>')
+        o.append(f'<text x="{L - 8}" y="{y + 4:.1f}" text-anchor="end" font-size="11">{k * ystep:g}</text>')
+        k += 1
+    o.append(f'<rect x="{L}" y="{T}" width="{R - L}" height="{B - T}" fill="none" stroke="#333"/>')
+    o.append(f'<text x="{(L + R) / 2}" y="{B + 38}" text-anchor="middle" font-size="12">'
+             f'time, ms (log scale) — {what}</text>')
+    o.append(f'<text transform="translate({L - 46},{(T + B) / 2}) rotate(-90)" text-anchor="middle" '
+             f'font-size="12">rel RMSE against the converged reference</text>')
+
+    def marker(shape, x, y, colour, r=4.5, filled=True):
+        paint = f'fill="{colour}"' if filled else f'fill="white" stroke="{colour}" stroke-width="1.5"'
+        if shape == "circle":
+            return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}" {paint}/>'
+        if shape == "square":
+            return f'<rect x="{x - r * .85:.1f}" y="{y - r * .85:.1f}" width="{r * 1.7:.1f}" height="{r * 1.7:.1f}" {paint}/>'
+        pts_ = {"triangle": [(0, -1.2), (1.1, .8), (-1.1, .8)],
+                "triangle-down": [(0, 1.2), (1.1, -.8), (-1.1, -.8)],
+                "diamond": [(0, -1.3), (1.1, 0), (0, 1.3), (-1.1, 0)]}[shape]
+        return ('<polygon points="' + " ".join(f"{x + a * r:.1f},{y + b * r:.1f}" for a, b in pts_)
+                + f'" {paint}/>')
+
+    # Markers; then each label, greedily, at the spot near its point (tried nearest first, in
+    # 12 directions) that overlaps the least of the markers and labels placed so far, with a
+    # leader line when it had to move away from its point.
+    boxes = []  # (x0, y0, x1, y1) of markers and labels already placed
+    marks, todo = [], []
+    for s, mid, t, e in pts:
+        x, y = X(t), Y(e)
+        colour, shape = style[s]
+        clipped = e > ytop
+        marks.append(marker(shape, x, y, colour, filled=not clipped))
+        if clipped:
+            marks.append(f'<path d="M{x:.1f},{y - 7:.1f} l0,-9 m-3,3 l3,-3 l3,3" stroke="{colour}" fill="none"/>')
+        boxes.append((x - 5, y - 5, x + 5, y + 5))
+        todo.append((x, y, colour, mid + (f" ({e:.2f})" if clipped else ""), mid == "lit"))
+
+    def overlap(a, b):
+        return max(0, min(a[2], b[2]) - max(a[0], b[0])) * max(0, min(a[3], b[3]) - max(a[1], b[1]))
+
+    leaders, labels = [], []
+    for x, y, colour, text, bold in todo:
+        w, h = 0.58 * fs * len(text) * (1.1 if bold else 1) + 2, fs + 2
+        best = None
+        for dist in (7, 15, 26, 40, 56):
+            for deg in (0, 180, 30, -30, 150, -150, 90, -90, 60, -60, 120, -120):
+                c, sn = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+                ax, ay = x + dist * c, y - dist * sn
+                anchor = "start" if c > 0.3 else "end" if c < -0.3 else "middle"
+                lx = {"start": ax, "end": ax - w, "middle": ax - w / 2}[anchor]
+                top = ay - h / 2 if abs(sn) < 0.6 else (ay - h if sn > 0 else ay)
+                box = (lx, top, lx + w, top + h)
+                cost = sum(overlap(box, b) for b in boxes) + dist * 2
+                if box[0] < L + 1 or box[2] > R - 1 or box[1] < T - 16 or box[3] > B - 1:
+                    cost += 1e5
+                if best is None or cost < best[0]:
+                    best = (cost, dist, ax, anchor, box)
+        _, dist, ax, anchor, box = best
+        boxes.append(box)
+        if dist > 7:
+            cx, cy = min(max(x, box[0]), box[2]), min(max(y, box[1]), box[3])
+            leaders.append(f'<line x1="{x:.1f}" y1="{y:.1f}" x2="{cx:.1f}" y2="{cy:.1f}" '
+                           f'stroke="{colour}" stroke-width="0.6" opacity="0.7"/>')
+        labels.append(f'<text x="{ax:.1f}" y="{box[3] - 3:.1f}" text-anchor="{anchor}" font-size="{fs}" '
+                      f'fill="{colour}"'
+                      + (' font-weight="bold"' if bold else '') + f'>{escape(text)}</text>')
+    o += leaders + marks + labels
+
+    # Legend, right of the plot.
+    lx, ly = R + 22, T + 8
+    o.append(f'<text x="{lx}" y="{ly}" font-size="12" font-weight="bold">scene</text>')
+    for i, s in enumerate(scenes):
+        colour, shape = style[s]
+        yy = ly + 20 + 20 * i
+        o.append(marker(shape, lx + 6, yy - 4, colour))
+        o.append(f'<text x="{lx + 18}" y="{yy}" font-size="12">{escape(s)}</text>')
+    ny = ly + 20 + 20 * len(scenes) + 12
+    notes = ["Each point: one method", "(see tools/lighting/README.md);",
+             "bold: lit at its defaults.", "Lower is more accurate,", "left is faster."]
+    if any(p[3] > ytop for p in pts):
+        notes += ["Open marker + arrow: error", f"above {clip_factor:g}× the median,",
+                  "drawn at the top; its value", "is in the label."]
+    for i, n in enumerate(notes):
+        o.append(f'<text x="{lx}" y="{ny + 15 * i}" font-size="10" fill="#444">{escape(n)}</text>')
+    o.append("</svg>")
+    return "\n".join(o) + "\n"
+
+
+def write_charts(res, out):
+    """Write OUT/chart_cpu.svg and OUT/chart_gpu.svg (a backend with no scored, timed row gets none)."""
+    written = []
+    for backend in ("cpu", "gpu"):
+        svg = chart_svg(res, backend)
+        if svg:
+            path = os.path.join(out, f"chart_{backend}.svg")
+            with open(path, "w") as f:
+                f.write(svg)
+            written.append(path)
+    return written
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", required=True, help="the vdbcook binary (copy it if it may be rebuilt meanwhile)")
-    ap.add_argument("--asset", action="append", required=True,
-                    help="a cooked asset (.vdbc); repeat for more scenes. Scene name = file stem")
+    ap.add_argument("--bin", help="the vdbcook binary (copy it if it may be rebuilt meanwhile); required")
+    ap.add_argument("--asset", action="append",
+                    help="a cooked asset (.vdbc); repeat for more scenes. Scene name = file stem; required")
     ap.add_argument("--ref", action="append", default=[], metavar="SCENE=PFM",
                     help="the converged reference of a scene (linear PFM, same camera/size/settings)")
     ap.add_argument("--ref-pattern", help="reference path with {scene}, e.g. '/refs/{scene}_ref.pfm'")
     ap.add_argument("--ref-spp", type=int, help="render a missing reference at this many spp (seed 1)")
-    ap.add_argument("--out", required=True, help="output folder (results.json, results.md, pfm/)")
+    ap.add_argument("--out", help="output folder (results.json, results.md, chart_*.svg, pfm/); required")
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=90)
     ap.add_argument("--runs", type=int, default=3, help="runs of a fast method; the median is reported")
@@ -215,7 +402,23 @@ def main():
                     help="run every lit variant on the GPU too (default: only the default lit)")
     ap.add_argument("--only", nargs="*", help="method ids or modes to run (e.g. lit lit-lr32 scatter)")
     ap.add_argument("--machine", default=None, help="one line describing the machine, for the table")
+    ap.add_argument("--chart-only", metavar="OUT",
+                    help="render nothing: rebuild OUT/results.md and OUT/chart_{cpu,gpu}.svg from an "
+                    "existing OUT/results.json (every other option is ignored)")
     args = ap.parse_args()
+
+    if args.chart_only:
+        with open(os.path.join(args.chart_only, "results.json")) as f:
+            res = json.load(f)
+        with open(os.path.join(args.chart_only, "results.md"), "w") as f:
+            f.write(markdown(res))
+        charts = write_charts(res, args.chart_only)
+        print(f"wrote {os.path.join(args.chart_only, 'results.md')}"
+              + (f"; charts: {', '.join(os.path.basename(c) for c in charts)}" if charts else ""))
+        return
+    missing = [o for o in ("bin", "asset", "out") if not getattr(args, o)]
+    if missing:
+        ap.error("the following arguments are required: " + ", ".join("--" + m for m in missing))
 
     args.bin = os.path.abspath(args.bin)
     args.refs = {}
@@ -297,7 +500,9 @@ def main():
             json.dump(res, f, indent=1)
     with open(os.path.join(args.out, "results.md"), "w") as f:
         f.write(markdown(res))
-    print(f"wrote {os.path.join(args.out, 'results.json')} and results.md")
+    charts = write_charts(res, args.out)
+    print(f"wrote {os.path.join(args.out, 'results.json')} and results.md"
+          + (f"; charts: {', '.join(os.path.basename(c) for c in charts)}" if charts else ""))
 
 
 if __name__ == "__main__":
