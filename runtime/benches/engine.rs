@@ -8,14 +8,16 @@
 //!
 //! `cargo bench -p vdbcook-runtime --bench engine [-- ASSET.vdbc]`; by default the wdas f32 asset
 //! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`.
-//! `VDBCOOK_BENCH_SIZES=small`: 640×360 only.
+//! `VDBCOOK_BENCH_SIZES=small`: 640×360 only. `VDBCOOK_BENCH_LIGHTING=lit`: the instances drawn
+//! lit (`Medium::lighting` with the tracer's defaults; the translated copies share one light
+//! volume, built in the warm-up run), instead of flat.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
 use vdbcook_runtime::{
-    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Medium, View, VolumeDrawer,
+    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Lighting, Medium, View, VolumeDrawer,
 };
 
 const RUNS: usize = 3;
@@ -109,6 +111,11 @@ fn main() {
             wgpu::TextureFormat::Depth32Float,
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
         );
+        let medium = Medium {
+            lighting: (std::env::var("VDBCOOK_BENCH_LIGHTING").as_deref() == Ok("lit"))
+                .then(Lighting::default),
+            ..Default::default()
+        };
         for n in COUNTS {
             // A k×k×k lattice (k = ⌈∛n⌉), spacing 2.2 radii, the first n sites.
             let k = (1..).find(|k| k * k * k >= n).unwrap();
@@ -159,7 +166,7 @@ fn main() {
                         },
                         &view,
                         &instances,
-                        &Medium::default(),
+                        &medium,
                     )
                     .expect("record");
                 if let Some(t) = &timer {
