@@ -96,11 +96,12 @@ fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = lo + (vec3<f32>(gid) + vec3<f32>(0.5)) * cell;
     let l = lp.sun.xyz;
     let al = abs(l);
+    // The major axis, the last one on a tie (`LightGrid::sun_depth`'s `max_by`).
     var m = 0u;
-    if (al.y > al[m]) {
+    if (al.y >= al[m]) {
         m = 1u;
     }
-    if (al.z > al[m]) {
+    if (al.z >= al[m]) {
         m = 2u;
     }
     // The grid's far side along the light (`LightGrid::exit`).

@@ -753,8 +753,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // `composited`: whether the plate is already under the image (the GPU drawer does it).
     let (mut image, backend, adapter, gpu_ms, composited) = match &gpu {
         #[cfg(feature = "gpu")]
-        // The drawer composites density or lit over a plate on the GPU; it has no emission,
-        // which the renderer below draws (the plate is then composited on the CPU). Lit with a
+        // The drawer composites density or lit over a plate on the GPU, without emission (its
+        // flat march has none; emission goes to the renderer below, or to the CPU's cut march
+        // for lit with a depth, and the plate is composited on the CPU). Lit with a
         // depth and no plate needs its transmittance as alpha, which the drawer's blend keeps
         // from the scene: the CPU's cut march draws it.
         Some(g)

@@ -857,7 +857,7 @@ impl VolumeDrawer {
         } else {
             let (_, bases, pool) = self
                 .light
-                .record(device, encoder, &self.vol.group, &volumes);
+                .record(device, encoder, &self.vol.group, &volumes)?;
             (bases, Some(pool))
         };
         let lw = DVec3::from(l.light_dir.map(|c| c as f64)).normalize();
@@ -1144,9 +1144,9 @@ impl VolumeDrawer {
         let light_group = if volumes.is_empty() {
             self.light.empty_group.clone()
         } else {
-            let (group, bases, _) = self
-                .light
-                .record(device, encoder, &self.vol.group, &volumes);
+            let (group, bases, _) =
+                self.light
+                    .record(device, encoder, &self.vol.group, &volumes)?;
             for d in gpu_instances.iter_mut().filter(|d| d.lit != 0) {
                 d.lv_base0 = bases[d.lv_base0 as usize];
                 d.lv_base1 = bases[d.lv_base1 as usize];

@@ -85,8 +85,10 @@ pub const TRACE_WGSL: &str = include_str!("../../shaders/trace.wgsl");
 /// The lit mode's light-volume lookup and octave source (no bindings); the tracer and the
 /// light-volume pass include it.
 pub const LIGHT_WGSL: &str = include_str!("../../shaders/light.wgsl");
-/// The lit mode's light-volume pass (group 1, entry points `lv_density_main`, `lv_tau_main`);
-/// needs [`VOLUME_WGSL`] and [`LIGHT_WGSL`] before it.
+/// The lit mode's light-volume passes (group 0 the volume, group 1 their uniform and buffers;
+/// entry points `lv_density_main`, `lv_sun_main`, `lv_axis0_main`, `lv_axis1_main`,
+/// `lv_axis2_main`, `lv_sky_main`, in that order); needs [`VOLUME_WGSL`] and [`LIGHT_WGSL`]
+/// before it.
 pub const LIGHT_BUILD_WGSL: &str = include_str!("../../shaders/light_build.wgsl");
 
 /// The sun's transmittance through a drawer's lit volumes for an engine's shaders (group 0,

@@ -1,9 +1,10 @@
-//! The lit mode's light volumes on the GPU (`shaders/light_build.wgsl`): their two pipelines,
-//! one buffer that holds every light volume a draw needs (grown on demand, never shrunk), the
-//! density scratch they are built through (one at a time), and the cache that skips the passes
-//! while the frames, the lights and the media stay the same. The renderer and the drawer record
-//! the passes into the caller's encoder ahead of their own dispatch and read the volumes through
-//! group 3 (`light_tau`).
+//! The lit mode's light volumes on the GPU (`shaders/light_build.wgsl`): its six pipelines, one
+//! buffer that holds every light volume a draw needs (grown on demand up to the device's binding
+//! limit, never shrunk), the density scratch they are built through (one at a time), and the
+//! cache that skips the passes while the frames, the lights and the media stay the same (one
+//! entry: the last list built). The renderer and the drawer record the passes into the caller's
+//! encoder ahead of their own dispatch and read the volumes through one bind group (the
+//! renderer's group 3, `lv_tau`; the drawer's group 2, `draw_lv`).
 
 use std::sync::Mutex;
 
@@ -12,6 +13,7 @@ use vdbcook_scene::{length, normalize, Affine, LengthUnit, LightGrid};
 use wgpu::util::DeviceExt;
 
 use crate::upload::GpuVolume;
+use crate::RuntimeError;
 
 /// `LightParams` of `light_build.wgsl`.
 #[repr(C)]
@@ -196,12 +198,24 @@ impl LightPass {
         encoder: &mut wgpu::CommandEncoder,
         volume_group: &wgpu::BindGroup,
         volumes: &[LightParams],
-    ) -> (wgpu::BindGroup, Vec<u32>, wgpu::Buffer) {
+    ) -> Result<(wgpu::BindGroup, Vec<u32>, wgpu::Buffer), RuntimeError> {
         let mut placed = volumes.to_vec();
         let mut total = 0usize;
         for lp in &mut placed {
             lp.base = total as u32;
             total += lp.cells();
+        }
+        let limits = device.limits();
+        let most = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size.min(u32::MAX as u64)) as usize;
+        if 8 * total > most {
+            return Err(RuntimeError::Limits(format!(
+                "{} light volumes of {total} cells in all need {} bytes, the device binds at most \
+                 {most} (lower light_res, or draw fewer distinct lit instances at once)",
+                placed.len(),
+                8 * total
+            )));
         }
         let bases = placed.iter().map(|lp| lp.base).collect();
         let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
@@ -283,7 +297,7 @@ impl LightPass {
         }
         let (read, pool) = (read.clone(), pool.clone());
         state.built = Some(placed);
-        (read, bases, pool)
+        Ok((read, bases, pool))
     }
 }
 

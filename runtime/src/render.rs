@@ -524,7 +524,7 @@ impl Renderer {
                 params.frame_root,
             );
             self.light
-                .record(&self.device, encoder, &self.vol.group, &[lp])
+                .record(&self.device, encoder, &self.vol.group, &[lp])?
                 .0
         } else {
             self.light.empty_group.clone()

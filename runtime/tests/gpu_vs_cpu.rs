@@ -1406,3 +1406,45 @@ fn lit_trilinear_matches_the_cpu() {
         );
     }
 }
+
+/// A light volume larger than the device binds is a `RuntimeError::Limits`, not a wgpu
+/// validation panic: the blob at `light_res` 256 needs about 256³ cells × 8 bytes, over wgpu's
+/// default 128 MiB storage binding (a device that binds more renders it).
+#[test]
+fn a_light_volume_over_the_binding_limit_is_an_error() {
+    let Some(gpu) = Gpu::new("a_light_volume_over_the_binding_limit_is_an_error") else {
+        return;
+    };
+    let asset = blob_asset(PayloadFormat::F32);
+    let (_vol, r) = gpu.setup(&asset);
+    let target = r.buffer_target(&gpu.device, 16, 9).unwrap();
+    let cam = vdbcook_trace::Camera::framing(&asset, 0, 16.0 / 9.0).unwrap();
+    let s = RenderSettings {
+        light_res: vdbcook_trace::MAX_LIGHT_RES,
+        width: 16,
+        height: 9,
+        ..small(Mode::Lit, 0)
+    };
+    let grid = vdbcook_trace::LightGrid::new(vdbcook_trace::content_box(&asset, 0), s.light_res);
+    let bytes = 8 * grid.cells() as u64;
+    let limits = gpu.device.limits();
+    let most = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    match gpu.render(&r, &target, &cam, &s) {
+        Err(RuntimeError::Limits(m)) => {
+            assert!(
+                bytes > most,
+                "refused {bytes} bytes under the limit {most}: {m}"
+            )
+        }
+        Ok(_) => assert!(
+            bytes <= most,
+            "{bytes} bytes over the limit {most} rendered"
+        ),
+        Err(e) => panic!("{e}"),
+    }
+    // The renderer still works at a resolution that fits.
+    let ok = RenderSettings { light_res: 24, ..s };
+    gpu.render(&r, &target, &cam, &ok).unwrap();
+}

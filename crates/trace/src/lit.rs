@@ -4,8 +4,9 @@
 //! 1. **Light volume**, once per frame and light (`LightVolume::build`), over
 //!    `vdbcook_scene::LightGrid` (cubic cells, `light_res` along the content box's longest side):
 //!    - density pass: a cell's density `D` is the mean of `max(v, 0)` over `sub³` nearest-voxel
-//!      reads at the centres of its `sub³` sub-cells (a box filter, so a coarse cell does not
-//!      alias the voxels it covers);
+//!      reads at the centres of its `sub³` sub-cells, `sub = clamp(⌈cell⌉, 1, 4)`: a box filter
+//!      up to cells of 4 voxels; wider cells read one voxel in every `cell/4` per axis (they
+//!      alias: large assets at a low `light_res`);
 //!    - sun pass: `τ_sun` at a cell centre is the integral of `D` toward the light (`l̂`, in
 //!      cell space) to the grid's far side by the trapezoid rule between the crossings of the
 //!      next slices' centre planes along `l̂`'s major axis, `D` bilinear in each
@@ -221,8 +222,10 @@ pub const LIT_MAX_SKY_DEPTH: f64 = 80.0;
 /// The mean depth, as a fraction of the step, at which light entering a step of optical depth
 /// `x` is scattered (`1/x − 1/(eˣ − 1)`: ½ when thin, the mean free path when thick).
 pub fn mean_depth(x: f64) -> f64 {
-    if x < 1e-3 {
-        0.5 - x / 12.0
+    // Below ½ the series (the closed form cancels in f32, which the GPU computes it in).
+    if x < 0.5 {
+        let x2 = x * x;
+        0.5 - x / 12.0 + x * x2 / 720.0 - x * x2 * x2 / 30240.0
     } else {
         1.0 / x - 1.0 / x.exp_m1()
     }
