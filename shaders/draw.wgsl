@@ -107,18 +107,26 @@ fn draw_lv_lookup(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> ve
     return out;
 }
 
+// The lit march's density of one frame at cell-space point `p`: the nearest voxel (≥ 0), or
+// trilinear inside leaves the tracer's walk visits (bound > 0), as its lit march reads it.
+fn draw_density(frame_root: u32, p: vec3<f32>) -> f32 {
+    let cell = vec3<i32>(floor(p));
+    if (DRAW_TRILINEAR && draw_view.ms.w != 0.0) {
+        if (vdb_leaf_bound(frame_root, cell) > 0.0) {
+            return vdb_trilinear(frame_root, p);
+        }
+        return 0.0;
+    }
+    return max(vdb_value(frame_root, cell), 0.0);
+}
+
 // The lit march of one instance for t in [t0, t1]: (radiance before the tint, transmittance).
 fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pixel: u32) -> vec4<f32> {
     let step = draw_view.light_dir.w;
     let ms = draw_view.ms.xyz;
     let octaves = draw_view.ms_octaves;
     let mu = dot(dw, draw_view.light_dir.xyz);
-    var sun_ph: array<f32, 8>;
-    var ci = 1.0;
-    for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
-        sun_ph[i] = lv_phase(draw_view.phase.xyz, ci, mu);
-        ci *= ms.z;
-    }
+    var sun_ph = lv_sun_phases(draw_view.phase.xyz, ms.z, mu);
     let jitter = lv_jitter(draw_view.seed, pixel);
     let ext = inst.extinction;
     let a = inst.box_lo.w;
@@ -133,27 +141,9 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         }
         k += 1.0;
         let p = ray.o + (s / ray.per_t) * ray.d;
-        let cell = vec3<i32>(floor(p));
-        // Trilinear inside leaves the tracer's walk visits (bound > 0), as its lit march.
-        let trilinear = DRAW_TRILINEAR && draw_view.ms.w != 0.0;
-        var rho = 0.0;
-        if (trilinear) {
-            if (vdb_leaf_bound(inst.frame_root0, cell) > 0.0) {
-                rho = vdb_trilinear(inst.frame_root0, p);
-            }
-        } else {
-            rho = max(vdb_value(inst.frame_root0, cell), 0.0);
-        }
+        var rho = draw_density(inst.frame_root0, p);
         if (a > 0.0) {
-            var rho1 = 0.0;
-            if (trilinear) {
-                if (vdb_leaf_bound(inst.frame_root1, cell) > 0.0) {
-                    rho1 = vdb_trilinear(inst.frame_root1, p);
-                }
-            } else {
-                rho1 = max(vdb_value(inst.frame_root1, cell), 0.0);
-            }
-            rho = mix(rho, rho1, a);
+            rho = mix(rho, draw_density(inst.frame_root1, p), a);
         }
         if (!(rho > 0.0)) {
             continue;
@@ -165,8 +155,7 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             let w = lv_emission_at(rho, draw_view.emission);
             let i = u32(w.x);
             let c0 = draw_view.emit_table[i].xyz;
-            let phi = select((1.0 - e) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
-            rad += trans * step * phi * w.z * (c0 + w.y * (draw_view.emit_table[i + 1u].xyz - c0));
+            rad += trans * step * lv_phi(x, e) * w.z * (c0 + w.y * (draw_view.emit_table[i + 1u].xyz - c0));
         }
         let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
         var tau = draw_lv_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q);

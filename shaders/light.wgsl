@@ -53,6 +53,24 @@ fn lv_octaves(x: f32, ms: vec3<f32>, octaves: u32, ph: ptr<function, array<f32, 
     return s;
 }
 
+// `vdbcook_trace::exact::phi`: `(1 − e^{−x})/x`, the weight of a step's emission absorbed within
+// the step, `e = e^{−x}` given (its series below 10⁻³, where the quotient cancels).
+fn lv_phi(x: f32, e: f32) -> f32 {
+    return select((1.0 - e) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
+}
+
+// The sun's phase for each octave at cosine `mu`: the dual-lobe phase (g0, g1, weight) with both
+// g scaled by `c^i` for octave i.
+fn lv_sun_phases(phase: vec3<f32>, c: f32, mu: f32) -> array<f32, 8> {
+    var ph: array<f32, 8>;
+    var ci = 1.0;
+    for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
+        ph[i] = lv_phase(phase, ci, mu);
+        ci *= c;
+    }
+    return ph;
+}
+
 // `vdbcook_scene::sky_source`: the sky's source at sky optical depth y, diffusion attenuation k.
 fn lv_sky_source(y: f32, k: f32) -> f32 {
     let direct = exp(-y);

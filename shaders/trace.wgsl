@@ -144,8 +144,7 @@ fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
             if (any(r != vec3<f32>(0.0))) {
                 let len = (tb - ta) * v_per_t;
                 let x = params.absorb * v * len;
-                let phi = select((1.0 - exp(-x)) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
-                v_emit += exp(-params.absorb * v_tau) * len * phi * r;
+                v_emit += exp(-params.absorb * v_tau) * len * lv_phi(x, exp(-x)) * r;
             }
         }
         v_tau += v * (tb - ta) * v_per_t;
@@ -462,8 +461,7 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
             let dt = exp(-x);
             if (TRACE_EMISSION && params.emission.w != 0.0) {
                 // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
-                let phi = select((1.0 - dt) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
-                v_emit += trans * step * phi * emit_radiance(sigma);
+                v_emit += trans * step * lv_phi(x, dt) * emit_radiance(sigma);
             }
             let ts = shadow_march(p);
             lum += params.albedo * ts * trans * (1.0 - dt);
@@ -520,12 +518,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     let ms = params.ms.xyz;
     // The phase per octave at this ray's μ, the sky's (isotropic: 1).
     let mu = dot(dw, params.light_world.xyz);
-    var sun_ph: array<f32, 8>;
-    var ci = 1.0;
-    for (var i = 0u; i < LV_MAX_OCTAVES; i++) {
-        sun_ph[i] = lv_phase(params.phase.xyz, ci, mu);
-        ci *= ms.z;
-    }
+    var sun_ph = lv_sun_phases(params.phase.xyz, ms.z, mu);
     let jitter = lv_jitter(params.seed, pixel);
     let ext = params.extinction;
     var w = wk_init(ray, t0, t1);
@@ -564,8 +557,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
             let x = ext * rho * step;
             let e = exp(-x);
             if (TRACE_EMISSION && params.emission.w != 0.0) {
-                let phi = select((1.0 - e) / x, 1.0 - x / 2.0 + x * x / 6.0, x < 1e-3);
-                v_emit += trans * step * phi * emit_radiance(rho);
+                v_emit += trans * step * lv_phi(x, e) * emit_radiance(rho);
             }
             // The source where the step's light is scattered on average (`lit::mean_depth`).
             let m = step * lv_mean_depth(x);

@@ -225,21 +225,25 @@ fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
     return q.x + (q.y - q.x) * t;
 }
 
-// The value at asset index `a` of the frame whose roots start at `frame_root` (background where
-// nothing is stored, 0 outside the root extent): `Asset::value` on the GPU.
-fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
+// What holds asset index `a` in the frame whose roots start at `frame_root`: `VDB_EMPTY` (the
+// background: nothing stored, or outside the root extent), `VDB_TILE_BIT | t` (a region's or a
+// leaf slot's tile `t`), or a brick index.
+fn vdb_holder(frame_root: u32, a: vec3<i32>) -> u32 {
     let ext = vec3<i32>(vdb_info.root_dims * 128u);
     if (any(a < vec3<i32>(0)) || any(a >= ext)) {
-        return vdb_info.background;
+        return VDB_EMPTY;
     }
     let e = vdb_root_entry(frame_root, a >> vec3<u32>(7u));
-    if (e == VDB_EMPTY) {
-        return vdb_info.background;
+    if (e == VDB_EMPTY || (e & VDB_TILE_BIT) != 0u) {
+        return e;
     }
-    if ((e & VDB_TILE_BIT) != 0u) {
-        return vdb_tile(e & ~VDB_TILE_BIT);
-    }
-    let r = vdb_leaf_ref(e, a >> vec3<u32>(3u));
+    return vdb_leaf_ref(e, a >> vec3<u32>(3u));
+}
+
+// The value at asset index `a` of the frame whose roots start at `frame_root` (background where
+// nothing is stored and outside the root extent): `Asset::value` on the GPU.
+fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
+    let r = vdb_holder(frame_root, a);
     if (r == VDB_EMPTY) {
         return vdb_info.background;
     }
@@ -252,18 +256,7 @@ fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
 // The bound of the leaf (8³ voxels) holding asset index `a`: its brick's max, its tile's value,
 // or the background where nothing is stored (the walks pass over leaves whose bound is ≤ 0).
 fn vdb_leaf_bound(frame_root: u32, a: vec3<i32>) -> f32 {
-    let ext = vec3<i32>(vdb_info.root_dims * 128u);
-    if (any(a < vec3<i32>(0)) || any(a >= ext)) {
-        return vdb_info.background;
-    }
-    let e = vdb_root_entry(frame_root, a >> vec3<u32>(7u));
-    if (e == VDB_EMPTY) {
-        return vdb_info.background;
-    }
-    if ((e & VDB_TILE_BIT) != 0u) {
-        return vdb_tile(e & ~VDB_TILE_BIT);
-    }
-    let r = vdb_leaf_ref(e, a >> vec3<u32>(3u));
+    let r = vdb_holder(frame_root, a);
     if (r == VDB_EMPTY) {
         return vdb_info.background;
     }

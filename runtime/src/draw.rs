@@ -843,14 +843,11 @@ impl VolumeDrawer {
         instances: &[Instance],
         medium: &Medium,
     ) -> Result<SunShadows> {
-        let Some(l) = &medium.lighting else {
+        if medium.lighting.is_none() {
             return Err(RuntimeError::Setting(
                 "sun shadows need Medium::lighting (the light volumes of the lit mode)".into(),
             ));
-        };
-        l.settings(medium)
-            .validate(self.vol.frames())
-            .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
+        }
         let (draws, volumes) = self.instances(DVec3::ZERO, instances, medium)?;
         let (bases, pool) = if volumes.is_empty() {
             (Vec::new(), None)
@@ -860,19 +857,17 @@ impl VolumeDrawer {
                 .record(device, encoder, &self.vol.group, &volumes)?;
             (bases, Some(pool))
         };
-        let lw = DVec3::from(l.light_dir.map(|c| c as f64)).normalize();
         let mut casters: Vec<ShadowInstance> = draws
             .iter()
             .filter(|d| d.lit != 0)
             .map(|d| {
-                let r = d.cell_from_world;
-                let row = |i: usize| (0..3).map(|k| r[i][k] as f64 * lw[k]).sum::<f64>();
-                let dir = DVec3::new(row(0), row(1), row(2)).normalize();
+                // The cell-space direction toward the sun: its light volume's.
+                let sun = volumes[d.lv_base0 as usize].sun;
                 let with_base =
                     |dims: [u32; 4], idx: u32| [dims[0], dims[1], dims[2], bases[idx as usize]];
                 ShadowInstance {
-                    cell_from_world: r,
-                    sun: [dir.x as f32, dir.y as f32, dir.z as f32, d.extinction],
+                    cell_from_world: d.cell_from_world,
+                    sun: [sun[0], sun[1], sun[2], d.extinction],
                     lo0: d.lv_lo0,
                     dims0: with_base(d.lv_dims0, d.lv_base0),
                     lo1: d.lv_lo1,
@@ -1010,15 +1005,21 @@ impl VolumeDrawer {
         self.lt.as_ref().expect("just created")
     }
 
-    /// The GPU instances in front-to-back order (by the distance from the eye, or the near
-    /// plane's centre, to the centre of each instance's box; ties keep the caller's order),
-    /// leaving out instances with nothing > 0 in their frames.
+    /// The lighting checked, then the GPU instances in front-to-back order (by the distance
+    /// from the eye, or the near plane's centre, to the centre of each instance's box; ties keep
+    /// the caller's order), leaving out instances with nothing > 0 in their frames, and the
+    /// light volumes the lit ones need.
     fn instances(
         &self,
         eye: DVec3,
         instances: &[Instance],
         medium: &Medium,
     ) -> Result<(Vec<DrawInstance>, Vec<LightParams>)> {
+        if let Some(l) = &medium.lighting {
+            l.settings(medium)
+                .validate(self.vol.frames())
+                .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
+        }
         let mut out = Vec::with_capacity(instances.len());
         let mut volumes = Vec::new();
         for (i, inst) in instances.iter().enumerate() {
@@ -1129,11 +1130,6 @@ impl VolumeDrawer {
                 "absorb {} (finite, ≥ 0)",
                 medium.absorb
             )));
-        }
-        if let Some(l) = &medium.lighting {
-            l.settings(medium)
-                .validate(self.vol.frames())
-                .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
         }
         let size = view.viewport;
         self.check_targets(target, size)?;

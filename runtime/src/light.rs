@@ -9,10 +9,10 @@
 use std::sync::Mutex;
 
 use bytemuck::{Pod, Zeroable};
-use vdbcook_scene::{length, normalize, Affine, LengthUnit, LightGrid};
+use vdbcook_scene::{light_dirs, Affine, LengthUnit, LightGrid};
 use wgpu::util::DeviceExt;
 
-use crate::upload::GpuVolume;
+use crate::upload::{buffer_entry, GpuVolume};
 use crate::RuntimeError;
 
 /// `LightParams` of `light_build.wgsl`.
@@ -35,7 +35,7 @@ pub(crate) struct LightParams {
 }
 
 impl LightParams {
-    /// The pass's uniform for `grid` (as `vdbcook_trace::light_dirs` in f64, then f32):
+    /// The pass's uniform for `grid` (`vdbcook_scene::light_dirs` in f64, then f32):
     /// the cell space of `xf`, the world direction `light_dir` toward the light, `extinction`
     /// per unit density per length `unit`.
     pub fn new(
@@ -46,26 +46,11 @@ impl LightParams {
         unit: LengthUnit,
         frame_root: u32,
     ) -> LightParams {
-        let voxel = unit == LengthUnit::Voxel;
-        let l = xf.dir_to_index(normalize(light_dir.map(|c| c as f64)));
-        let n = length(l);
-        let axis = [0, 1, 2].map(|a| {
-            if voxel {
-                1.0
-            } else {
-                length([xf.a[0][a], xf.a[1][a], xf.a[2][a]])
-            }
-        });
+        let ((l, sun_len), axis) = light_dirs(xf, light_dir, unit);
         LightParams {
             lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
             dims: [grid.dims[0], grid.dims[1], grid.dims[2], grid.sub],
-            sun: [
-                l[0] / n,
-                l[1] / n,
-                l[2] / n,
-                if voxel { 1.0 } else { 1.0 / n },
-            ]
-            .map(|v| v as f32),
+            sun: [l[0], l[1], l[2], sun_len].map(|v| v as f32),
             axis_len: [axis[0], axis[1], axis[2], extinction].map(|v| v as f32),
             frame_root,
             base: 0,
@@ -104,16 +89,7 @@ pub(crate) struct LightPass {
 const WORKGROUP: u32 = 4;
 
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
+    buffer_entry(binding, wgpu::BufferBindingType::Storage { read_only })
 }
 
 impl LightPass {
@@ -131,16 +107,7 @@ impl LightPass {
         let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook light build"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                buffer_entry(0, wgpu::BufferBindingType::Uniform),
                 storage(1, false),
                 storage(2, false),
             ],

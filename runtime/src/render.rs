@@ -12,7 +12,7 @@ use vdbcook_scene::{
 };
 
 use crate::light::{LightParams, LightPass};
-use crate::upload::{Bound, GpuVolume};
+use crate::upload::{buffer_entry, Bound, GpuVolume};
 use crate::{
     Camera, LengthUnit, Result, RuntimeError, Settings, LIGHT_WGSL, TRACE_WGSL, VOLUME_WGSL,
 };
@@ -227,16 +227,7 @@ impl Renderer {
         let module = trace_module(device, fmt, emission, false);
         let params_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook params"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[buffer_entry(0, wgpu::BufferBindingType::Uniform)],
         });
         let target_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook target"),
@@ -251,16 +242,7 @@ impl Renderer {
                     },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                buffer_entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
             ],
         });
         let light = LightPass::new(device, volume);
@@ -511,9 +493,8 @@ impl Renderer {
         camera: &Camera,
         settings: &Settings,
     ) -> Result<()> {
-        let params = self.params(width, height, out_flags, frame, camera, settings)?;
+        let (params, grid) = self.params(width, height, out_flags, frame, camera, settings)?;
         let light_group = if settings.mode == Mode::Lit {
-            let grid = self.light_grid(frame, settings);
             let extinction = settings.absorb as f64 + settings.scatter as f64;
             let lp = LightParams::new(
                 &grid,
@@ -559,12 +540,8 @@ impl Renderer {
         Ok(())
     }
 
-    /// The light volume's grid of `frame` (`vdbcook_trace::LightVolume`'s).
-    fn light_grid(&self, frame: usize, settings: &Settings) -> LightGrid {
-        LightGrid::new(self.vol.content[frame], settings.light_res)
-    }
-
-    /// The uniform for one render (the CPU tracer's `Tracer::new` in f64, then f32).
+    /// The uniform for one render (the CPU tracer's `Tracer::new` in f64, then f32), and the
+    /// grid of the lit mode's light volume (`vdbcook_trace::LightVolume`'s).
     fn params(
         &self,
         width: u32,
@@ -573,7 +550,7 @@ impl Renderer {
         frame: usize,
         camera: &Camera,
         settings: &Settings,
-    ) -> Result<Params> {
+    ) -> Result<(Params, LightGrid)> {
         let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
         if settings.emission.is_some() && !self.emission {
             return Err(RuntimeError::Unsupported(
@@ -601,9 +578,9 @@ impl Renderer {
             0.0
         };
         let c = settings.light_color;
-        let grid = self.light_grid(frame, settings);
+        let grid = LightGrid::new(self.vol.content[frame], settings.light_res);
         let lw = l.map(|c| (c / ln) as f32);
-        Ok(Params {
+        let params = Params {
             eye_index: v4(eye),
             forward: v4(basis.forward),
             right: v4(basis.right),
@@ -670,7 +647,8 @@ impl Renderer {
                 .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
                     blackbody_table(e.range)
                 }),
-        })
+        };
+        Ok((params, grid))
     }
 }
 

@@ -1070,6 +1070,23 @@ pub(crate) struct Bound {
     pub frame_max: Vec<f32>,
 }
 
+/// A compute-stage buffer binding of `ty` at `binding` (no dynamic offset, no minimum size).
+pub(crate) fn buffer_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
 /// A compute pipeline whose group 0 is a volume's (`volume`: its layout and pipeline
 /// constants) and groups 1.. are `layouts`.
 pub(crate) fn volume_pipeline(

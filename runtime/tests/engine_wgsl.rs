@@ -55,48 +55,19 @@ fn gpu_samples(
 ) -> Vec<f32> {
     use wgpu::util::DeviceExt;
     let source = format!("{}\n{ENGINE_WGSL}", volume_wgsl(2));
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("engine shader"),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
+    // Group 0: the engine's own uniform; group 1: points and results; group 2: the volume.
     let l0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: None,
-        entries: &[entry(0, wgpu::BufferBindingType::Uniform)],
-    });
-    let l1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: None,
-        entries: &[
-            entry(0, wgpu::BufferBindingType::Storage { read_only: true }),
-            entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
-        ],
-    });
-    let (vol_layout, vol_group) = vol.bind_group();
-    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: None,
-        bind_group_layouts: &[Some(&l0), Some(&l1), Some(vol_layout)],
-        immediate_size: 0,
-    });
-    let constants = vol.pipeline_constants();
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("engine shader"),
-        layout: Some(&layout),
-        module: &module,
-        entry_point: Some("sample_points"),
-        compilation_options: wgpu::PipelineCompilationOptions {
-            constants: &constants,
-            ..Default::default()
-        },
-        cache: None,
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        }],
     });
     let mut q = Vec::with_capacity(20);
     q.extend(w2i.iter().map(|v| v.to_bits()));
@@ -106,24 +77,6 @@ fn gpu_samples(
         contents: bytemuck::cast_slice(&q),
         usage: wgpu::BufferUsages::UNIFORM,
     });
-    let pbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::cast_slice(points),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let size = (points.len() * 4) as u64;
-    let out = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let read = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
     let g0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: None,
         layout: &l0,
@@ -132,36 +85,17 @@ fn gpu_samples(
             resource: qbuf.as_entire_binding(),
         }],
     });
-    let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &l1,
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: pbuf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: out.as_entire_binding(),
-            },
-        ],
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &g0, &[]);
-        pass.set_bind_group(1, &g1, &[]);
-        pass.set_bind_group(2, vol_group, &[]);
-        pass.dispatch_workgroups((points.len() as u32).div_ceil(64), 1, 1);
-    }
-    enc.copy_buffer_to_buffer(&out, 0, &read, 0, size);
-    queue.submit([enc.finish()]);
-    read.slice(..)
-        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let v: Vec<f32> = bytemuck::cast_slice(&read.slice(..).get_mapped_range().unwrap()).to_vec();
-    v
+    let (vol_layout, vol_group) = vol.bind_group();
+    vdbcook_testkit::gpu::eval_points(
+        device,
+        queue,
+        &source,
+        "sample_points",
+        &vol.pipeline_constants(),
+        &[(&l0, &g0), (vol_layout, vol_group)],
+        1,
+        points,
+    )
 }
 
 #[test]

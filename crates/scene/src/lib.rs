@@ -21,7 +21,7 @@ mod space;
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::{content_box, for_each_slot_max};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
-pub use light::{octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};
+pub use light::{light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};
 pub use settings::{
     Filter, LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_LIGHT_RES,
     MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,

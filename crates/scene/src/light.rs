@@ -9,6 +9,30 @@
 //! between centres and clamp to the outermost centres (the medium outside the content box is
 //! empty, so nothing is shaded there).
 
+use crate::{length, normalize, Affine, LengthUnit};
+
+/// The cell-space unit direction toward the light (world direction `light_dir` under `xf`) and
+/// the length, in `unit`, of one cell-space unit along it; and that length along each axis.
+/// What the light volume's sun and sky passes step by, on the CPU and the GPU alike.
+pub fn light_dirs(
+    xf: &Affine,
+    light_dir: [f32; 3],
+    unit: LengthUnit,
+) -> (([f64; 3], f64), [f64; 3]) {
+    let voxel = unit == LengthUnit::Voxel;
+    let l = xf.dir_to_index(normalize(light_dir.map(|c| c as f64)));
+    let n = length(l);
+    let sun = (l.map(|c| c / n), if voxel { 1.0 } else { 1.0 / n });
+    let axis = [0, 1, 2].map(|a| {
+        if voxel {
+            1.0
+        } else {
+            length([xf.a[0][a], xf.a[1][a], xf.a[2][a]])
+        }
+    });
+    (sun, axis)
+}
+
 /// Where a light volume's cells lie (cell space: voxel `i` is `[i, i + 1)`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightGrid {
@@ -65,19 +89,24 @@ impl LightGrid {
         [0, 1, 2].map(|a| self.lo[a] + (c[a] as f64 + 0.5) * self.cell)
     }
 
+    /// Along axis `a` at `p`: the two cells to interpolate between and the weight of the second
+    /// (cell-centre coordinates clamped to the outermost centres; NaN reads the first cell).
+    fn axis_lerp(&self, p: [f64; 3], a: usize) -> (u32, u32, f64) {
+        let top = (self.dims[a] - 1) as f64;
+        let u = ((p[a] - self.lo[a]) / self.cell - 0.5).clamp(0.0, top);
+        let u = if u.is_nan() { 0.0 } else { u };
+        let base = u.floor().min((top - 1.0).max(0.0));
+        let i0 = base as u32;
+        (i0, (i0 + 1).min(self.dims[a] - 1), u - base)
+    }
+
     /// The eight elements and weights of the trilinear lookup at cell-space point `p`.
     pub fn taps(&self, p: [f64; 3]) -> [(usize, f64); 8] {
         let mut i0 = [0u32; 3];
         let mut i1 = [0u32; 3];
         let mut f = [0.0f64; 3];
         for a in 0..3 {
-            let top = (self.dims[a] - 1) as f64;
-            let u = ((p[a] - self.lo[a]) / self.cell - 0.5).clamp(0.0, top);
-            let u = if u.is_nan() { 0.0 } else { u };
-            let base = u.floor().min((top - 1.0).max(0.0));
-            i0[a] = base as u32;
-            i1[a] = (base as u32 + 1).min(self.dims[a] - 1);
-            f[a] = u - base;
+            (i0[a], i1[a], f[a]) = self.axis_lerp(p, a);
         }
         let mut out = [(0usize, 0.0f64); 8];
         for (k, o) in out.iter_mut().enumerate() {
@@ -105,13 +134,7 @@ impl LightGrid {
         let mut i1 = [slice; 3];
         let mut f = [0.0f64; 3];
         for a in [ua, va] {
-            let top = (self.dims[a] - 1) as f64;
-            let u = ((p[a] - self.lo[a]) / self.cell - 0.5).clamp(0.0, top);
-            let u = if u.is_nan() { 0.0 } else { u };
-            let base = u.floor().min((top - 1.0).max(0.0));
-            i0[a] = base as u32;
-            i1[a] = (base as u32 + 1).min(self.dims[a] - 1);
-            f[a] = u - base;
+            (i0[a], i1[a], f[a]) = self.axis_lerp(p, a);
         }
         let mut out = [(0usize, 0.0f64); 4];
         for (k, o) in out.iter_mut().enumerate() {

@@ -130,7 +130,7 @@ pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
 pub use image::Image;
-pub use lit::{light_dirs, lit_jitter, sky_depth, LightVolume, LIT_MAX_SKY_DEPTH, LIT_MIN_TRANS};
+pub use lit::{lit_jitter, sky_depth, LightVolume, LIT_MAX_SKY_DEPTH, LIT_MIN_TRANS};
 pub use reference::phase;
 pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng, Rng64};
@@ -144,4 +144,4 @@ pub use vdbcook_scene::{
     MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
     MIN_STEP,
 };
-pub use vdbcook_scene::{length, normalize, octave_source, sky_diffusion, sky_source};
+pub use vdbcook_scene::{length, light_dirs, normalize, octave_source, sky_diffusion, sky_source};

@@ -35,12 +35,11 @@
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
 use vdbcook_scene::{
-    content_box, length, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
-    LengthUnit, LightGrid, RenderSettings, MAX_MS_OCTAVES,
+    content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
+    LightGrid, RenderSettings, MAX_MS_OCTAVES,
 };
 
 use crate::dda::{ceil_f64, Flow};
-use crate::exact::phi;
 use crate::reference::phase;
 use crate::space::IndexRay;
 use crate::walk::SpanSampler;
@@ -55,23 +54,6 @@ pub struct LightVolume {
     pub grid: LightGrid,
     pub density: Vec<f32>,
     pub tau: Vec<[f32; 2]>,
-}
-
-/// The cell-space unit direction toward the light and the length (in the settings' unit) of
-/// one cell-space unit along it; the same for the six axes.
-pub fn light_dirs(xf: &Affine, s: &RenderSettings) -> (([f64; 3], f64), [f64; 3]) {
-    let voxel = s.unit == LengthUnit::Voxel;
-    let l = xf.dir_to_index(normalize(s.light_dir.map(|c| c as f64)));
-    let n = length(l);
-    let sun = (l.map(|c| c / n), if voxel { 1.0 } else { 1.0 / n });
-    let axis = [0, 1, 2].map(|a| {
-        if voxel {
-            1.0
-        } else {
-            length([xf.a[0][a], xf.a[1][a], xf.a[2][a]])
-        }
-    });
-    (sun, axis)
 }
 
 impl LightVolume {
@@ -118,7 +100,7 @@ impl LightVolume {
         density.chunks_mut(slab).enumerate().for_each(fill);
 
         // Sun pass, per cell (`LightGrid::sun_depth`).
-        let ((l, sun_len), axis_len) = light_dirs(xf, s);
+        let ((l, sun_len), axis_len) = light_dirs(xf, s.light_dir, s.unit);
         let mut tau = vec![[0.0f32; 2]; n];
         let sun = |(z, out): (usize, &mut [[f32; 2]])| {
             for y in 0..ny {
@@ -350,13 +332,7 @@ impl SpanSampler for LitMarch<'_, '_> {
             }
             let x = ext * rho * step;
             let e = (-x).exp();
-            if let Some(em) = &s.emission {
-                let r = em.radiance(&t.emit_table, rho as f32);
-                let w = self.trans * step * phi(x);
-                for (a, r) in self.emit.iter_mut().zip(r) {
-                    *a += w * r as f64;
-                }
-            }
+            t.step_emission(&mut self.emit, self.trans, step, x, rho as f32);
             // The source where the step's light is scattered on average: the step is the
             // segment centred on the sample, light is scattered at depth `m` into it with
             // density ∝ e^{−σs}.

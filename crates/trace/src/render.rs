@@ -110,11 +110,21 @@ impl<'a> Tracer<'a> {
     /// geometry with under the smoke.
     pub fn sun_transmittance(&self, p: [f64; 3]) -> Option<f64> {
         let lv = self.light.as_ref()?;
-        let l = self
-            .xf
-            .dir_to_index(normalize(self.settings.light_dir.map(|c| c as f64)));
-        let tau = lv.sun_depth_at(self.xf.index_of(p), normalize(l));
+        let tau = lv.sun_depth_at(self.xf.index_of(p), normalize(self.light_ray.d));
         Some((-self.extinction * tau).exp())
+    }
+
+    /// Adds the emission (`settings.emission`; nothing without) of one fixed step of value `v`
+    /// and optical depth `x`, reached with transmittance `trans`: `T · E(v) · step · φ(x)`, the
+    /// emission absorbed as the step attenuates (the scatter and lit marches).
+    pub(crate) fn step_emission(&self, emit: &mut [f64; 3], trans: f64, step: f64, x: f64, v: f32) {
+        if let Some(e) = &self.settings.emission {
+            let r = e.radiance(&self.emit_table, v);
+            let w = trans * step * crate::exact::phi(x);
+            for (a, r) in emit.iter_mut().zip(r) {
+                *a += w * r as f64;
+            }
+        }
     }
 
     /// The light volume (`Mode::Lit` only).

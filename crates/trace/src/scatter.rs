@@ -4,7 +4,6 @@
 //! whose max is below the cutoff are skipped whole (their samples would be ignored anyway).
 
 use crate::dda::{ceil_f64, Flow};
-use crate::exact::phi;
 use crate::space::IndexRay;
 use crate::walk::{walk, BrickCache, SpanSampler};
 use crate::Tracer;
@@ -67,14 +66,8 @@ impl Primary<'_, '_> {
             }
             let x = ext * sigma * step;
             let dt = (-x).exp();
-            if let Some(e) = &s.emission {
-                // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
-                let r = e.radiance(&self.tracer.emit_table, sigma as f32);
-                let w = self.trans * step * phi(x);
-                for (a, r) in self.emit.iter_mut().zip(r) {
-                    *a += w * r as f64;
-                }
-            }
+            self.tracer
+                .step_emission(&mut self.emit, self.trans, step, x, sigma as f32);
             let ts = self.tracer.shadow_march(p, self.shadow_cache);
             self.lum += albedo * ts * self.trans * (1.0 - dt);
             self.trans *= dt;

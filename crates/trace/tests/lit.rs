@@ -21,19 +21,9 @@ use vdbcook_trace::*;
 
 const SIGMA: f32 = 1.0;
 
-fn centre() -> [f64; 3] {
-    [0, 1, 2].map(|a| (BOX_LO[a] + BOX_HI[a]) as f64 / 2.0)
-}
-
 /// A camera in front of the box (−z side) looking at its centre.
 fn camera() -> Camera {
-    let c = box_world(centre());
-    Camera {
-        eye: [c[0], c[1], c[2] - 40.0],
-        look_at: c,
-        up: [0.0, 1.0, 0.0],
-        fov_y_deg: 40.0,
-    }
+    box_camera()
 }
 
 fn lit() -> RenderSettings {
@@ -143,10 +133,6 @@ fn light_volume_depths_are_exact_in_a_constant_box() {
     assert!(worst <= 1e-4, "oblique sun: worst error {worst} voxels");
 }
 
-fn hg(g: f64, mu: f64) -> f64 {
-    (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
-}
-
 /// The mean radiance over the box's face seen along +z, with one octave, the sun along `l`.
 fn single(g: f32, l: [f32; 3], step: f32) -> (f64, RenderSettings) {
     let asset = constant_box(SIGMA);
@@ -184,14 +170,14 @@ fn one_octave_is_single_scattering_with_the_reference_phase_convention() {
         let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
         let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
         let e = s.light_color[0] as f64;
-        let want = albedo * hg(g as f64, -1.0) * e * (1.0 - (-2.0 * kappa * depth).exp()) / 2.0;
+        let [want, want_ahead] = single_scatter_closed_forms(g as f64, albedo, e, kappa, depth);
         assert!(
             (got - want).abs() < 0.02 * want,
             "g {g}, sun behind: {got} want {want}"
         );
         // Sun ahead: cosine +1, shadow path D − s.
         let (got, _) = single(g, [0.0, 0.0, 1.0], 0.5);
-        let want = albedo * hg(g as f64, 1.0) * e * kappa * depth * (-kappa * depth).exp();
+        let want = want_ahead;
         assert!(
             (got - want).abs() < 0.02 * want,
             "g {g}, sun ahead: {got} want {want}"

@@ -25,23 +25,9 @@ fn box_asset() -> Asset {
     constant_box(SIGMA)
 }
 
-fn w(p: [f64; 3]) -> [f64; 3] {
-    box_world(p)
-}
-
-fn centre() -> [f64; 3] {
-    [0, 1, 2].map(|a| (LO[a] + HI[a]) as f64 / 2.0)
-}
-
 /// A camera in front of the box (−z side) looking at its centre.
 fn camera() -> Camera {
-    let c = w(centre());
-    Camera {
-        eye: [c[0], c[1], c[2] - 40.0],
-        look_at: c,
-        up: [0.0, 1.0, 0.0],
-        fov_y_deg: 40.0,
-    }
+    box_camera()
 }
 
 fn reference(absorb: f32, scatter: f32) -> RenderSettings {
@@ -125,10 +111,6 @@ fn single(g: f32, l: [f32; 3], spp: u32) -> (f64, RenderSettings) {
     (mean, s)
 }
 
-fn hg(g: f64, mu: f64) -> f64 {
-    (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
-}
-
 #[test]
 fn single_scattering_matches_the_closed_forms_and_the_phase_convention() {
     let depth = (HI[2] - LO[2]) as f64; // voxels along z
@@ -140,14 +122,14 @@ fn single_scattering_matches_the_closed_forms_and_the_phase_convention() {
         let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
         let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
         let e = s.light_color[0] as f64;
-        let want = albedo * hg(g as f64, -1.0) * e * (1.0 - (-2.0 * kappa * depth).exp()) / 2.0;
+        let [want, want_ahead] = single_scatter_closed_forms(g as f64, albedo, e, kappa, depth);
         assert!(
             (got - want).abs() < 0.02 * want,
             "g {g}, sun behind: {got} want {want}"
         );
         // Sun ahead: cosine +1, shadow path D − s.
         let (got, _) = single(g, [0.0, 0.0, 1.0], spp);
-        let want = albedo * hg(g as f64, 1.0) * e * kappa * depth * (-kappa * depth).exp();
+        let want = want_ahead;
         assert!(
             (got - want).abs() < 0.02 * want,
             "g {g}, sun ahead: {got} want {want}"

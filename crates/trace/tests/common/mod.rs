@@ -7,6 +7,7 @@ pub use vdbcook_testkit::*;
 use std::collections::BTreeMap;
 
 use vdbcook_asset::*;
+use vdbcook_scene::Camera;
 
 /// Leaves covering the half-open index box `[lo, hi)` with density `v` (0 outside the box):
 /// leaves entirely inside alternate between tile and constant brick (by leaf parity), partial
@@ -136,4 +137,41 @@ pub fn constant_box(v: f32) -> Asset {
 /// centred on world `BOX_S·i + BOX_T`).
 pub fn box_world(p: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|a| (p[a] - 0.5) * BOX_S + BOX_T[a])
+}
+
+/// The centre of [`constant_box`] in cell space.
+pub fn box_centre() -> [f64; 3] {
+    [0, 1, 2].map(|a| (BOX_LO[a] + BOX_HI[a]) as f64 / 2.0)
+}
+
+/// A camera in front of [`constant_box`] (−z side, 40 world units) looking at its centre.
+pub fn box_camera() -> Camera {
+    let c = box_world(box_centre());
+    Camera {
+        eye: [c[0], c[1], c[2] - 40.0],
+        look_at: c,
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 40.0,
+    }
+}
+
+/// Single scattering along the axis of a slab of depth `depth` voxels, extinction `kappa` per
+/// voxel, albedo `albedo`, a sun of irradiance `e` with one Henyey–Greenstein lobe `g`: the
+/// radiance with the sun straight behind the camera (scattering cosine −1, shadow path from
+/// depth s is s), `α·p(−1)·E·(1 − e^{−2κD})/2`, and straight ahead (cosine +1, shadow path
+/// D − s), `α·p(1)·E·κD·e^{−κD}`.
+pub fn single_scatter_closed_forms(
+    g: f64,
+    albedo: f64,
+    e: f64,
+    kappa: f64,
+    depth: f64,
+) -> [f64; 2] {
+    let hg = |mu: f64| {
+        (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
+    };
+    [
+        albedo * hg(-1.0) * e * (1.0 - (-2.0 * kappa * depth).exp()) / 2.0,
+        albedo * hg(1.0) * e * kappa * depth * (-kappa * depth).exp(),
+    ]
 }
