@@ -57,7 +57,9 @@ struct Params {
     spp: u32,
     first_sample: u32,
     seed: u32,
-    _pad: u32,
+    // Emission read from this channel of a multi-channel asset (0: from the rendered grid, by
+    // each mode's own march; else `channel_emission`, with `emission.w` 0).
+    emit_channel: u32,
     // The lit mode (`vdbcook_trace`'s `lit` module): the light volume's grid (xyz: corner of
     // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves), the octave
     // falloff (x, y, z: a, b, c), the sky radiance (xyz; w: k of `lv_sky_source`), the phase (x, y: g0, g1, z: weight) and
@@ -72,6 +74,9 @@ struct Params {
     // on; the blackbody colours over the range (`vdbcook_scene::blackbody_table`).
     emission: vec4<f32>,
     emit_table: array<vec4<f32>, 32>,
+    // With `emit_channel`: the cell box [lo, hi) where that channel may glow (empty: lo > hi).
+    emit_lo: vec4<f32>,
+    emit_hi: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> params: Params;
@@ -122,6 +127,47 @@ fn vis_skip(m: f32) -> bool {
         return !(m > 0.0);
     }
     return !(m > params.cutoff);
+}
+
+// Emission from channel `params.emit_channel` along `ray` (`vdbcook_trace::Tracer`'s
+// `ChannelEmission`): over the voxels of the channel's box inside the root extent, each
+// `T · E · ℓ · φ(x)` with `x = ext·ρ·ℓ` (ρ: channel 0, nearest voxel), `T` starting from channel
+// 0's exact optical depth from the extent's entry to the box's; stops once T < 1e-6.
+fn channel_emission(ray: VdbRay, ext: f32) -> vec3<f32> {
+    var light = vec3<f32>(0.0);
+    let c = vdb_clip(ray, params.extent.xyz);
+    let b = vdb_clip_box(ray, params.emit_lo.xyz, params.emit_hi.xyz);
+    let a0 = max(c.x, b.x);
+    let a1 = min(c.y, b.y);
+    if (!(a0 < a1)) {
+        return light;
+    }
+    var tau = 0.0;
+    if (a0 > c.x) {
+        tau = vdb_optical_depth(params.frame_root, ray, c.x, a0, ext);
+    }
+    var trans = exp(-ext * tau);
+    var d = vdb_dda_init(ray, 1.0, vec3<i32>(params.emit_lo.xyz), vec3<i32>(params.emit_hi.xyz), a0, a1);
+    for (var i = 0; i < 1000000; i++) {
+        let s = vdb_dda_next(ray, &d);
+        if (!s.ok) {
+            break;
+        }
+        let l = (s.tb - s.ta) * ray.per_t;
+        let rho = vdb_value(params.frame_root, s.cell);
+        var x = 0.0;
+        if (rho > 0.0) {
+            x = ext * rho * l;
+        }
+        let e = exp(-x);
+        let v = vdb_value_c(params.frame_root, s.cell, params.emit_channel);
+        light += trans * l * lv_phi(x, e) * emit_radiance(v);
+        trans *= e;
+        if (trans < 1.0e-6) {
+            break;
+        }
+    }
+    return light;
 }
 
 // The radiance per unit length emitted by value `v` (`vdbcook_scene::Emission::radiance`).
@@ -834,6 +880,13 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         } else {
             rgba = vec4<f32>(brick_color(v_hit_holder), 1.0);
             value = f32(v_hit_holder);
+        }
+    }
+    if (TRACE_EMISSION && params.emit_channel != 0u) {
+        if (params.mode == MODE_DENSITY) {
+            rgba += vec4<f32>(channel_emission(ray, params.absorb), 0.0);
+        } else if (params.mode == MODE_SCATTER || params.mode == MODE_LIT) {
+            rgba += vec4<f32>(channel_emission(ray, params.extinction), 0.0);
         }
     }
     rgba = finite4(rgba);

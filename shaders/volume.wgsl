@@ -57,6 +57,13 @@ struct VolumeInfo {
     payload_layout: u32,
     frames: u32,
     off_brick_quant: u32,
+    // Channels per leaf slot, node range and frame range (1, or 2..8 for a multi-channel asset:
+    // channel c's ref of slot index i at refs[i·channels + c]).
+    channels: u32,
+    // Where the backgrounds of channels 1.. lie in `vdb_topo` (f32 bits; channel c at + c).
+    off_channel_bg: u32,
+    _padc0: u32,
+    _padc1: u32,
     // BC7, BC4, unorm8, floats (f16 and f32).
     groups: array<VdbGroup, 4>,
 }
@@ -87,8 +94,22 @@ fn vdb_root_entry(frame_root: u32, r: vec3<i32>) -> u32 {
     return vdb_topo[frame_root + i];
 }
 
-// The ref in slot `s` (0..4096) of L2 node `n`, or EMPTY when the mask has no such slot.
+// The ref in slot `s` (0..4096) of L2 node `n`, or EMPTY when the mask has no such slot
+// (channel 0: what every mode renders).
 fn vdb_slot_ref(n: u32, s: u32) -> u32 {
+    return vdb_slot_ref_c(n, s, 0u);
+}
+
+// The background of channel `c`.
+fn vdb_channel_bg(c: u32) -> f32 {
+    if (c == 0u) {
+        return vdb_info.background;
+    }
+    return bitcast<f32>(vdb_topo[vdb_info.off_channel_bg + c]);
+}
+
+// `vdb_slot_ref` of channel `c` (EMPTY also where the slot exists but `c` is its background).
+fn vdb_slot_ref_c(n: u32, s: u32, c: u32) -> u32 {
     let w = s >> 6u;
     let b = s & 63u;
     let lo = vdb_topo[vdb_info.off_masks + n * 128u + 2u * w];
@@ -106,7 +127,7 @@ fn vdb_slot_ref(n: u32, s: u32) -> u32 {
         below = countOneBits(lo) + countOneBits(hi & ((1u << (b - 32u)) - 1u));
     }
     let idx = vdb_topo[vdb_info.off_base + n] + vdb_topo[vdb_info.off_prefix + n * 64u + w] + below;
-    return vdb_topo[vdb_info.off_refs + idx];
+    return vdb_topo[vdb_info.off_refs + idx * vdb_info.channels + c];
 }
 
 // The ref of the leaf at leaf coordinate `l` (asset index / 8) inside L2 node `n`.
@@ -119,9 +140,14 @@ fn vdb_tile(t: u32) -> f32 {
     return bitcast<f32>(vdb_topo[vdb_info.off_tiles + t]);
 }
 
-// [min, max] of the stored values of L2 node `n` (over its whole 128³ region).
+// [min, max] of the stored values of L2 node `n` (over its whole 128³ region; channel 0).
 fn vdb_l2_range(n: u32) -> vec2<f32> {
-    let i = vdb_info.off_l2_ranges + 2u * n;
+    return vdb_l2_range_c(n, 0u);
+}
+
+// `vdb_l2_range` of channel `c`.
+fn vdb_l2_range_c(n: u32, c: u32) -> vec2<f32> {
+    let i = vdb_info.off_l2_ranges + 2u * (n * vdb_info.channels + c);
     return vec2<f32>(bitcast<f32>(vdb_topo[i]), bitcast<f32>(vdb_topo[i + 1u]));
 }
 
@@ -246,6 +272,26 @@ fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
     let r = vdb_holder(frame_root, a);
     if (r == VDB_EMPTY) {
         return vdb_info.background;
+    }
+    if ((r & VDB_TILE_BIT) != 0u) {
+        return vdb_tile(r & ~VDB_TILE_BIT);
+    }
+    return vdb_brick_voxel(r, a);
+}
+
+// `vdb_value` of channel `c` (its own background where it stores nothing).
+fn vdb_value_c(frame_root: u32, a: vec3<i32>, c: u32) -> f32 {
+    let ext = vec3<i32>(vdb_info.root_dims * 128u);
+    if (any(a < vec3<i32>(0)) || any(a >= ext)) {
+        return vdb_channel_bg(c);
+    }
+    var r = vdb_root_entry(frame_root, a >> vec3<u32>(7u));
+    if (r != VDB_EMPTY && (r & VDB_TILE_BIT) == 0u) {
+        let m = vec3<u32>((a >> vec3<u32>(3u)) & vec3<i32>(15));
+        r = vdb_slot_ref_c(r, m.x + 16u * (m.y + 16u * m.z), c);
+    }
+    if (r == VDB_EMPTY) {
+        return vdb_channel_bg(c);
     }
     if ((r & VDB_TILE_BIT) != 0u) {
         return vdb_tile(r & ~VDB_TILE_BIT);

@@ -55,9 +55,21 @@ pub struct Args {
     /// Every voxel of every frame decodes within E of its source value, as any conformant GPU
     /// reads it: each brick takes the cheapest representation that meets E (tile, bc7, bc4,
     /// unorm8, f16, f32), starting at --format when one is given. Without it a lossy cook gets
-    /// 10% of the value range as an artefact guard.
-    #[arg(long, value_name = "E", allow_negative_numbers = true)]
+    /// 10% of the value range as an artefact guard. With --grids, one budget per channel:
+    /// `density=0.01,temperature=5` (a bare E applies to the channels not named).
+    #[arg(
+        long = "max-error",
+        value_name = "E|NAME=E,..",
+        allow_negative_numbers = true,
+        value_parser = parse_max_error
+    )]
+    pub max_error_arg: Option<MaxErrorArg>,
+    /// The budget of every channel (`--max-error E`); what programs linking the library set.
+    #[arg(skip)]
     pub max_error: Option<f32>,
+    /// Per-channel budgets (`--max-error NAME=E,..`; with `grids`).
+    #[arg(skip)]
+    pub max_error_per: Vec<(String, f32)>,
     /// Size budget instead of an error budget: the smallest error bound whose asset's GPU bytes
     /// (topology + atlas, as `info` reports them) fit in SIZE: bytes, or K/M/G (10³…) or
     /// KiB/MiB/GiB (2¹⁰…), e.g. 32MiB. Reports the bound it reached.
@@ -72,6 +84,15 @@ pub struct Args {
     /// Grid to cook: a name, `name[N]` for duplicates, or `#N` (default: `density`, else the only float grid).
     #[arg(long)]
     pub grid: Option<String>,
+    /// Cook several float grids into one multi-channel asset on one shared topology (fire:
+    /// `--grids density,temperature,flame`); the first is the one plain renders show. At most 8.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "A,B,..",
+        conflicts_with = "grid"
+    )]
+    pub grids: Vec<String>,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -119,11 +140,14 @@ impl Args {
             manifest: None,
             cache_dir: None,
             format: None,
+            max_error_arg: None,
             max_error: None,
+            max_error_per: Vec::new(),
             max_bytes: None,
             range: "brick".into(),
             bc7_quality: "fast".into(),
             grid: None,
+            grids: Vec::new(),
             json: false,
             allow_gaps: false,
             clusters: None,
@@ -192,6 +216,7 @@ impl Args {
         if let Some(f) = &self.frames {
             parse_frame_range(f).map_err(CliError::Usage)?;
         }
+        crate::multi::validate(self)?;
         if let Some(n) = self.max_bytes {
             if n == 0 {
                 return bad("--max-bytes 0 is out of range: SIZE must be > 0".into());
@@ -220,6 +245,47 @@ impl Args {
     }
 }
 
+/// `--max-error`: one budget, or budgets per channel (`NAME=E`, plus at most one bare `E` for
+/// the channels not named).
+#[derive(Debug, Clone, PartialEq)]
+pub enum MaxErrorArg {
+    All(f32),
+    Per {
+        all: Option<f32>,
+        per: Vec<(String, f32)>,
+    },
+}
+
+/// Parses `--max-error`: `E` or `NAME=E[,NAME=E..]` (with at most one bare `E` among them).
+pub fn parse_max_error(s: &str) -> Result<MaxErrorArg, String> {
+    let num = |t: &str| -> Result<f32, String> {
+        t.trim()
+            .parse::<f32>()
+            .map_err(|_| format!("'{t}' is not a number (expected E or NAME=E,..)"))
+    };
+    if !s.contains('=') {
+        return num(s).map(MaxErrorArg::All);
+    }
+    let (mut all, mut per) = (None, Vec::new());
+    for part in s.split(',') {
+        match part.split_once('=') {
+            Some((name, e)) => {
+                let name = name.trim();
+                if name.is_empty() {
+                    return Err(format!("'{part}': a channel name is missing before '='"));
+                }
+                if per.iter().any(|(n, _)| n == name) {
+                    return Err(format!("channel '{name}' is given twice"));
+                }
+                per.push((name.to_string(), num(e)?));
+            }
+            None if all.is_none() => all = Some(num(part)?),
+            None => return Err("at most one budget without a channel name".into()),
+        }
+    }
+    Ok(MaxErrorArg::Per { all, per })
+}
+
 /// A cook held in memory: the asset, its file bytes and the report `cook --json` prints
 /// (without `seconds.write`, which only `run` knows).
 pub struct Cooked {
@@ -228,7 +294,7 @@ pub struct Cooked {
     pub report: CookReport,
 }
 
-fn err(path: &Path, kind: ErrorKind, m: impl Into<String>) -> CliError {
+pub(crate) fn err(path: &Path, kind: ErrorKind, m: impl Into<String>) -> CliError {
     CliError::Vdb(VdbError::new(kind, path, m))
 }
 
@@ -280,6 +346,18 @@ pub fn read_named(
     hint: bool,
 ) -> Result<Option<sequence::LoadedFrame>, VdbError> {
     let file = VdbFile::open(&f.path)?;
+    read_named_in(&file, f, name, how, allow_missing, hint)
+}
+
+/// [`read_named`] from a file already open (a frame's several grids are read from one open).
+pub fn read_named_in(
+    file: &VdbFile,
+    f: &Frame,
+    name: &str,
+    how: &str,
+    allow_missing: bool,
+    hint: bool,
+) -> Result<Option<sequence::LoadedFrame>, VdbError> {
     let present = file
         .grids
         .iter()
@@ -402,6 +480,14 @@ struct Stages {
 pub fn run(a: &Args) -> Result<(), CliError> {
     let mut owned = a.clone();
     owned.output = a.output_given.clone().unwrap_or_default();
+    match owned.max_error_arg.take() {
+        Some(MaxErrorArg::All(e)) => owned.max_error = Some(e),
+        Some(MaxErrorArg::Per { all, per }) => {
+            owned.max_error = all;
+            owned.max_error_per = per;
+        }
+        None => {}
+    }
     let a = &owned;
     if a.manifest.is_some() {
         if a.output_given.is_some() {
@@ -505,7 +591,7 @@ pub fn select_frames(frames: Vec<Frame>, spec: &str) -> Result<Vec<Frame>, CliEr
 
 /// The header's record of one source frame: its number, its file name (no folders, so cooks are
 /// reproducible across machines) and its active voxels.
-fn frame_info(frame: &Frame, active_voxels: u64) -> FrameInfo {
+pub(crate) fn frame_info(frame: &Frame, active_voxels: u64) -> FrameInfo {
     FrameInfo {
         number: frame.number,
         source: frame
@@ -528,6 +614,20 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
 /// options it has validated (`Args::validate`): `run` and the manifest check their outputs
 /// against the frames first, and the frames are not listed twice.
 pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
+    if a.grids.len() > 1 {
+        return crate::multi::cook_channels(a, frames);
+    }
+    if let [g] = &a.grids[..] {
+        // One grid named by --grids: a single-channel cook of it, as `--grid` would be.
+        let mut one = a.clone();
+        one.grid = Some(g.clone());
+        one.grids.clear();
+        if let [(_, e)] = &one.max_error_per[..] {
+            one.max_error = Some(*e);
+        }
+        one.max_error_per.clear();
+        return cook_frames(&one, frames);
+    }
     let t0 = Instant::now();
     let format = a
         .format
@@ -913,7 +1013,7 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
         &pool.l2_refs,
         &roots,
         root_len,
-        bg,
+        &[bg],
     );
     let mut l2_base = Vec::with_capacity(pool.l2_refs.len());
     let mut l2_prefix = Vec::with_capacity(pool.l2_refs.len() * L2_WORDS);
@@ -995,6 +1095,7 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             brick_counts: enc.brick_counts,
             sections: Vec::new(),
             content_hash: 0,
+            channels: Vec::new(),
         },
         roots,
         frame_ranges: rg.frames,
@@ -1129,6 +1230,7 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             encode: st.encode,
             write: st.write,
         },
+        channels: Vec::new(),
     };
     Ok(Cooked {
         asset,
@@ -1151,7 +1253,7 @@ pub fn load_asset(path: &Path) -> Result<Asset, CliError> {
 }
 
 /// Peak resident memory of this process (Linux `VmHWM`), if known.
-fn peak_memory_bytes() -> Option<u64> {
+pub(crate) fn peak_memory_bytes() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

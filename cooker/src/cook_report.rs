@@ -45,6 +45,34 @@ pub struct CookReport {
     /// Peak resident memory of the process (Linux), if known.
     pub peak_memory_bytes: Option<u64>,
     pub seconds: Seconds,
+    /// Per channel of a multi-channel cook (`--grids`), in channel order; empty for a
+    /// single-grid cook (its figures are the ones above).
+    #[serde(default)]
+    pub channels: Vec<ChannelReport>,
+}
+
+/// One channel of a multi-channel cook. Its error figures are over its own stored voxels in its
+/// own units; the asset-wide `error` mixes units (its `psnr_db` is the worst channel's).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChannelReport {
+    /// Source grid name.
+    pub name: String,
+    pub background: f32,
+    /// Over all frames.
+    pub active_voxels: u64,
+    /// `[min, max]` of the active source values over all frames (`None`: none).
+    pub value_range: Option<[f32; 2]>,
+    /// This channel's budget (`None`: lossless).
+    pub max_error: Option<f32>,
+    /// `"given"`, `"default"` or `None`.
+    pub max_error_source: Option<String>,
+    pub error: ErrorFigures,
+    /// Stored bricks this channel reads (a brick two channels share counts in both).
+    pub bricks: u64,
+    /// Their payload bytes.
+    pub atlas_bytes: u64,
+    /// Leaf slots where this channel is its background (it costs a 4-byte ref and no atlas).
+    pub empty_leaf_refs: u64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -221,6 +221,17 @@ fn encode_tiled(
 }
 
 pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
+    encode_budgets(pool, opts, None)
+}
+
+/// [`encode`] with a budget per brick (`budgets[b]`, each at most `opts.max_error`, which must be
+/// set): a multi-channel pool, where a brick is held to the smallest budget of the channels that
+/// use it.
+pub fn encode_budgets(
+    pool: &[f32],
+    opts: &EncodeOptions,
+    budgets: Option<&[f32]>,
+) -> Result<Encoded, String> {
     let n = pool.len() / BRICK_VOXELS;
     let brick = |b: usize| &pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS];
     let ranges: Vec<[f32; 2]> = pool.par_chunks(BRICK_VOXELS).map(range_of).collect();
@@ -299,7 +310,8 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
             representation,
         });
     }
-    let e = opts.max_error.expect("checked") as f64;
+    let e_all = opts.max_error.expect("checked") as f64;
+    let e_of = |b: usize| budgets.map_or(e_all, |v| v[b] as f64);
     // Candidates, cheapest first.
     let from = if opts.format_given {
         opts.format.rank()
@@ -320,6 +332,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
     for b in (0..n).filter(|_| opts.lossy_tiles) {
         let [lo, hi] = ranges[b];
         let mid = lo + (hi - lo) * 0.5;
+        let e = e_of(b);
         if brick(b).iter().all(|&v| ((v - mid) as f64).abs() <= e) {
             choice[b] = Choice::Tile(mid);
             decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS].fill(mid);
@@ -378,6 +391,7 @@ pub fn encode(pool: &[f32], opts: &EncodeOptions) -> Result<Encoded, String> {
         let batch = batches.len();
         let mut still = Vec::new();
         for (k, (&b, &err)) in pending.iter().zip(&errs).enumerate() {
+            let e = e_of(b);
             if err <= e || (last && err.is_finite()) {
                 decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]
                     .copy_from_slice(&dec[k * BRICK_VOXELS..(k + 1) * BRICK_VOXELS]);

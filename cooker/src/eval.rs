@@ -35,12 +35,13 @@ pub struct Args {
     force: bool,
 }
 
-/// The asset frame's stored bounds in source index space, at leaf (or region) granularity.
-fn stored_bbox(asset: &Asset, frame: usize) -> Option<([i64; 3], [i64; 3])> {
+/// Channel `c`'s stored bounds in `frame`, in source index space, at leaf (or region)
+/// granularity.
+fn stored_bbox(asset: &Asset, frame: usize, c: usize) -> Option<([i64; 3], [i64; 3])> {
     let off = asset.header.index_offset;
     let mut lo = [i64::MAX; 3];
     let mut hi = [i64::MIN; 3];
-    asset.for_each_leaf(frame, |o, _, region| {
+    asset.for_each_leaf_c(frame, c, |o, _, region| {
         let span = if region { 128 } else { 8 };
         for i in 0..3 {
             lo[i] = lo[i].min(o[i] + off[i] as i64);
@@ -52,8 +53,8 @@ fn stored_bbox(asset: &Asset, frame: usize) -> Option<([i64; 3], [i64; 3])> {
 
 /// Why a source frame does not describe the asset's frame, if it does not: its transform
 /// (index→world, to 1e-6 relative), its active voxel count, or active bounds disjoint from
-/// what the asset stores.
-fn mismatch(asset: &Asset, frame: usize, grid: &FloatGrid) -> Option<String> {
+/// what the asset stores (channel `c`).
+fn mismatch(asset: &Asset, frame: usize, c: usize, grid: &FloatGrid) -> Option<String> {
     let h = &asset.header;
     let t = &grid.transform.index_to_world;
     let mut m = *t;
@@ -82,7 +83,10 @@ fn mismatch(asset: &Asset, frame: usize, grid: &FloatGrid) -> Option<String> {
         ));
     }
     let st = grid.stats();
-    let want = h.frames[frame].active_voxels;
+    let want = match h.channels.get(c) {
+        Some(ch) => ch.active_voxels[frame],
+        None => h.frames[frame].active_voxels,
+    };
     if st.active_voxels != want {
         return Some(format!(
             "it has {} active voxels, the asset's frame {frame} has {want}",
@@ -92,7 +96,7 @@ fn mismatch(asset: &Asset, frame: usize, grid: &FloatGrid) -> Option<String> {
     // Bounds: the asset drops bricks whose values are all the background, so its stored box
     // may be smaller than the source's active box; the two must overlap, though.
     if let Some((lo, hi)) = st.bbox {
-        let overlap = stored_bbox(asset, frame).is_some_and(|(alo, ahi)| {
+        let overlap = stored_bbox(asset, frame, c).is_some_and(|(alo, ahi)| {
             (0..3).all(|i| (lo[i] as i64) <= ahi[i] && (hi[i] as i64) >= alo[i])
         });
         if !overlap && want > 0 {
@@ -184,9 +188,9 @@ impl ErrStats {
     }
 }
 
-fn leaf_values(asset: &Asset, frame: usize, a: [i64; 3], out: &mut [f32; BRICK_VOXELS]) {
-    match asset.leaf_at(frame, a) {
-        LeafRef::Empty => out.fill(asset.header.background),
+fn leaf_values(asset: &Asset, frame: usize, c: usize, a: [i64; 3], out: &mut [f32; BRICK_VOXELS]) {
+    match asset.leaf_at_c(frame, a, c) {
+        LeafRef::Empty => out.fill(asset.header.channel_background(c)),
         LeafRef::Tile(v) => out.fill(v),
         LeafRef::Brick(b) => asset.decode_brick(b, out),
     }
@@ -194,13 +198,18 @@ fn leaf_values(asset: &Asset, frame: usize, a: [i64; 3], out: &mut [f32; BRICK_V
 
 /// Compares one frame of the asset with its source grid.
 pub fn compare_frame(asset: &Asset, frame: usize, grid: &FloatGrid) -> ErrStats {
-    let bg = asset.header.background;
+    compare_frame_c(asset, frame, 0, grid)
+}
+
+/// Compares channel `c` of one frame of the asset with its source grid.
+pub fn compare_frame_c(asset: &Asset, frame: usize, c: usize, grid: &FloatGrid) -> ErrStats {
+    let bg = asset.header.channel_background(c);
     let mut s = ErrStats::new();
     let mut seen: HashSet<[i64; 3]> = HashSet::new();
     let mut vals = [0f32; BRICK_VOXELS];
     for (li, leaf) in grid.leaves.iter().enumerate() {
         let a = asset.header.to_asset_index(leaf.origin);
-        leaf_values(asset, frame, a, &mut vals);
+        leaf_values(asset, frame, c, a, &mut vals);
         seen.insert(a);
         let src = grid.leaf_values(li);
         for (n, &sv) in src.iter().enumerate() {
@@ -243,7 +252,7 @@ pub fn compare_frame(asset: &Asset, frame: usize, grid: &FloatGrid) -> ErrStats 
                             for lz in 0..leaves {
                                 let a = [r[0] + 8 * lx, r[1] + 8 * ly, r[2] + 8 * lz];
                                 seen.insert(a);
-                                match asset.leaf_at(frame, a) {
+                                match asset.leaf_at_c(frame, a, c) {
                                     LeafRef::Brick(b) => {
                                         asset.decode_brick(b, &mut vals);
                                         for &av in vals.iter() {
@@ -261,7 +270,7 @@ pub fn compare_frame(asset: &Asset, frame: usize, grid: &FloatGrid) -> ErrStats 
         }
     }
     // Whatever else the asset stores must be background.
-    asset.for_each_leaf(frame, |origin, r, region| {
+    asset.for_each_leaf_c(frame, c, |origin, r, region| {
         if region && seen_regions.contains(&origin) {
             return;
         }
@@ -303,9 +312,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             ),
         )));
     }
-    // The grid the asset was cooked from, in every frame (or --grid, which must name it).
-    let cooked = asset.header.grid_name.clone();
-    let grid = a.grid.clone().unwrap_or_else(|| cooked.clone());
+    // The grids the asset was cooked from, in every frame (or --grid, which must name one).
+    let h = &asset.header;
+    let cooked: Vec<String> = (0..asset.channel_count())
+        .map(|c| h.channel_name(c).to_string())
+        .collect();
     let refuse = |path: &std::path::Path, m: String| {
         CliError::Vdb(VdbError::new(
             ErrorKind::Sequence,
@@ -315,59 +326,96 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             ),
         ))
     };
-    if grid != cooked && !a.force {
-        return Err(refuse(
-            &a.asset,
-            format!("--grid {grid} is not the asset's grid '{cooked}'"),
-        ));
-    }
+    // (channel, source grid name) pairs to compare.
+    let compared: Vec<(usize, String)> = match &a.grid {
+        None => cooked.iter().cloned().enumerate().collect(),
+        Some(g) => match h.channel_index(g) {
+            Some(c) => vec![(c, g.clone())],
+            None if a.force => vec![(0, g.clone())],
+            None => {
+                return Err(refuse(
+                    &a.asset,
+                    format!("--grid {g} is not the asset's grid ({})", cooked.join(", ")),
+                ))
+            }
+        },
+    };
     let how = format!(
-        "the asset's grid; {} was cooked from '{cooked}'",
-        a.asset.display()
+        "one of the asset's grids; {} was cooked from {}",
+        a.asset.display(),
+        cooked.join(", ")
     );
     let mut per_frame = Vec::with_capacity(frames.len());
     let mut total = ErrStats::new();
+    let mut per_channel = vec![ErrStats::new(); compared.len()];
     let mut forced = Vec::new();
     let chunk = (rayon::current_num_threads() * 2).max(2);
+    type FrameResult = Result<Vec<(ErrStats, Option<String>)>, VdbError>;
     for (ci, group) in frames.chunks(chunk).enumerate() {
-        let res: Vec<Result<(ErrStats, Option<String>), VdbError>> = group
+        let res: Vec<FrameResult> = group
             .par_iter()
             .enumerate()
             .map(|(k, f)| {
                 let fi = ci * chunk + k;
-                // A frame cooked empty for want of the grid (--allow-missing-grid) compares
-                // as empty.
-                let empty = asset.header.frames[fi].active_voxels == 0;
-                match crate::cook::read_named(f, &grid, &how, empty, false)? {
-                    None => Ok((ErrStats::new(), None)),
-                    Some(l) => Ok((
-                        compare_frame(&asset, fi, &l.grid),
-                        mismatch(&asset, fi, &l.grid),
-                    )),
+                let file = vdbcook_vdb::VdbFile::open(&f.path)?;
+                let mut out = Vec::with_capacity(compared.len());
+                for (c, name) in &compared {
+                    // A channel cooked empty for want of its grid (--allow-missing-grid)
+                    // compares as empty.
+                    let empty = match h.channels.get(*c) {
+                        Some(ch) => ch.active_voxels[fi] == 0,
+                        None => h.frames[fi].active_voxels == 0,
+                    };
+                    out.push(
+                        match crate::cook::read_named_in(&file, f, name, &how, empty, false)? {
+                            None => (ErrStats::new(), None),
+                            Some(l) => (
+                                compare_frame_c(&asset, fi, *c, &l.grid),
+                                mismatch(&asset, fi, *c, &l.grid)
+                                    .map(|m| format!("grid '{name}': {m}")),
+                            ),
+                        },
+                    );
                 }
+                Ok(out)
             })
             .collect();
         for (k, r) in res.into_iter().enumerate() {
-            let (s, bad) = r?;
             let f = &group[k];
-            if let Some(m) = bad {
-                if !a.force {
-                    return Err(refuse(&f.path, m));
+            let mut frame_stats = ErrStats::new();
+            for (i, (s, bad)) in r?.into_iter().enumerate() {
+                if let Some(m) = bad {
+                    if !a.force {
+                        return Err(refuse(&f.path, m));
+                    }
+                    eprintln!(
+                        "warning: {}: {m} (compared anyway: --force)",
+                        f.path.display()
+                    );
+                    forced.push(f.path.display().to_string());
                 }
-                eprintln!(
-                    "warning: {}: {m} (compared anyway: --force)",
-                    f.path.display()
-                );
-                forced.push(f.path.display().to_string());
+                frame_stats.merge(&s);
+                per_channel[i].merge(&s);
             }
-            total.merge(&s);
-            let mut j = s.to_json();
+            total.merge(&frame_stats);
+            let mut j = frame_stats.to_json();
             j["frame"] = json!(ci * chunk + k);
             j["number"] = json!(f.number);
             j["source"] = json!(f.path.display().to_string());
             per_frame.push(j);
         }
     }
+    forced.dedup();
+    let grid = compared[0].1.clone();
+    let channels: Vec<Value> = compared
+        .iter()
+        .zip(&per_channel)
+        .map(|((_, name), s)| {
+            let mut j = s.to_json();
+            j["name"] = json!(name);
+            j
+        })
+        .collect();
     let file_bytes = std::fs::metadata(&a.asset).map(|m| m.len()).unwrap_or(0);
     let gpu: u64 = crate::cook::section_sizes(&asset)
         .iter()
@@ -388,6 +436,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     doc["frames"] = json!(per_frame);
     doc["grid"] = json!(grid);
     doc["mismatched_frames"] = json!(forced);
+    if compared.len() > 1 {
+        // Units differ between channels: the merged figures' PSNR is the worst channel's.
+        doc["psnr_db"] = json!(per_channel
+            .iter()
+            .filter_map(|s| s.psnr_db())
+            .reduce(f64::min));
+    }
+    doc["channels"] = json!(channels);
     if a.json {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {
@@ -405,8 +461,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "  rmse {:.3e}, max abs {:.3e}, psnr {}, inactive voxels not background: {}",
             total.rmse(),
             total.max_abs,
-            total
-                .psnr_db()
+            doc["psnr_db"]
+                .as_f64()
                 .map(|p| format!("{p:.1} dB"))
                 .unwrap_or_else(|| if total.max_abs == 0.0 {
                     "exact".into()
@@ -420,6 +476,19 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             bpv(file_bytes),
             bpv(gpu)
         );
+        if compared.len() > 1 {
+            for ((_, name), s) in compared.iter().zip(&per_channel) {
+                println!(
+                    "  {name:<14} rmse {:.3e}, max abs {:.3e}, psnr {}, {} active voxels",
+                    s.rmse(),
+                    s.max_abs,
+                    s.psnr_db()
+                        .map(|p| format!("{p:.1} dB"))
+                        .unwrap_or_else(|| "exact".into()),
+                    s.active
+                );
+            }
+        }
     }
     Ok(())
 }

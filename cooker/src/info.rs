@@ -19,6 +19,26 @@ pub struct Args {
     pub json: bool,
 }
 
+/// What one channel of one frame stores.
+#[derive(Clone)]
+struct LeafStats {
+    bricks: u64,
+    tiles: u64,
+    lo: [i64; 3],
+    hi: [i64; 3],
+}
+
+impl Default for LeafStats {
+    fn default() -> Self {
+        LeafStats {
+            bricks: 0,
+            tiles: 0,
+            lo: [i64::MAX; 3],
+            hi: [i64::MIN; 3],
+        }
+    }
+}
+
 fn bricks_by_format(asset: &vdbcook_asset::Asset) -> serde_json::Value {
     let mut m = serde_json::Map::new();
     for (f, n) in vdbcook_asset::PayloadFormat::ORDER
@@ -37,6 +57,29 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let sizes = section_sizes(&asset);
     let (topology, atlas) = topology_and_atlas(&sizes);
     let active: u64 = h.frames.iter().map(|f| f.active_voxels).sum();
+    let nch = asset.channel_count();
+    // Per (frame, channel): stored bricks, tile leaves and the box of the leaves it stores.
+    let mut stats = vec![LeafStats::default(); h.frames.len() * nch];
+    let mut channel_bricks = vec![std::collections::BTreeSet::new(); nch];
+    for fi in 0..h.frames.len() {
+        for (c, set) in channel_bricks.iter_mut().enumerate() {
+            let st = &mut stats[fi * nch + c];
+            asset.for_each_leaf_c(fi, c, |o, r, region| {
+                match r {
+                    LeafRef::Brick(b) => {
+                        st.bricks += 1;
+                        set.insert(b);
+                    }
+                    _ => st.tiles += 1,
+                }
+                let span = if region { 128 } else { 8 };
+                let s = [0, 1, 2].map(|i| o[i] + h.index_offset[i] as i64);
+                st.lo = [0, 1, 2].map(|i| st.lo[i].min(s[i]));
+                st.hi = [0, 1, 2].map(|i| st.hi[i].max(s[i] + span - 1));
+            });
+        }
+    }
+    let bbox = |s: &LeafStats| (s.lo[0] != i64::MAX).then_some((s.lo, s.hi));
     let mut frames = Vec::new();
     for (fi, f) in h.frames.iter().enumerate() {
         let roots = asset.frame_roots(fi);
@@ -44,29 +87,51 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             .iter()
             .filter(|&&e| e != EMPTY && e & TILE_BIT == 0)
             .count();
-        let (mut bricks, mut tiles) = (0u64, 0u64);
-        let mut lo = [i64::MAX; 3];
-        let mut hi = [i64::MIN; 3];
-        asset.for_each_leaf(fi, |o, r, region| {
-            match r {
-                LeafRef::Brick(_) => bricks += 1,
-                _ => tiles += 1,
-            }
-            let span = if region { 128 } else { 8 };
+        let mut all = LeafStats::default();
+        for s in &stats[fi * nch..(fi + 1) * nch] {
+            all.bricks += s.bricks;
+            all.tiles += s.tiles;
             for i in 0..3 {
-                lo[i] = lo[i].min(o[i] + h.index_offset[i] as i64);
-                hi[i] = hi[i].max(o[i] + h.index_offset[i] as i64 + span - 1);
+                all.lo[i] = all.lo[i].min(s.lo[i]);
+                all.hi[i] = all.hi[i].max(s.hi[i]);
             }
-        });
-        let bbox = (lo[0] != i64::MAX).then_some((lo, hi));
+        }
+        let b = bbox(&all);
         frames.push(json!({
             "frame": fi, "number": f.number, "source": f.source, "active_voxels": f.active_voxels,
-            "l2_nodes": nodes, "bricks": bricks, "tile_leaves": tiles,
-            "bbox_min": bbox.map(|b| b.0), "bbox_max": bbox.map(|b| b.1),
-            "value_range": asset.frame_ranges[fi],
+            "l2_nodes": nodes, "bricks": all.bricks, "tile_leaves": all.tiles,
+            "bbox_min": b.map(|b| b.0), "bbox_max": b.map(|b| b.1),
+            "value_range": asset.frame_range(fi, 0),
         }));
     }
-    let per_frame_bytes = asset.root_len() as u64 * 4 + 8;
+    let channels: Vec<_> = (0..nch)
+        .map(|c| {
+            let active = |fi: usize| match h.channels.get(c) {
+                Some(ch) => ch.active_voxels[fi],
+                None => h.frames[fi].active_voxels,
+            };
+            let per_frame: Vec<_> = (0..h.frames.len())
+                .map(|fi| {
+                    let s = &stats[fi * nch + c];
+                    let b = bbox(s);
+                    json!({"frame": fi, "active_voxels": active(fi), "bricks": s.bricks,
+                           "tile_leaves": s.tiles, "value_range": asset.frame_range(fi, c),
+                           "bbox_min": b.map(|b| b.0), "bbox_max": b.map(|b| b.1)})
+                })
+                .collect();
+            let bricks = &channel_bricks[c];
+            json!({
+                "name": h.channel_name(c),
+                "background": h.channel_background(c),
+                "max_error": h.channels.get(c).map_or(h.options.max_error, |ch| ch.max_error),
+                "active_voxels": (0..h.frames.len()).map(active).sum::<u64>(),
+                "bricks": bricks.len(),
+                "atlas_bytes": bricks.iter().map(|&b| asset.brick_format(b).0.bytes_per_brick() as u64).sum::<u64>(),
+                "frames": per_frame,
+            })
+        })
+        .collect();
+    let per_frame_bytes = asset.root_len() as u64 * 4 + 8 * nch as u64;
     let bpv = |b: u64| {
         if active > 0 {
             b as f64 * 8.0 / active as f64
@@ -83,7 +148,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let doc = json!({
         "asset": a.asset.display().to_string(),
         "tool": h.tool,
-        "format_version": vdbcook_asset::FORMAT_VERSION,
+        "format_version": h.format_version(),
         "content_hash": format!("{:016x}", h.content_hash),
         "options": {"format": h.options.format.name(), "max_error": h.options.max_error, "grid": h.options.grid, "replace_non_finite": h.options.replace_non_finite, "allow_gaps": h.options.allow_gaps},
         "grid": h.grid_name,
@@ -101,6 +166,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "bits_per_active_voxel": bpv(file_bytes),
         "bytes_per_extra_static_frame": per_frame_bytes,
         "frames": frames,
+        "channels": channels,
     });
     if a.json {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
@@ -110,7 +176,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "{}  ({}, asset format {}, content {})",
         a.asset.display(),
         h.tool,
-        vdbcook_asset::FORMAT_VERSION,
+        h.format_version(),
         doc["content_hash"].as_str().unwrap_or("")
     );
     println!(
@@ -128,10 +194,27 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         asset.l2_count(),
         asset.l3_refs.len()
     );
+    if nch > 1 {
+        println!("  channels (one topology, the union of their active regions):");
+        for c in &channels {
+            println!(
+                "    {:<14} background {}, {} active voxels, {} bricks ({} atlas bytes), budget {}",
+                c["name"].as_str().unwrap_or(""),
+                c["background"],
+                c["active_voxels"],
+                c["bricks"],
+                c["atlas_bytes"],
+                c["max_error"]
+                    .as_f64()
+                    .map_or("none (lossless)".into(), |e| format!("{}", e as f32))
+            );
+        }
+    }
     match h.options.max_error {
         Some(e) => println!(
             "  error budget: every voxel within {e:e} of its source, as any conformant GPU reads it"
         ),
+        None if nch > 1 => {}
         None if asset.brick_count() as u64
             == h.brick_counts[vdbcook_asset::PayloadFormat::F32.rank()] =>
         {

@@ -20,6 +20,7 @@ pub mod gpu;
 pub mod info;
 pub mod inspect;
 pub mod manifest;
+pub mod multi;
 pub mod output;
 pub mod pool;
 pub mod progress;

@@ -69,7 +69,7 @@ impl Pool {
         self.bricks.len() / BRICK_VOXELS
     }
 
-    fn tile(&mut self, v: f32) -> u32 {
+    pub(crate) fn tile(&mut self, v: f32) -> u32 {
         let n = self.tiles.len() as u32;
         let idx = *self.tile_index.entry(v.to_bits()).or_insert(n);
         if idx == n {
@@ -79,6 +79,17 @@ impl Pool {
     }
 
     fn brick(&mut self, values: &[f32; BRICK_VOXELS], hash: u64) -> u32 {
+        let b = self.brick_unrecorded(values, hash);
+        if self.track_uses {
+            if let Some(f) = self.uses.last_mut() {
+                f.push(b);
+            }
+        }
+        b
+    }
+
+    /// The pool index of a brick with these values (added if new), without recording a use.
+    pub(crate) fn brick_unrecorded(&mut self, values: &[f32; BRICK_VOXELS], hash: u64) -> u32 {
         // Bitwise equality (so -0.0 and 0.0 differ, and NaN payloads are kept apart), as memcmp.
         let want: &[u32] = bytemuck::cast_slice(&values[..]);
         let bits = |s: &[f32]| -> bool { bytemuck::cast_slice::<f32, u32>(s) == want };
@@ -96,15 +107,10 @@ impl Pool {
                 b
             }
         };
-        if self.track_uses {
-            if let Some(f) = self.uses.last_mut() {
-                f.push(b);
-            }
-        }
         b
     }
 
-    fn node(&mut self, mask: [u64; L2_WORDS], refs: Vec<u32>) -> u32 {
+    pub(crate) fn node(&mut self, mask: [u64; L2_WORDS], refs: Vec<u32>) -> u32 {
         let mut h = xxhash_rust::xxh3::Xxh3::new();
         h.update(bytemuck::cast_slice(&mask));
         h.update(bytemuck::cast_slice(&refs));
@@ -199,17 +205,23 @@ fn widen(r: &mut [f32; 2], lo: f32, hi: f32) {
     r[1] = r[1].max(hi);
 }
 
-/// Ranges of L2 nodes and frames from the final bricks' ranges (`bricks`) and tile values.
+/// Ranges of L2 nodes and frames from the final bricks' ranges (`bricks`) and tile values, per
+/// channel: `bgs` holds each channel's background (one for a single-channel asset), the node
+/// refs hold `bgs.len()` refs per slot, and the result `bgs.len()` ranges per node and frame
+/// (channel fastest), as the asset stores them.
 pub fn ranges(
     bricks: Vec<[f32; 2]>,
     tiles: &[f32],
     l2_refs: &[Vec<u32>],
     roots: &[u32],
     root_len: usize,
-    bg: f32,
+    bgs: &[f32],
 ) -> Ranges {
-    let ref_range = |r: u32| {
-        if r & TILE_BIT != 0 {
+    let nch = bgs.len();
+    let ref_range = |r: u32, c: usize| {
+        if r == EMPTY {
+            [bgs[c], bgs[c]]
+        } else if r & TILE_BIT != 0 {
             let v = tiles[(r & !TILE_BIT) as usize];
             [v, v]
         } else {
@@ -218,33 +230,38 @@ pub fn ranges(
     };
     let l2: Vec<[f32; 2]> = l2_refs
         .iter()
-        .map(|refs| {
-            let mut r = [f32::INFINITY, f32::NEG_INFINITY];
-            for &c in refs {
-                let x = ref_range(c);
-                widen(&mut r, x[0], x[1]);
-            }
-            if refs.len() < L2_SLOTS {
-                widen(&mut r, bg, bg);
-            }
-            r
+        .flat_map(|refs| {
+            (0..nch).map(move |c| {
+                let mut r = [f32::INFINITY, f32::NEG_INFINITY];
+                for &x in refs.iter().skip(c).step_by(nch) {
+                    let x = ref_range(x, c);
+                    widen(&mut r, x[0], x[1]);
+                }
+                if refs.len() < L2_SLOTS * nch {
+                    widen(&mut r, bgs[c], bgs[c]);
+                }
+                r
+            })
         })
         .collect();
     let frames = roots
         .chunks_exact(root_len)
-        .map(|entries| {
-            let mut r = [f32::INFINITY, f32::NEG_INFINITY];
-            for &e in entries {
-                let x = if e == EMPTY {
-                    [bg, bg]
-                } else if e & TILE_BIT != 0 {
-                    ref_range(e)
-                } else {
-                    l2[e as usize]
-                };
-                widen(&mut r, x[0], x[1]);
-            }
-            r
+        .flat_map(|entries| {
+            let l2 = &l2;
+            (0..nch).map(move |c| {
+                let mut r = [f32::INFINITY, f32::NEG_INFINITY];
+                for &e in entries {
+                    let x = if e == EMPTY {
+                        [bgs[c], bgs[c]]
+                    } else if e & TILE_BIT != 0 {
+                        ref_range(e, c)
+                    } else {
+                        l2[e as usize * nch + c]
+                    };
+                    widen(&mut r, x[0], x[1]);
+                }
+                r
+            })
         })
         .collect();
     Ranges { bricks, l2, frames }

@@ -138,6 +138,12 @@ pub struct Args {
     /// Brightness of the emission at HI Kelvin (radiance per unit length in --units).
     #[arg(long, default_value_t = 1.0)]
     emission_intensity: f32,
+    /// The grid whose values are the Kelvin of --emission, when it is not the rendered one: a
+    /// channel of a multi-channel asset (fire: `density` absorbs, `temperature` glows; default
+    /// for such an asset: its `temperature`, `heat` or `temp` channel), or for VDB input a
+    /// second grid cooked with --grid (density, scatter and lit modes).
+    #[arg(long, value_name = "NAME", requires = "emission")]
+    emission_grid: Option<String>,
     /// Random seed (delta, reference).
     #[arg(long, default_value_t = 1)]
     seed: u32,
@@ -236,6 +242,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
             [lo, hi] => Some(Emission {
                 range: [lo as f32, hi as f32],
                 intensity: a.emission_intensity,
+                channel: 0,
             }),
             ref v => {
                 return Err(other(format!(
@@ -633,17 +640,48 @@ pub fn load_input(
     grid: Option<String>,
     allow_gaps: bool,
     replace_non_finite: Option<f32>,
+    extra_grid: Option<&str>,
 ) -> Result<(Asset, Option<f64>), CliError> {
     if looks_like_vdb(input) {
         let mut c =
             cook::Args::defaults(vec![input.to_string_lossy().into_owned()], label.to_owned());
-        c.grid = grid;
+        match extra_grid {
+            // A second grid (emission): a two-channel cook, the rendered grid first.
+            Some(e) if grid.as_deref() != Some(e) => {
+                c.grids = vec![grid.unwrap_or_else(|| "density".into()), e.to_string()];
+            }
+            _ => c.grid = grid,
+        }
         c.allow_gaps = allow_gaps;
         c.replace_non_finite = replace_non_finite;
         let t = Instant::now();
         Ok((cook::cook(&c)?.asset, Some(t.elapsed().as_secs_f64())))
     } else {
         Ok((cook::load_asset(input)?, None))
+    }
+}
+
+/// The channel `--emission` reads: `--emission-grid` by name, else for a multi-channel asset its
+/// `temperature`, `heat` or `temp` channel, else the rendered grid (0).
+pub fn emission_channel(asset: &Asset, given: Option<&str>) -> Result<usize, String> {
+    let h = &asset.header;
+    let names = || {
+        (0..asset.channel_count())
+            .map(|c| h.channel_name(c).to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match given {
+        Some(g) => h.channel_index(g).ok_or_else(|| {
+            format!(
+                "--emission-grid {g}: the asset has no such channel (channels: {})",
+                names()
+            )
+        }),
+        None => Ok(["temperature", "heat", "temp"]
+            .iter()
+            .find_map(|n| h.channel_index(n))
+            .unwrap_or(0)),
     }
 }
 
@@ -736,8 +774,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         a.grid.clone(),
         a.allow_gaps,
         a.replace_non_finite,
+        a.emission_grid.as_deref(),
     )?;
     let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
+    let mut s = s;
+    if let Some(e) = &mut s.emission {
+        e.channel = emission_channel(&asset, a.emission_grid.as_deref()).map_err(|e| at(&e))?;
+    }
+    let s = s;
     let camera = camera(
         a.camera.as_deref(),
         &asset,

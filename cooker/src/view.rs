@@ -99,6 +99,7 @@ fn base_settings(a: &Args) -> Result<vdbcook_trace::RenderSettings, CliError> {
             Some(vdbcook_trace::Emission {
                 range: [lo, hi],
                 intensity: a.emission_intensity,
+                channel: 0,
             })
         }
     };
@@ -631,7 +632,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         }
         let label = a.screenshot.clone().unwrap_or_else(|| a.input.clone());
         let (asset, _) =
-            crate::render::load_input(&a.input, &label, a.grid.clone(), a.allow_gaps, None)?;
+            crate::render::load_input(&a.input, &label, a.grid.clone(), a.allow_gaps, None, None)?;
         if a.frame >= asset.frame_count() {
             return Err(CliError::Usage(format!(
                 "--frame {} is out of range: {} has {} frame(s)",

@@ -11,7 +11,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{cook_smoke, vdbcook};
+use common::{cook_smoke, read_pfm, vdbcook};
 use serde_json::Value;
 
 const W: u32 = 96;
@@ -57,30 +57,6 @@ fn write_depth(path: &Path, w: u32, h: u32, d: f32) {
         b.extend_from_slice(&d.to_le_bytes());
     }
     std::fs::write(path, b).unwrap();
-}
-
-/// A colour PFM as written by `render`: width, height, RGB floats with row 0 at the top.
-fn read_pfm(path: &Path) -> (u32, u32, Vec<f32>) {
-    let b = std::fs::read(path).unwrap();
-    let mut lines = b.splitn(4, |&c| c == b'\n');
-    assert_eq!(lines.next().unwrap(), b"PF");
-    let dims = std::str::from_utf8(lines.next().unwrap()).unwrap();
-    let (w, h) = dims.split_once(' ').unwrap();
-    let (w, h): (u32, u32) = (w.parse().unwrap(), h.parse().unwrap());
-    let scale: f32 = std::str::from_utf8(lines.next().unwrap())
-        .unwrap()
-        .parse()
-        .unwrap();
-    assert!(scale < 0.0, "little-endian");
-    let data = lines.next().unwrap();
-    assert_eq!(data.len(), (w * h * 12) as usize);
-    let row = 3 * w as usize;
-    let mut out = vec![0.0; row * h as usize];
-    for (k, c) in data.chunks_exact(4).enumerate() {
-        let (y, x) = (k / row, k % row);
-        out[(h as usize - 1 - y) * row + x] = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-    }
-    (w, h, out)
 }
 
 fn read_png(path: &Path) -> Vec<u8> {

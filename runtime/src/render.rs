@@ -57,7 +57,9 @@ struct Params {
     spp: u32,
     first_sample: u32,
     seed: u32,
-    _pad: u32,
+    /// Emission read from this channel (`Emission::channel`; 0: from the rendered grid, by the
+    /// modes' own marches).
+    emit_channel: u32,
     /// The lit mode: the light volume's grid (xyz corner, w cell; xyz dims, w octaves), the
     /// octave falloff `a, b, c`, the sky, the phase `g0, g1, w`, the unit world direction
     /// toward the light.
@@ -72,6 +74,9 @@ struct Params {
     emission: [f32; 4],
     /// `vdbcook_scene::blackbody_table` of the emission's range.
     emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
+    /// With `emit_channel`: the cell box `[lo, hi)` where that channel may glow (empty: lo > hi).
+    emit_lo: [f32; 4],
+    emit_hi: [f32; 4],
 }
 
 const WORKGROUP: u32 = 8;
@@ -579,6 +584,34 @@ impl Renderer {
         };
         let c = settings.light_color;
         let grid = LightGrid::new(self.vol.content[frame], settings.light_res);
+        // Emission from another channel: the modes' own emission is off (`emission.w = 0`) and
+        // `channel_emission` draws it over the channel's box (as `vdbcook_trace::Tracer`).
+        let mut emit_box = None;
+        let emit_channel = match settings.emission {
+            Some(e) if e.channel > 0 => {
+                let Some(ch) = self.vol.channels.get(e.channel - 1) else {
+                    return Err(RuntimeError::Setting(format!(
+                        "emission channel {} is not in the asset ({} channel(s))",
+                        e.channel,
+                        self.vol.channels.len() + 1
+                    )));
+                };
+                if ![Mode::Density, Mode::SingleScatter, Mode::Lit].contains(&settings.mode) {
+                    return Err(RuntimeError::Setting(format!(
+                        "emission from another channel is drawn in the density, scatter and lit \
+                         modes; {:?} reads emission from the rendered grid only",
+                        settings.mode
+                    )));
+                }
+                emit_box = if e.range[0] >= ch.background {
+                    ch.boxes[frame]
+                } else {
+                    Some(([0.0; 3], self.vol.extent))
+                };
+                e.channel as u32
+            }
+            _ => 0,
+        };
         let lw = l.map(|c| (c / ln) as f32);
         let params = Params {
             eye_index: v4(eye),
@@ -612,7 +645,7 @@ impl Renderer {
             spp: settings.spp,
             first_sample: settings.first_sample,
             seed: settings.seed,
-            _pad: 0,
+            emit_channel,
             lv_lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
             lv_dims: [
                 grid.dims[0],
@@ -639,14 +672,17 @@ impl Renderer {
                 0.0,
             ],
             light_world: [lw[0], lw[1], lw[2], 0.0],
-            emission: settings
-                .emission
-                .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 1.0]),
+            emission: settings.emission.map_or([0.0; 4], |e| {
+                let own = (emit_channel == 0) as u32 as f32;
+                [e.range[0], e.range[1], e.intensity, own]
+            }),
             emit_table: settings
                 .emission
                 .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
                     blackbody_table(e.range)
                 }),
+            emit_lo: emit_box.map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
+            emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1)),
         };
         Ok((params, grid))
     }
@@ -700,7 +736,7 @@ mod tests {
                 spp,
                 first_sample,
                 seed,
-                _pad,
+                emit_channel,
                 lv_lo,
                 lv_dims,
                 ms,
@@ -709,6 +745,8 @@ mod tests {
                 light_world,
                 emission,
                 emit_table,
+                emit_lo,
+                emit_hi,
             }),
         );
     }

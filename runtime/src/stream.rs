@@ -181,6 +181,13 @@ impl StreamingVolume {
         options: UploadOptions,
     ) -> Result<StreamingVolume> {
         let (first, last) = check_window(&asset, &window)?;
+        if asset.channel_count() > 1 {
+            return Err(RuntimeError::Unsupported(format!(
+                "streaming a multi-channel asset ({} channels) is not supported yet; upload it \
+                 whole with GpuVolume::upload",
+                asset.channel_count()
+            )));
+        }
         let limits = device.limits();
         let max_binding = limits
             .max_storage_buffer_binding_size
@@ -625,6 +632,7 @@ impl StreamingVolume {
                 off_tiles,
                 off_brick_ranges,
                 off_brick_quant,
+                off_brick_quant,
             ],
             self.buffers.bricks_per_buffer(),
             self.buffers.code(),
@@ -705,6 +713,7 @@ impl StreamingVolume {
                 .map(|r| r[1])
                 .collect(),
             gpu_bytes: self.pool_bytes - total_slots * SLOT_RANGE_BYTES + topo_bytes,
+            channels: Vec::new(),
         });
         self.window = (first, last);
         self.stats = WindowStats {

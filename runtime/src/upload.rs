@@ -221,16 +221,21 @@ struct VolumeInfo {
     payload_layout: u32,
     frames: u32,
     off_brick_quant: u32,
+    /// Channels per slot, node and frame (`Asset::channel_count`).
+    channels: u32,
+    /// Word offset of the channel backgrounds (channel `c` at `+ c`; unused for one channel).
+    off_channel_bg: u32,
+    _padc: [u32; 2],
     groups: [GroupInfo; GROUPS],
 }
 
 impl VolumeInfo {
     /// The uniform of a topology laid out in `topo` with its sections starting at the word
-    /// offsets `[masks, base, prefix, l2_ranges, refs, tiles, brick_ranges, brick_quant]`
-    /// (the full upload and a streamed window lay out the same sections).
+    /// offsets `[masks, base, prefix, l2_ranges, refs, tiles, brick_ranges, brick_quant,
+    /// channel_bg]` (the full upload and a streamed window lay out the same sections).
     fn new(
         asset: &Asset,
-        offsets: [usize; 8],
+        offsets: [usize; 9],
         bricks_per_binding: u32,
         payload_layout: u32,
         frames: usize,
@@ -252,6 +257,9 @@ impl VolumeInfo {
             payload_layout,
             frames: frames as u32,
             off_brick_quant: o[7],
+            channels: asset.channel_count() as u32,
+            off_channel_bg: o[8],
+            _padc: [0; 2],
             groups,
         }
     }
@@ -273,6 +281,34 @@ pub struct GpuVolume {
     content: Vec<Option<([f64; 3], [f64; 3])>>,
     frame_max: Vec<f32>,
     gpu_bytes: u64,
+    /// Channels 1.. of a multi-channel asset (empty for one channel): per channel, its
+    /// background and per frame the box where it exceeds it (`vdbcook_scene::content_box_above`),
+    /// for emission read from that channel.
+    pub(crate) channels: Vec<ChannelBoxes>,
+}
+
+/// [`GpuVolume::channels`]' entry of one channel.
+#[derive(Debug, Clone)]
+pub(crate) struct ChannelBoxes {
+    pub background: f32,
+    pub boxes: Vec<Option<([f64; 3], [f64; 3])>>,
+}
+
+impl ChannelBoxes {
+    /// Per channel `1..` of `asset`: its background and its boxes per frame.
+    pub(crate) fn of(asset: &Asset) -> Vec<ChannelBoxes> {
+        (1..asset.channel_count())
+            .map(|c| {
+                let bg = asset.header.channel_background(c);
+                ChannelBoxes {
+                    background: bg,
+                    boxes: (0..asset.frame_count())
+                        .map(|f| vdbcook_scene::content_box_above(asset, f, c, bg))
+                        .collect(),
+                }
+            })
+            .collect()
+    }
 }
 
 /// Per brick, the box (voxel coordinates, `[lo, hi)`) of voxels that differ from `background`.
@@ -700,6 +736,12 @@ impl GpuVolume {
         topo.extend(words_of_f32(&asset.brick_ranges));
         let off_brick_quant = topo.len();
         topo.extend(words_of_f32(&asset.brick_quant));
+        let off_channel_bg = topo.len();
+        if asset.channel_count() > 1 {
+            topo.extend(
+                (0..asset.channel_count()).map(|c| asset.header.channel_background(c).to_bits()),
+            );
+        }
         if topo.is_empty() {
             topo.push(0);
         }
@@ -812,7 +854,9 @@ impl GpuVolume {
         let bboxes = (0..asset.frame_count())
             .map(|f| frame_box(asset, f, &boxes))
             .collect();
-        let frame_max = asset.frame_ranges.iter().map(|r| r[1]).collect();
+        let frame_max = (0..asset.frame_count())
+            .map(|f| asset.frame_range(f, 0)[1])
+            .collect();
         let content = (0..asset.frame_count())
             .map(|f| vdbcook_scene::content_box(asset, f))
             .collect();
@@ -828,6 +872,7 @@ impl GpuVolume {
                 off_tiles,
                 off_brick_ranges,
                 off_brick_quant,
+                off_channel_bg,
             ],
             per,
             plan.buffers.code(),
@@ -923,6 +968,7 @@ impl GpuVolume {
             content,
             frame_max,
             gpu_bytes,
+            channels: ChannelBoxes::of(asset),
         };
         let bc = device.features() & OPTIONAL_FEATURES;
         log::info!(
@@ -1068,6 +1114,8 @@ pub(crate) struct Bound {
     pub bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
     pub content: Vec<Option<([f64; 3], [f64; 3])>>,
     pub frame_max: Vec<f32>,
+    /// `GpuVolume::channels`.
+    pub channels: Vec<ChannelBoxes>,
 }
 
 /// A compute-stage buffer binding of `ty` at `binding` (no dynamic offset, no minimum size).
@@ -1152,6 +1200,7 @@ impl Bound {
             bboxes: frames.clone().map(|f| volume.frame_bbox(f)).collect(),
             content: frames.clone().map(|f| volume.content_box(f)).collect(),
             frame_max: frames.map(|f| volume.frame_max(f)).collect(),
+            channels: volume.channels.clone(),
         }
     }
 
@@ -1329,6 +1378,9 @@ mod tests {
                 payload_layout,
                 frames,
                 off_brick_quant,
+                channels,
+                off_channel_bg,
+                _padc,
                 groups,
             }),
         );

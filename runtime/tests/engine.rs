@@ -570,6 +570,7 @@ fn lit_instances_match_the_cpu_lit_mode() {
             .then_some(vdbcook_trace::Emission {
                 range: [0.3, 1.5],
                 intensity: 0.8,
+                channel: 0,
             });
         // With emission: a pure glow (no scattering, no light), thin enough to see into.
         let glow = emission.is_some();

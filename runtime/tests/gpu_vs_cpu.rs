@@ -1201,6 +1201,7 @@ fn emission_matches_the_cpu() {
         emission: Some(vdbcook_trace::Emission {
             range: [800.0, 2500.0],
             intensity: 0.5,
+            channel: 0,
         }),
         ..small(Mode::Density, 0)
     };
@@ -1220,6 +1221,7 @@ fn emission_matches_the_cpu() {
         emission: Some(vdbcook_trace::Emission {
             range: [800.0, 2500.0],
             intensity: 0.5,
+            channel: 0,
         }),
         ..small(Mode::Density, 0)
     };

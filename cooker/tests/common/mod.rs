@@ -1,6 +1,6 @@
 //! Shared by the binary's integration tests: where the repository is, running `vdbcook` from it
 //! the way a script does (exit code, stdout, stderr), the samples rule, cooking the default
-//! smoke, reading PNGs, and whether a GPU test may skip.
+//! smoke, reading PNGs and PFMs, and whether a GPU test may skip.
 
 #![allow(dead_code)]
 
@@ -75,4 +75,28 @@ pub fn read_png(path: &std::path::Path) -> (u32, u32, Vec<u8>) {
     assert_eq!(info.bit_depth, png::BitDepth::Eight);
     buf.truncate(info.buffer_size());
     (info.width, info.height, buf)
+}
+
+/// A colour PFM as written by `render`: width, height, RGB floats with row 0 at the top.
+pub fn read_pfm(path: &std::path::Path) -> (u32, u32, Vec<f32>) {
+    let b = std::fs::read(path).unwrap();
+    let mut lines = b.splitn(4, |&c| c == b'\n');
+    assert_eq!(lines.next().unwrap(), b"PF");
+    let dims = std::str::from_utf8(lines.next().unwrap()).unwrap();
+    let (w, h) = dims.split_once(' ').unwrap();
+    let (w, h): (u32, u32) = (w.parse().unwrap(), h.parse().unwrap());
+    let scale: f32 = std::str::from_utf8(lines.next().unwrap())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(scale < 0.0, "little-endian");
+    let data = lines.next().unwrap();
+    assert_eq!(data.len(), (w * h * 12) as usize);
+    let row = 3 * w as usize;
+    let mut out = vec![0.0; row * h as usize];
+    for (k, c) in data.chunks_exact(4).enumerate() {
+        let (y, x) = (k / row, k % row);
+        out[(h as usize - 1 - y) * row + x] = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+    }
+    (w, h, out)
 }

@@ -216,6 +216,7 @@ impl AssetBuilder {
                 brick_counts: [0; 5],
                 sections: vec![],
                 content_hash: 0,
+                channels: Vec::new(),
             },
             roots: vec![],
             frame_ranges: vec![],

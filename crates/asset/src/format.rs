@@ -3,8 +3,16 @@
 use serde::{Deserialize, Serialize};
 
 pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
-pub const FORMAT_VERSION: u32 = 2;
-/// Root entry: the 128³ region is background.
+/// The newest version this build writes and reads: several channels on one topology
+/// ([`Header::channels`]). Single-channel assets are still written as
+/// [`FORMAT_VERSION_SINGLE`], byte for byte what earlier builds wrote.
+pub const FORMAT_VERSION: u32 = 3;
+/// The version of single-channel assets (no `channels` in the header).
+pub const FORMAT_VERSION_SINGLE: u32 = 2;
+/// Most channels one asset holds.
+pub const MAX_CHANNELS: usize = 8;
+/// Root entry: the 128³ region is background. In a multi-channel asset also a leaf ref: this
+/// channel is background in this leaf (other channels are not).
 pub const EMPTY: u32 = u32::MAX;
 /// Ref flag: the low 31 bits index `tiles`.
 pub const TILE_BIT: u32 = 1 << 31;
@@ -230,9 +238,129 @@ pub struct Header {
     pub sections: Vec<SectionInfo>,
     /// xxh3-64 of the header (this field zeroed) and all raw sections. Filled in by the writer.
     pub content_hash: u64,
+    /// The channels of a multi-channel asset (format version 3), at least 2, in cook order;
+    /// channel 0 is `grid_name` with `background`. Empty for a single-channel asset (version 2):
+    /// its one channel is `grid_name`.
+    pub channels: Vec<ChannelInfo>,
+}
+
+/// One grid of a multi-channel asset. All channels share the asset's topology (the union of
+/// their active regions); `l3_refs`, `l2_ranges` and `frame_ranges` hold one entry per channel
+/// per slot, node and frame (index `i · channels + c`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChannelInfo {
+    /// Source grid name.
+    pub name: String,
+    /// This channel's value where it stores nothing.
+    pub background: f32,
+    /// Its `--max-error` budget (`None`: lossless or the format's own precision).
+    pub max_error: Option<f32>,
+    /// Active voxels of the source grid per frame (0 where the grid was missing or empty).
+    pub active_voxels: Vec<u64>,
+}
+
+/// The header as format version 2 stores it (a single channel): [`Header`] without `channels`,
+/// the same fields in the same order. Frozen: bincode is not self-describing, so any change
+/// here would stop version-2 files from decoding.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct HeaderV2 {
+    pub tool: String,
+    pub options: CookOptions,
+    pub grid_name: String,
+    pub frames: Vec<FrameInfo>,
+    pub index_offset: [i32; 3],
+    pub root_dims: [u32; 3],
+    pub index_to_world: [[f64; 4]; 4],
+    pub source_map: String,
+    pub voxel_size: [f64; 3],
+    pub background: f32,
+    pub brick_counts: [u64; 5],
+    pub sections: Vec<SectionInfo>,
+    pub content_hash: u64,
+}
+
+impl From<&Header> for HeaderV2 {
+    fn from(h: &Header) -> HeaderV2 {
+        HeaderV2 {
+            tool: h.tool.clone(),
+            options: h.options.clone(),
+            grid_name: h.grid_name.clone(),
+            frames: h.frames.clone(),
+            index_offset: h.index_offset,
+            root_dims: h.root_dims,
+            index_to_world: h.index_to_world,
+            source_map: h.source_map.clone(),
+            voxel_size: h.voxel_size,
+            background: h.background,
+            brick_counts: h.brick_counts,
+            sections: h.sections.clone(),
+            content_hash: h.content_hash,
+        }
+    }
+}
+
+impl From<HeaderV2> for Header {
+    fn from(h: HeaderV2) -> Header {
+        Header {
+            tool: h.tool,
+            options: h.options,
+            grid_name: h.grid_name,
+            frames: h.frames,
+            index_offset: h.index_offset,
+            root_dims: h.root_dims,
+            index_to_world: h.index_to_world,
+            source_map: h.source_map,
+            voxel_size: h.voxel_size,
+            background: h.background,
+            brick_counts: h.brick_counts,
+            sections: h.sections,
+            content_hash: h.content_hash,
+            channels: Vec::new(),
+        }
+    }
 }
 
 impl Header {
+    /// Channels stored (1 for a single-channel asset).
+    pub fn channel_count(&self) -> usize {
+        self.channels.len().max(1)
+    }
+    /// The format version this header is written as.
+    pub fn format_version(&self) -> u32 {
+        if self.channels.is_empty() {
+            FORMAT_VERSION_SINGLE
+        } else {
+            FORMAT_VERSION
+        }
+    }
+    /// Name of channel `c`.
+    pub fn channel_name(&self, c: usize) -> &str {
+        match self.channels.get(c) {
+            Some(ch) => &ch.name,
+            None => &self.grid_name,
+        }
+    }
+    /// Background of channel `c`.
+    pub fn channel_background(&self, c: usize) -> f32 {
+        match self.channels.get(c) {
+            Some(ch) => ch.background,
+            None => self.background,
+        }
+    }
+    /// The channel named `name`.
+    pub fn channel_index(&self, name: &str) -> Option<usize> {
+        (0..self.channel_count()).find(|&c| self.channel_name(c) == name)
+    }
+    /// Encodes the header as its version stores it (bincode 2, standard config).
+    pub(crate) fn encode(&self) -> Result<Vec<u8>, crate::AssetError> {
+        let config = bincode::config::standard();
+        let r = if self.channels.is_empty() {
+            bincode::serde::encode_to_vec(HeaderV2::from(self), config)
+        } else {
+            bincode::serde::encode_to_vec(self, config)
+        };
+        r.map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))
+    }
     /// Source index → asset index.
     pub fn to_asset_index(&self, source: [i32; 3]) -> [i64; 3] {
         [0, 1, 2].map(|a| source[a] as i64 - self.index_offset[a] as i64)

@@ -29,11 +29,21 @@
 //!   skipping and delta tracking.
 //! - Values are what OpenVDB reads for active voxels; inactive voxels are the background.
 //!
+//! # Several channels (format version 3)
+//! Fire needs several grids (density, temperature, flame) per voxel. A multi-channel asset holds
+//! `N = channels.len()` (2..=8) of them on **one** topology, the union of their active regions:
+//! the roots, L2 masks, `l2_base` and `l2_prefix` are shared (and count slots, not refs), while
+//! each slot holds `N` refs, channel `c`'s at `l3_refs[slot_index · N + c]`; `EMPTY` there means
+//! channel `c` is its own background in that leaf. `l2_ranges[n · N + c]` and
+//! `frame_ranges[f · N + c]` are per channel. Root entries are never tiles (a constant 128³
+//! region is an L2 node whose 4096 slots all hold tile refs). Bricks, tiles and payloads form one
+//! pool shared by all channels. Single-channel assets are version 2, without `channels`.
+//!
 //! # The file
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `b"VDBCOOK\x1a"` |
-//! | 8 | 4 | format version (`u32` LE, currently 1) |
+//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several) |
 //! | 12 | 4 | header length `H` (`u32` LE) |
 //! | 16 | H | [`Header`], bincode 2 (standard config) |
 //! | 16 + H | … | sections: zstd frames at `Header::sections[i].offset` (relative to 16 + H) |
@@ -74,7 +84,8 @@ pub struct Asset {
     /// Per L2 node, 64 entries: set slots in the mask words before word `w`.
     pub l2_prefix: Vec<u16>,
     pub l2_ranges: Vec<[f32; 2]>,
-    /// Leaf refs: brick index or `TILE_BIT | tile`.
+    /// Leaf refs: brick index or `TILE_BIT | tile` (`channels` per slot; `EMPTY` too when
+    /// several).
     pub l3_refs: Vec<u32>,
     /// Constant values of tiles (deduplicated).
     pub tiles: Vec<f32>,
@@ -88,6 +99,18 @@ pub struct Asset {
 impl Asset {
     pub fn frame_count(&self) -> usize {
         self.header.frames.len()
+    }
+    /// Channels stored (1 for a single-channel asset).
+    pub fn channel_count(&self) -> usize {
+        self.header.channel_count()
+    }
+    /// `[min, max]` of channel `c`'s stored values over `frame`'s extent.
+    pub fn frame_range(&self, frame: usize, c: usize) -> [f32; 2] {
+        self.frame_ranges[frame * self.channel_count() + c]
+    }
+    /// `[min, max]` of channel `c` over L2 node `n`'s 128³ region.
+    pub fn l2_range(&self, n: usize, c: usize) -> [f32; 2] {
+        self.l2_ranges[n * self.channel_count() + c]
     }
     pub fn root_len(&self) -> usize {
         self.header.root_dims.iter().map(|&d| d as usize).product()

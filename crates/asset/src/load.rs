@@ -48,9 +48,10 @@ impl Asset {
             return bad("not a vdbcook asset (magic number missing)");
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4"));
-        if version != FORMAT_VERSION {
+        if version != FORMAT_VERSION && version != FORMAT_VERSION_SINGLE {
             return bad(format!(
-                "asset format version {version}; this build reads version {FORMAT_VERSION}"
+                "asset format version {version}; this build reads versions \
+                 {FORMAT_VERSION_SINGLE} and {FORMAT_VERSION}"
             ));
         }
         let hlen = u32::from_le_bytes(bytes[12..16].try_into().expect("4")) as usize;
@@ -61,9 +62,23 @@ impl Asset {
             ));
         }
         let config = bincode::config::standard().with_limit::<MAX_HEADER_BYTES>();
-        let (header, used): (Header, usize) =
-            bincode::serde::decode_from_slice(&bytes[16..16 + hlen], config)
-                .map_err(|e| AssetError(format!("corrupt header: {e}")))?;
+        let hbytes = &bytes[16..16 + hlen];
+        let corrupt = |e: bincode::error::DecodeError| AssetError(format!("corrupt header: {e}"));
+        let (header, used): (Header, usize) = if version == FORMAT_VERSION_SINGLE {
+            let (h, used): (HeaderV2, usize) =
+                bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
+            (h.into(), used)
+        } else {
+            let (h, used): (Header, usize) =
+                bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
+            if h.channels.len() < 2 || h.channels.len() > MAX_CHANNELS {
+                return bad(format!(
+                    "a version-{version} asset has 2..={MAX_CHANNELS} channels, this one {}",
+                    h.channels.len()
+                ));
+            }
+            (h, used)
+        };
         if used != hlen {
             return bad(format!("header is {used} bytes, the file says {hlen}"));
         }
@@ -132,6 +147,7 @@ impl Asset {
             return bad("content hash mismatch (header or sections corrupt)");
         }
         let root_len: usize = header.root_dims.iter().map(|&d| d as usize).product();
+        let nch = header.channel_count();
         // Element counts implied by the sections, checked for consistency.
         let n_l2 = raw[3].len() / 4;
         let n_bricks = raw[8].len() / 8;
@@ -148,12 +164,12 @@ impl Asset {
         }
         let mut expect: Vec<(usize, u64)> = vec![
             (0, (nframes * root_len * 4) as u64),
-            (1, nframes as u64 * 8),
+            (1, (nframes * nch) as u64 * 8),
             (2, n_l2 as u64 * L2_WORDS as u64 * 8),
             (3, n_l2 as u64 * 4),
             (4, n_l2 as u64 * L2_WORDS as u64 * 2),
-            (5, n_l2 as u64 * 8),
-            (6, raw[6].len() as u64 / 4 * 4),
+            (5, (n_l2 * nch) as u64 * 8),
+            (6, raw[6].len() as u64 / (4 * nch as u64) * (4 * nch as u64)),
             (7, raw[7].len() as u64 / 4 * 4),
             (8, n_bricks as u64 * 8),
             (9, n_bricks as u64 * 8),
@@ -197,9 +213,12 @@ impl Asset {
         let n_l2 = self.l2_count();
         let n_tiles = self.tiles.len();
         let n_bricks = self.brick_count();
-        let n_refs = self.l3_refs.len();
+        let nch = self.channel_count();
+        let n_refs = self.l3_refs.len() / nch;
         let ok_ref = |r: u32| {
-            if r & TILE_BIT != 0 {
+            if r == EMPTY {
+                nch > 1
+            } else if r & TILE_BIT != 0 {
                 ((r & !TILE_BIT) as usize) < n_tiles
             } else {
                 (r as usize) < n_bricks
@@ -208,7 +227,8 @@ impl Asset {
         for (i, &e) in self.roots.iter().enumerate() {
             let fine = e == EMPTY
                 || if e & TILE_BIT != 0 {
-                    ((e & !TILE_BIT) as usize) < n_tiles
+                    // A tiled region holds one value: multi-channel assets have none.
+                    nch == 1 && ((e & !TILE_BIT) as usize) < n_tiles
                 } else {
                     (e as usize) < n_l2
                 };
@@ -246,6 +266,34 @@ impl Asset {
                 "leaf ref {i} ({:#x}) points outside the tiles/bricks",
                 self.l3_refs[i]
             ));
+        }
+        if !self.l3_refs.len().is_multiple_of(nch)
+            || self.l2_ranges.len() != n_l2 * nch
+            || self.frame_ranges.len() != self.frame_count() * nch
+        {
+            return bad(format!(
+                "leaf refs, node or frame ranges are not {nch} per slot, node and frame"
+            ));
+        }
+        let h = &self.header;
+        if !h.channels.is_empty() {
+            let c0 = &h.channels[0];
+            if c0.name != h.grid_name || c0.background.to_bits() != h.background.to_bits() {
+                return bad("channel 0 does not match the header's grid name and background");
+            }
+            for (i, c) in h.channels.iter().enumerate() {
+                if !c.background.is_finite()
+                    || c.active_voxels.len() != self.frame_count()
+                    || c.max_error.is_some_and(|e| !(e.is_finite() && e > 0.0))
+                    || h.channels[..i].iter().any(|o| o.name == c.name)
+                {
+                    return bad(format!(
+                        "channel {i} ({:?}): non-finite background, a duplicate name, a bad \
+                         error budget or not one voxel count per frame",
+                        c.name
+                    ));
+                }
+            }
         }
         let finite = |v: &f32| v.is_finite();
         if !self.tiles.iter().all(finite) || !self.header.background.is_finite() {

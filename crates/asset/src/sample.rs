@@ -17,9 +17,9 @@ pub enum LeafRef {
 }
 
 impl Asset {
-    /// The L2 node slot of leaf `(lx, ly, lz)` (in leaves, relative to the node).
+    /// The ref of channel `c` at slot `slot` of L2 node `node` (`None`: the slot is not stored).
     #[inline]
-    fn slot_ref(&self, node: usize, slot: usize) -> Option<u32> {
+    fn slot_ref(&self, node: usize, slot: usize, c: usize) -> Option<u32> {
         let w = slot >> 6;
         let word = self.l2_masks[node * L2_WORDS + w];
         let bit = 1u64 << (slot & 63);
@@ -29,12 +29,14 @@ impl Asset {
         let idx = self.l2_base[node] as usize
             + self.l2_prefix[node * L2_WORDS + w] as usize
             + (word & (bit - 1)).count_ones() as usize;
-        Some(self.l3_refs[idx])
+        Some(self.l3_refs[idx * self.channel_count() + c])
     }
 
     #[inline]
     fn decode_ref(&self, r: u32) -> LeafRef {
-        if r & TILE_BIT != 0 {
+        if r == EMPTY {
+            LeafRef::Empty
+        } else if r & TILE_BIT != 0 {
             LeafRef::Tile(self.tiles[(r & !TILE_BIT) as usize])
         } else {
             LeafRef::Brick(r)
@@ -55,8 +57,13 @@ impl Asset {
         self.roots[frame * self.root_len() + root]
     }
 
-    /// What the leaf containing asset index `a` holds in `frame`.
+    /// What the leaf containing asset index `a` holds in `frame` (channel 0).
     pub fn leaf_at(&self, frame: usize, a: [i64; 3]) -> LeafRef {
+        self.leaf_at_c(frame, a, 0)
+    }
+
+    /// What channel `c` of the leaf containing asset index `a` holds in `frame`.
+    pub fn leaf_at_c(&self, frame: usize, a: [i64; 3], c: usize) -> LeafRef {
         let e = self.root_entry(frame, a);
         if e == EMPTY {
             return LeafRef::Empty;
@@ -65,23 +72,34 @@ impl Asset {
             return LeafRef::Tile(self.tiles[(e & !TILE_BIT) as usize]);
         }
         let l = [0, 1, 2].map(|i| ((a[i] & 127) >> 3) as usize);
-        self.l2_leaf(e, l[0] + 16 * (l[1] + 16 * l[2]))
+        self.l2_leaf_c(e, l[0] + 16 * (l[1] + 16 * l[2]), c)
     }
 
     /// What slot `s = x + 16·(y + 16·z)` of L2 node `node` holds (for walks that already hold
     /// the node: no descent from the root).
     #[inline]
     pub fn l2_leaf(&self, node: u32, s: usize) -> LeafRef {
-        match self.slot_ref(node as usize, s) {
+        self.l2_leaf_c(node, s, 0)
+    }
+
+    /// [`Asset::l2_leaf`] of channel `c`.
+    #[inline]
+    pub fn l2_leaf_c(&self, node: u32, s: usize, c: usize) -> LeafRef {
+        match self.slot_ref(node as usize, s, c) {
             None => LeafRef::Empty,
             Some(r) => self.decode_ref(r),
         }
     }
 
-    /// Value at asset index `a` of `frame` (background outside what is stored).
+    /// Value at asset index `a` of `frame` (background outside what is stored; channel 0).
     pub fn value(&self, frame: usize, a: [i64; 3]) -> f32 {
-        match self.leaf_at(frame, a) {
-            LeafRef::Empty => self.header.background,
+        self.value_c(frame, a, 0)
+    }
+
+    /// Value of channel `c` at asset index `a` of `frame`.
+    pub fn value_c(&self, frame: usize, a: [i64; 3], c: usize) -> f32 {
+        match self.leaf_at_c(frame, a, c) {
+            LeafRef::Empty => self.header.channel_background(c),
             LeafRef::Tile(v) => v,
             LeafRef::Brick(b) => {
                 let (f, bytes) = self.brick_bytes(b);
@@ -98,9 +116,14 @@ impl Asset {
         }
     }
 
-    /// Value at a *source* index coordinate.
+    /// Value at a *source* index coordinate (channel 0).
     pub fn value_at_source(&self, frame: usize, s: [i32; 3]) -> f32 {
         self.value(frame, self.header.to_asset_index(s))
+    }
+
+    /// Value of channel `c` at a *source* index coordinate.
+    pub fn value_at_source_c(&self, frame: usize, s: [i32; 3], c: usize) -> f32 {
+        self.value_c(frame, self.header.to_asset_index(s), c)
     }
 
     /// All 512 values of brick `b`, voxel `(x, y, z)` at `64·x + 8·y + z`.
@@ -110,8 +133,20 @@ impl Asset {
     }
 
     /// Calls `f(leaf asset origin, ref)` for every stored leaf of `frame` (tiled root regions are
-    /// reported once as `(region origin, Tile)` with `region = true`).
-    pub fn for_each_leaf(&self, frame: usize, mut f: impl FnMut([i64; 3], LeafRef, bool)) {
+    /// reported once as `(region origin, Tile)` with `region = true`; channel 0).
+    pub fn for_each_leaf(&self, frame: usize, f: impl FnMut([i64; 3], LeafRef, bool)) {
+        self.for_each_leaf_c(frame, 0, f)
+    }
+
+    /// [`Asset::for_each_leaf`] of channel `c`: leaves where `c` is background (`EMPTY` refs of
+    /// a multi-channel asset) are not reported.
+    pub fn for_each_leaf_c(
+        &self,
+        frame: usize,
+        c: usize,
+        mut f: impl FnMut([i64; 3], LeafRef, bool),
+    ) {
+        let nch = self.channel_count();
         let d = self.header.root_dims.map(|x| x as usize);
         for (i, &e) in self.frame_roots(frame).iter().enumerate() {
             if e == EMPTY {
@@ -132,12 +167,16 @@ impl Asset {
                     let s = w * 64 + bits.trailing_zeros() as usize;
                     bits &= bits - 1;
                     let l = [s % 16, (s / 16) % 16, s / 256];
+                    let r = self.l3_refs[k * nch + c];
+                    k += 1;
+                    if r == EMPTY {
+                        continue;
+                    }
                     f(
                         [0, 1, 2].map(|a| o[a] + 8 * l[a] as i64),
-                        self.decode_ref(self.l3_refs[k]),
+                        self.decode_ref(r),
                         false,
                     );
-                    k += 1;
                 }
             }
         }

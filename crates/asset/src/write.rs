@@ -76,11 +76,10 @@ impl Asset {
         }
         header.content_hash = content_hash(&header, &raws)?;
         drop(raws);
-        let hbytes = bincode::serde::encode_to_vec(&header, bincode::config::standard())
-            .map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))?;
+        let hbytes = header.encode()?;
         let mut out = Vec::with_capacity(16 + hbytes.len() + body.len());
         out.extend_from_slice(&MAGIC);
-        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&header.format_version().to_le_bytes());
         out.extend_from_slice(&(hbytes.len() as u32).to_le_bytes());
         out.extend_from_slice(&hbytes);
         out.extend_from_slice(&body);
@@ -95,8 +94,7 @@ pub(crate) fn content_hash<T: AsRef<[u8]>>(
 ) -> Result<u64, crate::AssetError> {
     let mut h = header.clone();
     h.content_hash = 0;
-    let hb = bincode::serde::encode_to_vec(&h, bincode::config::standard())
-        .map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))?;
+    let hb = h.encode()?;
     let mut all = xxhash_rust::xxh3::Xxh3::new();
     all.update(&hb);
     for r in raws {

@@ -73,6 +73,7 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
             brick_counts,
             sections: vec![],
             content_hash: 0,
+            channels: Vec::new(),
         },
         roots: vec![0, TILE_BIT | 1, 0, EMPTY],
         frame_ranges: vec![[0.0, 777.0], [0.0, 777.0]],
@@ -211,4 +212,160 @@ fn corrupt_and_truncated_files_are_refused_without_panic() {
         }
     }
     assert!(Asset::from_bytes(b"not an asset at all").is_err());
+}
+
+/// `sample_asset` (F32) as channel 0 of a two-channel asset: channel 1 ("temperature",
+/// background 300) holds the tile 1500 in slot 0 and is its background in slot 1, in both frames.
+/// Region 1 of frame 0 (a tiled region in one channel) becomes a full node of tile refs, as
+/// multi-channel assets have no tiled root entries.
+fn two_channel_asset() -> Asset {
+    let (mut a, _) = sample_asset(PayloadFormat::F32);
+    a.header.channels = vec![
+        ChannelInfo {
+            name: "density".into(),
+            background: 0.0,
+            max_error: None,
+            active_voxels: vec![1000, 1000],
+        },
+        ChannelInfo {
+            name: "temperature".into(),
+            background: 300.0,
+            max_error: Some(5.0),
+            active_voxels: vec![512, 512],
+        },
+    ];
+    a.tiles.push(1500.0); // tile 2
+                          // Node 0: slot 0 = (brick 0, tile 1500), slot 1 = (tile 7.5, EMPTY).
+    a.l3_refs = vec![0, TILE_BIT | 2, TILE_BIT, EMPTY];
+    // Node 1: every slot = (tile 2.0, EMPTY), for frame 0's region 1.
+    a.l2_masks.extend([u64::MAX; L2_WORDS]);
+    a.l2_base.push(2);
+    a.l2_prefix.extend((0..L2_WORDS).map(|w| (64 * w) as u16));
+    for _ in 0..L2_SLOTS {
+        a.l3_refs.extend([TILE_BIT | 1, EMPTY]);
+    }
+    a.roots = vec![0, 1, 0, EMPTY];
+    a.l2_ranges = vec![[0.0, 777.0], [300.0, 1500.0], [2.0, 2.0], [300.0, 300.0]];
+    a.frame_ranges = vec![[0.0, 777.0], [300.0, 1500.0], [0.0, 777.0], [300.0, 1500.0]];
+    a
+}
+
+#[test]
+fn single_channel_assets_stay_version_2_and_multi_channel_ones_are_version_3() {
+    let (a, _) = sample_asset(PayloadFormat::F32);
+    let (bytes, _) = a.to_bytes().unwrap();
+    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
+    let m = two_channel_asset();
+    m.validate().unwrap();
+    let (mb, header) = m.to_bytes().unwrap();
+    assert_eq!(u32::from_le_bytes(mb[8..12].try_into().unwrap()), 3);
+    let back = Asset::from_bytes(&mb).unwrap();
+    let mut expect = m.clone();
+    expect.header = header;
+    assert_eq!(back, expect, "v3 round trip");
+    assert_eq!(m.to_bytes().unwrap().0, mb, "deterministic");
+}
+
+#[test]
+fn channels_read_their_own_values_and_backgrounds() {
+    let m = two_channel_asset();
+    let (single, _) = sample_asset(PayloadFormat::F32);
+    assert_eq!(m.channel_count(), 2);
+    assert_eq!(m.header.channel_index("temperature"), Some(1));
+    for f in 0..2 {
+        for p in [[3, 2, 1], [9, 1, 1], [20, 3, 3], [200, 5, 5], [-1, 0, 0]] {
+            // Channel 0 reads exactly what the single-channel asset holds.
+            assert_eq!(m.value(f, p), single.value(f, p), "frame {f} {p:?}");
+        }
+        assert_eq!(m.value_c(f, [3, 2, 1], 1), 1500.0, "slot 0 tile");
+        assert_eq!(m.value_c(f, [9, 1, 1], 1), 300.0, "EMPTY ref: background");
+        assert_eq!(
+            m.value_c(f, [40, 1, 1], 1),
+            300.0,
+            "missing slot: background"
+        );
+        assert_eq!(m.value_c(f, [-5, 1, 1], 1), 300.0, "outside: background");
+    }
+    assert_eq!(m.value_c(0, [200, 5, 5], 1), 300.0, "node of (tile, EMPTY)");
+    assert_eq!(m.frame_range(0, 1), [300.0, 1500.0]);
+    // Leaf walks skip EMPTY refs: channel 1 stores one leaf per frame.
+    let mut n = 0;
+    m.for_each_leaf_c(0, 1, |_, r, _| {
+        assert_eq!(r, LeafRef::Tile(1500.0));
+        n += 1;
+    });
+    assert_eq!(n, 1);
+    let mut n0 = 0;
+    m.for_each_leaf_c(0, 0, |_, _, _| n0 += 1);
+    assert_eq!(
+        n0,
+        2 + L2_SLOTS,
+        "channel 0: two leaves and the expanded tiled region"
+    );
+}
+
+#[test]
+fn validation_refuses_hostile_multi_channel_assets() {
+    let cases: [fn(&mut Asset); 8] = [
+        // A tiled root entry: one value cannot stand for several channels.
+        |a| a.roots[1] = TILE_BIT | 1,
+        // Refs not a whole number per slot.
+        |a| {
+            a.l3_refs.pop();
+        },
+        // Ranges not one per channel.
+        |a| {
+            a.l2_ranges.pop();
+        },
+        |a| {
+            a.frame_ranges.pop();
+        },
+        // Channel 0 disagrees with the header's grid.
+        |a| a.header.channels[0].name = "smoke".into(),
+        // Duplicate channel names.
+        |a| a.header.channels[1].name = "density".into(),
+        // A voxel count per frame missing; a bad budget.
+        |a| {
+            a.header.channels[1].active_voxels.pop();
+        },
+        |a| a.header.channels[1].max_error = Some(-1.0),
+    ];
+    for (i, c) in cases.iter().enumerate() {
+        let mut a = two_channel_asset();
+        c(&mut a);
+        assert!(a.validate().is_err(), "case {i} accepted");
+        if let Ok((bytes, _)) = a.to_bytes() {
+            assert!(Asset::from_bytes(&bytes).is_err(), "case {i} loaded");
+        }
+    }
+    // One channel in a version-3 file, and EMPTY leaf refs in a version-2 file.
+    let mut one = two_channel_asset();
+    one.header.channels.truncate(1);
+    let (bytes, _) = one.to_bytes().unwrap();
+    assert!(Asset::from_bytes(&bytes).is_err());
+    let (mut v2, _) = sample_asset(PayloadFormat::F32);
+    v2.l3_refs[1] = EMPTY;
+    assert!(v2.validate().is_err());
+}
+
+#[test]
+fn corrupt_multi_channel_files_are_refused_without_panic() {
+    let (bytes, _) = two_channel_asset().to_bytes().unwrap();
+    let orig = Asset::from_bytes(&bytes).unwrap();
+    let mut state = 0x2545f4914f6cdd1du64;
+    for pos in 0..bytes.len() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let mut d = bytes.clone();
+        d[pos] ^= (state as u8) | 1;
+        let r = std::panic::catch_unwind(|| Asset::from_bytes(&d).map(|x| x.validate()));
+        let r = r.unwrap_or_else(|_| panic!("panic on a flipped byte at {pos}"));
+        if let Ok(Ok(())) = r {
+            assert_eq!(Asset::from_bytes(&d).unwrap(), orig, "flip at {pos}");
+        }
+    }
+    for cut in (0..bytes.len()).step_by(7) {
+        assert!(Asset::from_bytes(&bytes[..cut]).is_err(), "cut {cut}");
+    }
 }

@@ -12,12 +12,23 @@ use vdbcook_asset::{Asset, EMPTY, L2_SPAN, TILE_BIT};
 /// tile by its value, a brick by its `brick_ranges` max. NaN counts as content (`!(m ≤ 0)`), as
 /// the walks visit NaN.
 pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> {
-    let background = asset.header.background;
+    content_box_above(asset, frame, 0, 0.0)
+}
+
+/// [`content_box`] of channel `c` with values `≤ floor` counting as nothing (an emission
+/// channel's box: where it glows).
+pub fn content_box_above(
+    asset: &Asset,
+    frame: usize,
+    c: usize,
+    floor: f32,
+) -> Option<([f64; 3], [f64; 3])> {
+    let background = asset.header.channel_background(c);
     let d = asset.header.root_dims.map(|d| d as usize);
     let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
     // Grows the box by the cube of edge `size` at `o` if its max `m` is not `≤ 0`.
     let mut grow = |o: [i64; 3], size: i64, m: f32| {
-        if !(m <= 0.0) {
+        if !(m <= floor) {
             for a in 0..3 {
                 lo[a] = lo[a].min(o[a]);
                 hi[a] = hi[a].max(o[a] + size);
@@ -48,7 +59,7 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
                     o[2] + 8 * z as i64,
                 ]
             };
-            if !(background <= 0.0) {
+            if !(background <= floor) {
                 let mut empty = !word;
                 while empty != 0 {
                     grow(leaf_origin(empty.trailing_zeros() as usize), 8, background);
@@ -56,7 +67,7 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
                 }
             }
         }
-        for_each_slot_max(asset, node, |w, bit, v| {
+        for_each_slot_max_c(asset, node, c, |w, bit, v| {
             let (z, yb) = (w / 4, w % 4);
             let (x, y) = (bit % 16, 4 * yb + bit / 16);
             let l = [
@@ -76,16 +87,30 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
 /// word `w`, its bit in that word, and its value bound (a tile's value, a brick's
 /// `brick_ranges` max). Mask word `w` holds slots `x + 16·(y + 16·z)` with `z = w / 4`,
 /// `y / 4 = w % 4`, bit `x + 16·(y % 4)`; the refs follow in slot order from `l2_base[node]`.
-pub fn for_each_slot_max(asset: &Asset, node: usize, mut f: impl FnMut(usize, usize, f32)) {
+pub fn for_each_slot_max(asset: &Asset, node: usize, f: impl FnMut(usize, usize, f32)) {
+    for_each_slot_max_c(asset, node, 0, f)
+}
+
+/// [`for_each_slot_max`] of channel `c` (a slot where `c` is its background has its background
+/// as the bound).
+pub fn for_each_slot_max_c(
+    asset: &Asset,
+    node: usize,
+    c: usize,
+    mut f: impl FnMut(usize, usize, f32),
+) {
+    let nch = asset.channel_count();
     let mut k = asset.l2_base[node] as usize;
     for (w, &word) in asset.l2_mask(node).iter().enumerate() {
         let mut bits = word;
         while bits != 0 {
             let bit = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let r = asset.l3_refs[k];
+            let r = asset.l3_refs[k * nch + c];
             k += 1;
-            let v = if r & TILE_BIT != 0 {
+            let v = if r == EMPTY {
+                asset.header.channel_background(c)
+            } else if r & TILE_BIT != 0 {
                 asset.tiles[(r & !TILE_BIT) as usize]
             } else {
                 asset.brick_ranges[r as usize][1]

@@ -10,13 +10,17 @@
 /// Entries of the blackbody table over `[lo, hi]` Kelvin.
 pub const BLACKBODY_TABLE_LEN: usize = 32;
 
-/// Emission settings: the rendered grid's value is a temperature in Kelvin; at or below `lo` it
-/// emits nothing; above, the radiance is `intensity · s⁴ · rgb(T)`, `s = min((T − lo)/(hi − lo),
-/// 1)`, `rgb(T)` the blackbody colour at `min(T, hi)` scaled to luminance 1.
+/// Emission settings: the value of the emitting grid is a temperature in Kelvin; at or below
+/// `lo` it emits nothing; above, the radiance is `intensity · s⁴ · rgb(T)`, `s = min((T −
+/// lo)/(hi − lo), 1)`, `rgb(T)` the blackbody colour at `min(T, hi)` scaled to luminance 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Emission {
     pub range: [f32; 2],
     pub intensity: f32,
+    /// The channel whose values are the temperature: 0, the rendered grid itself (its values
+    /// absorb and emit), or a later channel of a multi-channel asset (fire: `density` absorbs,
+    /// `temperature` emits), drawn in the density, scatter and lit modes.
+    pub channel: usize,
 }
 
 /// Half-Gaussian with separate widths below and above the mean (the Wyman et al. lobes).
@@ -156,6 +160,7 @@ mod tests {
         let e = Emission {
             range: [800.0, 2000.0],
             intensity: 3.0,
+            channel: 0,
         };
         let t = blackbody_table(e.range);
         assert_eq!(e.radiance(&t, 800.0), [0.0; 3]);

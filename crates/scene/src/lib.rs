@@ -19,7 +19,7 @@ mod settings;
 mod space;
 
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
-pub use content::{content_box, for_each_slot_max};
+pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use light::{light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};
 pub use settings::{

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 use vdbcook_asset::Asset;
 
 use crate::color::{brick_color, heat, STEPS_FULL_SCALE};
+use crate::dda::{walk_cells, Flow};
 use crate::delta::{Path, MAX_EVENTS};
 use crate::exact::{Density, FirstHit};
 use crate::lit::{LightVolume, LitMarch};
@@ -15,8 +16,8 @@ use crate::space::IndexRay;
 use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
-    blackbody_table, depth_range, normalize, stored_bbox, Affine, Camera, LengthUnit, Mode,
-    RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
+    blackbody_table, depth_range, normalize, stored_bbox, Affine, Camera, Emission, LengthUnit,
+    Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -58,7 +59,25 @@ pub struct Tracer<'a> {
     pub(crate) emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
     /// The light volume of `Mode::Lit` (built in `new`; `None` in the other modes).
     pub(crate) light: Option<LightVolume>,
+    /// Emission read from another channel than the rendered one (`Emission::channel > 0`;
+    /// `settings.emission` is then `None`, and this is added after the mode's march).
+    pub(crate) channel_emission: Option<ChannelEmission>,
 }
+
+/// Emission from channel `channel` of a multi-channel asset, drawn by [`Tracer::trace`] after the
+/// mode's march: `∫ T(s) · E(c(s)) ds` over the voxels of `bbox` (where the channel is above the
+/// emission's floor), `T` the transmittance of channel 0 from the eye with the mode's extinction
+/// (`absorb` in `Density`, `absorb + scatter` in `SingleScatter` and `Lit`), each voxel exact
+/// for nearest-voxel values: `T · E · ℓ · φ(σℓ)`.
+pub(crate) struct ChannelEmission {
+    emission: Emission,
+    channel: usize,
+    /// Cell-space box outside which the channel does not glow (`None`: it glows nowhere).
+    bbox: Option<([f64; 3], [f64; 3])>,
+}
+
+/// Modes that draw emission from another channel.
+const CHANNEL_EMISSION_MODES: [Mode; 3] = [Mode::Density, Mode::SingleScatter, Mode::Lit];
 
 impl<'a> Tracer<'a> {
     /// Validates the settings and the transform and precomputes per-render constants.
@@ -69,6 +88,46 @@ impl<'a> Tracer<'a> {
     ) -> Result<Tracer<'a>, TraceError> {
         settings.validate(asset.frame_count())?;
         camera.basis(settings.width, settings.height)?;
+        let mut settings = settings.clone();
+        let mut channel_emission = None;
+        if let Some(e) = settings.emission.filter(|e| e.channel > 0) {
+            if e.channel >= asset.channel_count() {
+                return Err(TraceError::Setting(format!(
+                    "emission channel {} is not in the asset ({} channel(s))",
+                    e.channel,
+                    asset.channel_count()
+                )));
+            }
+            if !CHANNEL_EMISSION_MODES.contains(&settings.mode) {
+                return Err(TraceError::Setting(format!(
+                    "emission from another channel ('{}') is drawn in the density, scatter and \
+                     lit modes; {:?} reads emission from the rendered grid only",
+                    asset.header.channel_name(e.channel),
+                    settings.mode
+                )));
+            }
+            // Where the channel exceeds its background, or everywhere when its background
+            // glows itself (the runtime's renderer takes the same box).
+            let bg = asset.header.channel_background(e.channel);
+            let bbox = if e.range[0] >= bg {
+                vdbcook_scene::content_box_above(asset, settings.frame, e.channel, bg)
+            } else {
+                Some(([0.0; 3], extent(asset)))
+            };
+            channel_emission = Some(ChannelEmission {
+                emission: e,
+                channel: e.channel,
+                bbox,
+            });
+        }
+        let emit_table = settings
+            .emission
+            .map(|e| blackbody_table(e.range))
+            .unwrap_or([[0.0; 4]; BLACKBODY_TABLE_LEN]);
+        if channel_emission.is_some() {
+            settings.emission = None;
+        }
+        let settings = &settings;
         let xf = Affine::cells(&asset.header.index_to_world)?;
         let l = settings.light_dir.map(|c| c as f64);
         let light_index = xf.dir_to_index(normalize(l));
@@ -83,7 +142,7 @@ impl<'a> Tracer<'a> {
         let ext = extent(asset);
         let bbox = stored_bbox(asset, settings.frame).unwrap_or(([0.0; 3], ext));
         let depth_range = depth_range(&xf, bbox, camera.eye);
-        let value_max = asset.frame_ranges[settings.frame][1];
+        let value_max = asset.frame_range(settings.frame, 0)[1];
         let light = (settings.mode == Mode::Lit)
             .then(|| LightVolume::build(asset, settings.frame, &xf, settings, extinction));
         Ok(Tracer {
@@ -96,11 +155,9 @@ impl<'a> Tracer<'a> {
             albedo,
             depth_range,
             value_max: if value_max > 0.0 { value_max } else { 1.0 },
-            emit_table: settings
-                .emission
-                .map(|e| blackbody_table(e.range))
-                .unwrap_or([[0.0; 4]; BLACKBODY_TABLE_LEN]),
+            emit_table,
             light,
+            channel_emission,
         })
     }
 
@@ -189,6 +246,90 @@ impl<'a> Tracer<'a> {
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
     /// here). `pixel` seeds delta tracking (`y·width + x` in `render`).
     pub fn trace(&self, eye: [f64; 3], dir: [f64; 3], pixel: u32, scratch: &mut Scratch) -> Sample {
+        let mut out = self.trace_mode(eye, dir, pixel, scratch);
+        if let Some(ce) = &self.channel_emission {
+            let ray = IndexRay::new(
+                self.xf.index_of(eye),
+                self.xf.dir_to_index(normalize(dir)),
+                self.voxel_units(),
+            );
+            let ext = match self.settings.mode {
+                Mode::Density => self.settings.absorb as f64,
+                _ => self.extinction,
+            };
+            let e = self.emission_of_channel(ce, &ray, ext, scratch);
+            for (o, e) in out.rgba.iter_mut().zip(e) {
+                *o += e as f32;
+            }
+        }
+        out
+    }
+
+    /// [`ChannelEmission`] along `ray`: the voxels of its box the ray crosses inside the root
+    /// extent, behind channel 0's optical depth from the ray's entry into the extent.
+    fn emission_of_channel(
+        &self,
+        ce: &ChannelEmission,
+        ray: &IndexRay,
+        ext: f64,
+        scratch: &mut Scratch,
+    ) -> [f64; 3] {
+        let mut light = [0.0f64; 3];
+        let (Some((lo, hi)), Some((t0, t1))) = (ce.bbox, ray.clip(self.extent)) else {
+            return light;
+        };
+        let Some((a, b)) = ray.clip_box(lo, hi) else {
+            return light;
+        };
+        let (a, b) = (a.max(t0), b.min(t1));
+        if !(a < b) {
+            return light;
+        }
+        // Channel 0's optical depth from the extent's entry to the box's.
+        let mut v = Density {
+            per_t: ray.per_t,
+            absorb: ext,
+            tau: 0.0,
+            steps: 0,
+            emission: None,
+            light: [0.0; 3],
+        };
+        if a > t0 {
+            walk(&self.grid, ray, t0, a, &mut scratch.primary, &mut v);
+        }
+        let mut trans = (-ext * v.tau).exp();
+        let asset = self.grid.asset;
+        let frame = self.settings.frame;
+        let (clo, chi) = (lo.map(|c| c as i64), hi.map(|c| c as i64));
+        walk_cells(ray, 1.0, clo, chi, a, b, |cell, ta, tb| {
+            let l = (tb - ta) * ray.per_t;
+            let rho = asset.value(frame, cell);
+            let x = if rho > 0.0 { ext * rho as f64 * l } else { 0.0 };
+            let r = ce
+                .emission
+                .radiance(&self.emit_table, asset.value_c(frame, cell, ce.channel));
+            let w = trans * l * crate::exact::phi(x);
+            for (o, r) in light.iter_mut().zip(r) {
+                *o += w * r as f64;
+            }
+            trans *= (-x).exp();
+            if trans < 1e-6 {
+                Flow::Stop
+            } else {
+                Flow::Go
+            }
+        });
+        light
+    }
+
+    /// [`Tracer::trace`] without emission from another channel.
+    fn trace_mode(
+        &self,
+        eye: [f64; 3],
+        dir: [f64; 3],
+        pixel: u32,
+        scratch: &mut Scratch,
+    ) -> Sample {
         let s = &self.settings;
         let ray = IndexRay::new(
             self.xf.index_of(eye),

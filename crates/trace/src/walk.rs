@@ -232,7 +232,7 @@ pub(crate) fn walk(
             let value = asset.tiles[(e & !TILE_BIT) as usize];
             return uniform(v, ta, tb, value, Holder::Tile);
         }
-        if v.skip(asset.l2_ranges[e as usize][1]) {
+        if v.skip(asset.l2_range(e as usize, 0)[1]) {
             return Flow::Go;
         }
         let block = grid.block_of[e as usize];

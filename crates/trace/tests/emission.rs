@@ -29,6 +29,7 @@ fn settings(absorb: f32) -> RenderSettings {
         emission: Some(Emission {
             range: [800.0, 2000.0],
             intensity: 2.0,
+            channel: 0,
         }),
         ..Default::default()
     }
@@ -121,6 +122,7 @@ fn emission_outside_the_shaded_modes_or_out_of_range_is_refused() {
             emission: Some(Emission {
                 range: [2000.0, 800.0],
                 intensity: 1.0,
+                channel: 0,
             }),
             ..settings(0.1)
         },
@@ -128,6 +130,7 @@ fn emission_outside_the_shaded_modes_or_out_of_range_is_refused() {
             emission: Some(Emission {
                 range: [800.0, 2000.0],
                 intensity: f32::NAN,
+                channel: 0,
             }),
             ..settings(0.1)
         },

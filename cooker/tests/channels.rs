@@ -1,0 +1,610 @@
+//! Multi-channel assets (`cook --grids`) end to end through the binary, against OpenVDB's own
+//! truth files (written by python3-openvdb with the fire fixtures) and against `eval`, whose
+//! reader is itself checked against OpenVDB: lossless cooks are exact per grid, per-channel
+//! `--max-error` holds on every voxel, output is deterministic, channel 0 renders exactly as a
+//! single-grid asset of the same grid, and bad inputs get clear refusals.
+
+mod common;
+
+use std::path::Path;
+
+use common::{gpu_required, json, read_pfm, root, vdbcook as run};
+use serde_json::Value;
+
+const FIRE: &str = "fixtures/seq/fire";
+const GRIDS: [&str; 3] = ["density", "temperature", "flame"];
+
+/// OpenVDB's truth of grid `name` in `fixtures/seq/fire/fire.000N.truth.json`.
+fn fire_truth(frame: usize, name: &str) -> Value {
+    let p = root().join(format!("{FIRE}/fire.{:04}.truth.json", frame + 1));
+    let t: Value = serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+    t["grids"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|g| g["name"] == name)
+        .unwrap()
+        .clone()
+}
+
+fn cook(out: &Path, extra: &[&str]) -> Value {
+    let o = out.to_str().unwrap();
+    let mut args = vec![
+        "cook",
+        "--json",
+        FIRE,
+        "-o",
+        o,
+        "--grids",
+        "density,temperature,flame",
+    ];
+    args.extend_from_slice(extra);
+    json(&args)
+}
+
+#[test]
+fn lossless_fire_channels_are_exact_per_grid_against_openvdb_truth() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("fire.vdbc");
+    let c = cook(&out, &[]);
+    let o = out.to_str().unwrap();
+    let info = json(&["info", "--json", o]);
+    assert_eq!(info["format_version"], 3);
+    let e = json(&["eval", "--json", o, FIRE]);
+    assert_eq!(e["max_abs"], 0.0, "{e}");
+    assert_eq!(e["inactive_errors"], 0);
+    let mut total = 0;
+    for (ci, name) in GRIDS.iter().enumerate() {
+        let ch = &info["channels"][ci];
+        assert_eq!(ch["name"], *name);
+        let ev = &e["channels"][ci];
+        assert_eq!(ev["name"], *name);
+        assert_eq!(ev["exact"], true, "{name}");
+        let mut sum = 0;
+        for f in 0..4 {
+            let t = fire_truth(f, name);
+            let n = t["active_voxels"].as_u64().unwrap();
+            assert_eq!(ch["frames"][f]["active_voxels"], n, "{name} frame {f}");
+            sum += n;
+            // The stored box covers OpenVDB's active box (at leaf granularity), per channel.
+            if n > 0 {
+                for a in 0..3 {
+                    let lo = ch["frames"][f]["bbox_min"][a].as_i64().unwrap();
+                    let hi = ch["frames"][f]["bbox_max"][a].as_i64().unwrap();
+                    assert!(lo <= t["bbox_min"][a].as_i64().unwrap(), "{name} {f}");
+                    assert!(hi >= t["bbox_max"][a].as_i64().unwrap(), "{name} {f}");
+                    assert!(hi - t["bbox_max"][a].as_i64().unwrap() < 8, "{name} {f}");
+                }
+            } else {
+                // Flame burnt out in frame 4: the channel stores nothing there.
+                assert!(ch["frames"][f]["bbox_min"].is_null(), "{name} {f}");
+                assert_eq!(ch["frames"][f]["bricks"], 0);
+            }
+        }
+        assert_eq!(ch["active_voxels"], sum, "{name}");
+        assert_eq!(ev["active_voxels"], sum, "{name}");
+        assert_eq!(c["channels"][ci]["active_voxels"], sum, "{name}");
+        total += sum;
+    }
+    assert_eq!(c["active_voxels"], total);
+    assert_eq!(e["active_voxels"], total);
+    // One shared topology: fewer L2 nodes than three single-grid cooks together.
+    let mut nodes = 0;
+    for name in GRIDS {
+        let p = d.path().join(format!("{name}.vdbc"));
+        let s = json(&[
+            "cook",
+            "--json",
+            FIRE,
+            "--grid",
+            name,
+            "-o",
+            p.to_str().unwrap(),
+        ]);
+        nodes += s["nodes"]["l2"].as_u64().unwrap();
+        // The single-grid asset stays version 2.
+        assert_eq!(
+            json(&["info", "--json", p.to_str().unwrap()])["format_version"],
+            2
+        );
+    }
+    assert!(c["nodes"]["l2"].as_u64().unwrap() < nodes);
+}
+
+#[test]
+fn per_channel_max_error_holds_on_every_voxel_and_eval_agrees() {
+    let d = tempfile::tempdir().unwrap();
+    let budgets = [0.01, 5.0, 0.02];
+    for (k, spec) in [
+        "density=0.01,temperature=5,flame=0.02",
+        // A bare budget for the channels not named.
+        "0.01,temperature=5,flame=0.02",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let out = d.path().join(format!("fire{k}.vdbc"));
+        let c = cook(&out, &["--format", "bc4", "--max-error", spec]);
+        let e = json(&["eval", "--json", out.to_str().unwrap(), FIRE]);
+        for (ci, name) in GRIDS.iter().enumerate() {
+            let cc = &c["channels"][ci];
+            let ec = &e["channels"][ci];
+            assert_eq!(cc["max_error"].as_f64().unwrap() as f32, budgets[ci] as f32);
+            let any_gpu = cc["error"]["max_abs_any_gpu"].as_f64().unwrap();
+            let measured = ec["max_abs"].as_f64().unwrap();
+            assert!(any_gpu <= budgets[ci], "{spec} {name}: {any_gpu}");
+            assert!(measured <= budgets[ci], "{spec} {name}: {measured}");
+            assert!(
+                (measured - cc["error"]["max_abs"].as_f64().unwrap()).abs() < 1e-9,
+                "{name}: cook and eval disagree"
+            );
+            // Not lossless: the budget was used (each channel is lossy somewhere).
+            assert!(measured > 0.0, "{spec} {name}");
+        }
+        // Each channel is held to its own budget, not to the smallest one: temperature's error
+        // is over density's budget (a global minimum would store it far more finely).
+        assert!(e["channels"][1]["max_abs"].as_f64().unwrap() > budgets[0] * 10.0);
+        // A temperature budget in Kelvin does not loosen density: its error stays in its own
+        // units, 500× below temperature's.
+        assert!(
+            e["channels"][0]["max_abs"].as_f64().unwrap()
+                < e["channels"][1]["max_abs"].as_f64().unwrap() / 100.0
+        );
+    }
+    // The same cook at 1 and 2 threads: the same bytes.
+    let a = d.path().join("t1.vdbc");
+    let b = d.path().join("t2.vdbc");
+    for (t, p) in [("1", &a), ("2", &b)] {
+        let (code, _, err) = run(&[
+            "--threads",
+            t,
+            "cook",
+            FIRE,
+            "--grids",
+            "density,temperature,flame",
+            "--format",
+            "bc4",
+            "--max-error",
+            "density=0.01,temperature=5,flame=0.02",
+            "-o",
+            p.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+}
+
+#[test]
+fn grids_with_different_active_regions_share_one_topology_exactly() {
+    // multi_grids.vdb: `density` and the DoubleGrid `heat_d` share a transform but not their
+    // active regions (truth: 1,370 and 578 voxels).
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("m.vdbc");
+    let o = out.to_str().unwrap();
+    let input = "fixtures/vdb/multi_grids.vdb";
+    let c = json(&[
+        "cook",
+        "--json",
+        input,
+        "--grids",
+        "density,heat_d",
+        "-o",
+        o,
+    ]);
+    assert_eq!(c["channels"][0]["active_voxels"], 1370);
+    assert_eq!(c["channels"][1]["active_voxels"], 578);
+    let e = json(&["eval", "--json", o, input]);
+    assert_eq!(e["max_abs"], 0.0);
+    assert_eq!(e["channels"][1]["active_voxels"], 578);
+    // `--grid` limits eval to one channel.
+    let one = json(&["eval", "--json", o, input, "--grid", "heat_d"]);
+    assert_eq!(one["active_voxels"], 578);
+    assert_eq!(one["channels"].as_array().unwrap().len(), 1);
+}
+
+fn refused(args: &[&str], out: &Path, needles: &[&str]) {
+    let (code, _, err) = run(args);
+    assert_ne!(code, 0, "{args:?} accepted");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: '{n}' missing from: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists(), "{args:?} left {}", out.display());
+}
+
+#[test]
+fn bad_channel_inputs_are_refused_clearly_and_leave_no_output() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("x.vdbc");
+    let o = out.to_str().unwrap();
+    // Different voxel sizes: no silent resampling.
+    refused(
+        &[
+            "cook",
+            "fixtures/vdb/fire_mixed_xform.vdb",
+            "--grids",
+            "density,temperature",
+            "-o",
+            o,
+        ],
+        &out,
+        &["different transforms", "temperature", "density"],
+    );
+    // A non-float grid asked as a channel.
+    refused(
+        &[
+            "cook",
+            "fixtures/vdb/fire_vec.vdb",
+            "--grids",
+            "density,vel",
+            "-o",
+            o,
+        ],
+        &out,
+        &["vel"],
+    );
+    // A grid no frame has.
+    refused(
+        &["cook", FIRE, "--grids", "density,soot", "-o", o],
+        &out,
+        &["soot"],
+    );
+    // Budgets for grids not cooked, duplicates, options not supported with several grids.
+    refused(
+        &[
+            "cook",
+            FIRE,
+            "--grids",
+            "density,flame",
+            "--max-error",
+            "heat=3",
+            "-o",
+            o,
+        ],
+        &out,
+        &["heat", "not a cooked grid"],
+    );
+    refused(
+        &["cook", FIRE, "--grids", "density,density", "-o", o],
+        &out,
+        &["twice"],
+    );
+    refused(
+        &[
+            "cook",
+            FIRE,
+            "--grids",
+            "density,flame",
+            "--clusters",
+            "4",
+            "-o",
+            o,
+        ],
+        &out,
+        &["--clusters", "several grids"],
+    );
+    refused(
+        &[
+            "cook",
+            FIRE,
+            "--grids",
+            "density,flame",
+            "--grid",
+            "density",
+            "-o",
+            o,
+        ],
+        &out,
+        &["cannot be used with"],
+    );
+    refused(
+        &[
+            "cook",
+            FIRE,
+            "--grids",
+            "density,flame",
+            "--max-error",
+            "flame=x",
+            "-o",
+            o,
+        ],
+        &out,
+        &["not a number"],
+    );
+}
+
+#[test]
+fn a_grid_missing_in_some_frames_is_an_error_or_background_when_allowed() {
+    // Frames 1-2 of the fire plus a third frame with only `density` (and a vector grid), on the
+    // same transform.
+    let d = tempfile::tempdir().unwrap();
+    let seq = d.path().join("seq");
+    std::fs::create_dir(&seq).unwrap();
+    for (src, dst) in [
+        ("fixtures/seq/fire/fire.0001.vdb", "f.0001.vdb"),
+        ("fixtures/seq/fire/fire.0002.vdb", "f.0002.vdb"),
+        ("fixtures/vdb/fire_vec.vdb", "f.0003.vdb"),
+    ] {
+        std::fs::copy(root().join(src), seq.join(dst)).unwrap();
+    }
+    let s = seq.to_str().unwrap();
+    let out = d.path().join("m.vdbc");
+    let o = out.to_str().unwrap();
+    refused(
+        &["cook", s, "--grids", "density,temperature", "-o", o],
+        &out,
+        &["f.0003.vdb", "temperature", "--allow-missing-grid"],
+    );
+    let c = json(&[
+        "cook",
+        "--json",
+        s,
+        "--grids",
+        "density,temperature",
+        "--allow-missing-grid",
+        "-o",
+        o,
+    ]);
+    assert_eq!(c["missing_grid_frames"].as_array().unwrap().len(), 1);
+    let info = json(&["info", "--json", o]);
+    assert_eq!(info["channels"][1]["frames"][2]["active_voxels"], 0);
+    assert_eq!(info["channels"][1]["frames"][2]["bricks"], 0);
+    assert_eq!(info["channels"][0]["frames"][2]["active_voxels"], 147);
+    let e = json(&["eval", "--json", o, s]);
+    assert_eq!(e["max_abs"], 0.0, "{e}");
+}
+
+#[test]
+fn channel_zero_renders_exactly_as_the_single_grid_asset() {
+    // The shared topology adds slots where only other channels live (EMPTY refs for density):
+    // every mode that renders channel 0 must not see them.
+    let d = tempfile::tempdir().unwrap();
+    let multi = d.path().join("m.vdbc");
+    let single = d.path().join("s.vdbc");
+    cook(&multi, &[]);
+    let (code, _, err) = run(&[
+        "cook",
+        FIRE,
+        "--grid",
+        "density",
+        "-o",
+        single.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    for backend in ["cpu", "gpu"] {
+        for mode in ["density", "scatter", "lit"] {
+            let mut imgs = Vec::new();
+            for (k, a) in [&multi, &single].iter().enumerate() {
+                let img = d.path().join(format!("{backend}-{mode}-{k}.pfm"));
+                let (code, _, err) = run(&[
+                    "render",
+                    a.to_str().unwrap(),
+                    "--mode",
+                    mode,
+                    "--backend",
+                    backend,
+                    "--width",
+                    "64",
+                    "--height",
+                    "48",
+                    "-o",
+                    img.to_str().unwrap(),
+                ]);
+                if backend == "gpu"
+                    && code != 0
+                    && !gpu_required()
+                    && err.contains("no GPU adapter")
+                {
+                    eprintln!("skipping: {err}");
+                    return;
+                }
+                assert_eq!(code, 0, "{err}");
+                imgs.push(std::fs::read(&img).unwrap());
+            }
+            assert!(imgs[0] == imgs[1], "{backend} {mode}: the images differ");
+        }
+    }
+}
+
+/// Renders `asset` to a PFM (64×48) with `extra` flags; `None` when the GPU backend has no
+/// adapter and may skip.
+fn render_pfm(dir: &Path, asset: &Path, name: &str, extra: &[&str]) -> Option<Vec<f32>> {
+    let img = dir.join(format!("{name}.pfm"));
+    let mut args = vec![
+        "render",
+        asset.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        img.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let (code, _, err) = run(&args);
+    if extra.contains(&"gpu") && code != 0 && !gpu_required() && err.contains("no GPU adapter") {
+        eprintln!("skipping: {err}");
+        return None;
+    }
+    assert_eq!(code, 0, "{args:?}: {err}");
+    Some(read_pfm(&img).2)
+}
+
+/// Largest difference relative to the image's peak.
+fn rel_diff(a: &[f32], b: &[f32]) -> f32 {
+    let peak = a.iter().fold(0.0f32, |m, v| m.max(v.abs())).max(1e-12);
+    a.iter()
+        .zip(b)
+        .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()))
+        / peak
+}
+
+#[test]
+fn fire_emission_reads_the_temperature_channel_behind_the_density() {
+    let d = tempfile::tempdir().unwrap();
+    let multi = d.path().join("fire.vdbc");
+    let temp = d.path().join("temperature.vdbc");
+    cook(&multi, &[]);
+    let (code, _, err) = run(&[
+        "cook",
+        FIRE,
+        "--grid",
+        "temperature",
+        "-o",
+        temp.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // The camera frames what channel 0 stores: give both renders the same one.
+    let cam = ["--camera", "3,1.2,3,0,0.7,0,40"];
+    let glow = ["--emission", "600,1800", "--emission-intensity", "2"];
+    for backend in ["cpu", "gpu"] {
+        let r = |asset: &Path, name: &str, absorb: &str, glowing: bool| {
+            let mut args = vec![
+                "--backend",
+                backend,
+                "--mode",
+                "density",
+                "--absorb",
+                absorb,
+            ];
+            args.extend_from_slice(&cam);
+            if glowing {
+                args.extend_from_slice(&glow);
+            }
+            render_pfm(d.path(), asset, &format!("{backend}-{name}"), &args)
+        };
+        // Without absorption the density does not matter: the emission of the temperature
+        // channel equals the single-grid emission of the temperature grid (the tested path
+        // that reads the rendered grid's own values), the line integral of E.
+        let Some(a) = r(&multi, "m", "0", true) else {
+            return;
+        };
+        let t = r(&temp, "t", "0", true).unwrap();
+        let peak = a.iter().fold(0.0f32, |m, v| m.max(*v));
+        assert!(peak > 0.1, "{backend}: no glow");
+        assert!(rel_diff(&t, &a) < 1e-4, "{backend}: {}", rel_diff(&t, &a));
+        // Pixels that miss the hot channel stay black.
+        let dark = a.chunks(3).filter(|p| p.iter().all(|&v| v == 0.0)).count();
+        assert!(dark > a.len() / 3 / 4, "{backend}: {dark} black pixels");
+        // Smoke in front absorbs: rgb = (1 − T) + emission, so the emission is the difference
+        // to the render without it; no pixel gains, and the image is dimmer.
+        let s = r(&multi, "s", "2", true).unwrap();
+        let grey = r(&multi, "g", "2", false).unwrap();
+        let (mut sum_free, mut sum_abs) = (0.0f64, 0.0f64);
+        for ((x, y), z) in s.iter().zip(&grey).zip(&a) {
+            let e = x - y;
+            assert!(
+                e <= z + 1e-4 * peak,
+                "{backend}: absorption brightened a pixel"
+            );
+            sum_abs += e as f64;
+            sum_free += *z as f64;
+        }
+        assert!(
+            sum_abs < 0.95 * sum_free,
+            "{backend}: {sum_abs} vs {sum_free}"
+        );
+    }
+}
+
+#[test]
+fn fire_emission_agrees_between_cpu_and_gpu_in_every_mode_that_draws_it() {
+    let d = tempfile::tempdir().unwrap();
+    let multi = d.path().join("fire.vdbc");
+    cook(&multi, &[]);
+    for mode in ["density", "scatter", "lit"] {
+        let mut imgs = Vec::new();
+        for backend in ["cpu", "gpu"] {
+            let extra = [
+                "--mode",
+                mode,
+                "--backend",
+                backend,
+                "--emission",
+                "600,1800",
+            ];
+            match render_pfm(d.path(), &multi, &format!("{mode}-{backend}"), &extra) {
+                Some(i) => imgs.push(i),
+                None => return,
+            }
+        }
+        // f32 against f64 over a few hundred voxels: within 1e-4 of the peak.
+        assert!(
+            rel_diff(&imgs[0], &imgs[1]) < 1e-4,
+            "{mode}: {}",
+            rel_diff(&imgs[0], &imgs[1])
+        );
+    }
+    // multi_grids.vdb: a hot `heat_d` (1000–1004 K) and a separate `density` blob, seen through
+    // the blob: the smoke in front of the emission's box absorbs it (the march's prefix).
+    let mg = d.path().join("mg.vdbc");
+    let input = "fixtures/vdb/multi_grids.vdb";
+    let (code, _, err) = run(&[
+        "cook",
+        input,
+        "--grids",
+        "density,heat_d",
+        "-o",
+        mg.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let view = |backend: &'static str, absorb: &'static str, glow: bool| {
+        let mut a = vec![
+            "--mode",
+            "density",
+            "--backend",
+            backend,
+            "--absorb",
+            absorb,
+        ];
+        a.extend(["--camera", "19.4,24.75,21.1,3.75,1,4.25,40"]);
+        if glow {
+            a.extend(["--emission", "999,1005", "--emission-grid", "heat_d"]);
+        }
+        a
+    };
+    let mut emitted = Vec::new();
+    for backend in ["cpu", "gpu"] {
+        let mut e = Vec::new();
+        for absorb in ["0", "1"] {
+            let name = format!("mg-{backend}-{absorb}");
+            let Some(with) = render_pfm(d.path(), &mg, &name, &view(backend, absorb, true)) else {
+                return;
+            };
+            let without =
+                render_pfm(d.path(), &mg, &(name + "-n"), &view(backend, absorb, false)).unwrap();
+            e.push(
+                with.iter()
+                    .zip(&without)
+                    .map(|(a, b)| a - b)
+                    .collect::<Vec<f32>>(),
+            );
+        }
+        let total = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>();
+        assert!(total(&e[0]) > 1.0, "{backend}: no glow");
+        assert!(
+            total(&e[1]) < 0.9 * total(&e[0]),
+            "{backend}: the smoke in front absorbs nothing"
+        );
+        emitted.push(e);
+    }
+    for (k, (c, g)) in emitted[0].iter().zip(&emitted[1]).enumerate() {
+        let r = rel_diff(c, g);
+        assert!(r < 1e-4, "heat_d behind density, absorb {k}: cpu/gpu {r}");
+    }
+    // Delta tracking reads emission from the rendered grid only: refused, not ignored.
+    let (code, _, err) = run(&[
+        "render",
+        multi.to_str().unwrap(),
+        "--mode",
+        "delta",
+        "--backend",
+        "cpu",
+        "--emission",
+        "600,1800",
+        "-o",
+        d.path().join("x.png").to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("density, scatter and lit"), "{err}");
+}
