@@ -457,13 +457,55 @@ fn prepare(f: &Frame, g: GridChoice, nf: NonFinite) -> Prepared {
     }
 }
 
-/// Error sums of one frame.
+/// Error sums of one frame (of one channel).
 #[derive(Default, Clone, Copy)]
-struct FrameErr {
-    sum_sq: f64,
-    max_abs: f64,
+pub(crate) struct FrameErr {
+    pub sum_sq: f64,
+    pub max_abs: f64,
     /// Bound on any conformant GPU's read: per brick, its error plus its native-read slack.
-    gpu_bound: f64,
+    pub gpu_bound: f64,
+}
+
+/// The error sums of each list of brick uses (a frame's, or a frame's channel's): every use of
+/// pool brick `b` compares its source values `bricks` with `decoded`, and `slack(b)` is what a
+/// GPU's native read of it may add. Inactive voxels hold the background in the pool: a lossy
+/// payload that moves them off it is an error too (a tracer samples them), counted as `eval`
+/// counts it. The RMSE divides by the active voxel count.
+pub(crate) fn use_errors(
+    uses: &[Vec<u32>],
+    bricks: &[f32],
+    decoded: &[f32],
+    slack: impl Fn(u32) -> f32 + Sync,
+) -> Vec<FrameErr> {
+    uses.par_iter()
+        .map(|uses| {
+            let mut fe = FrameErr::default();
+            for &b in uses {
+                let r = b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS;
+                let mut brick_max = 0.0f64;
+                for (s, v) in bricks[r.clone()].iter().zip(&decoded[r]) {
+                    let e = (*v as f64 - *s as f64).abs();
+                    fe.sum_sq += e * e;
+                    brick_max = brick_max.max(e);
+                }
+                fe.gpu_bound = fe.gpu_bound.max(brick_max + slack(b) as f64);
+                fe.max_abs = fe.max_abs.max(brick_max);
+            }
+            fe
+        })
+        .collect()
+}
+
+/// The asset's `index_to_world`: the source transform with the asset's index offset folded in.
+pub(crate) fn asset_index_to_world(transform: &Transform, offset: [i32; 3]) -> [[f64; 4]; 4] {
+    let mut m = transform.index_to_world;
+    for (r, row) in m.iter_mut().enumerate().take(3) {
+        row[3] = transform.index_to_world[r][3]
+            + (0..3)
+                .map(|c| transform.index_to_world[r][c] * offset[c] as f64)
+                .sum::<f64>();
+    }
+    m
 }
 
 /// Wall-clock seconds per stage.
@@ -972,41 +1014,17 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
     };
     drop(enc_input);
     // Bricks that became tiles append their values to the pool's tiles.
-    let first_new_tile = pool.tiles.len() as u32;
-    pool.tiles.extend_from_slice(&enc.new_tiles);
-    let remap: Vec<u32> = input_of
-        .iter()
-        .map(|&i| enc.remap[i as usize])
-        .map(|r| {
-            if r & TILE_BIT != 0 {
-                TILE_BIT | (first_new_tile + (r & !TILE_BIT))
-            } else {
-                r
-            }
-        })
-        .collect();
-    for refs in pool.l2_refs.iter_mut() {
-        for r in refs.iter_mut() {
-            if *r & TILE_BIT == 0 {
-                *r = remap[*r as usize];
-            }
-        }
-    }
+    pool.apply_encoding(
+        input_of.iter().map(|&i| enc.remap[i as usize]),
+        &enc.new_tiles,
+    );
     let decoded: &[f32] = if decoded_pool.is_empty() {
         enc.decoded_or(&pool.bricks)
     } else {
         &decoded_pool
     };
     let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
-    let mut roots = vec![EMPTY; frames.len() * root_len];
-    for (fi, entries) in pool.frames.iter().enumerate() {
-        for (o, e) in entries {
-            let r = [0, 1, 2].map(|i| ((o[i] - offset[i]) / L2_SPAN) as usize);
-            roots[fi * root_len
-                + r[0]
-                + root_dims[0] as usize * (r[1] + root_dims[1] as usize * r[2])] = *e;
-        }
-    }
+    let roots = pool.roots(offset, root_dims);
     let rg = ranges(
         enc.brick_ranges.clone(),
         &pool.tiles,
@@ -1015,46 +1033,13 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
         root_len,
         &[bg],
     );
-    let mut l2_base = Vec::with_capacity(pool.l2_refs.len());
-    let mut l2_prefix = Vec::with_capacity(pool.l2_refs.len() * L2_WORDS);
-    let mut l3_refs = Vec::new();
-    for (n, refs) in pool.l2_refs.iter().enumerate() {
-        l2_base.push(l3_refs.len() as u32);
-        let mut c = 0u16;
-        for w in &pool.l2_masks[n * L2_WORDS..(n + 1) * L2_WORDS] {
-            l2_prefix.push(c);
-            c += w.count_ones() as u16;
-        }
-        l3_refs.extend_from_slice(refs);
-    }
+    let (l2_base, l2_prefix, l3_refs) = pool.layout(1);
     // Error over active voxels, per frame (every active use of a brick); tiles from the source
     // are stored exactly, lossy tiles made by --max-error are in `decoded`.
     let per_frame: Vec<FrameErr> = if pool.track_uses {
-        let bricks = &pool.bricks;
-        pool.uses
-            .par_iter()
-            .map(|uses| {
-                let mut fe = FrameErr::default();
-                for b in uses {
-                    let o = &bricks[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
-                    let d = &decoded[*b as usize * BRICK_VOXELS..(*b as usize + 1) * BRICK_VOXELS];
-                    let slack = enc.slack[input_of[*b as usize] as usize] as f64;
-                    let before = fe.max_abs;
-                    fe.max_abs = 0.0;
-                    // Inactive voxels hold the background in the pool: a lossy payload that
-                    // moves them off it is an error too (a tracer samples them), counted as
-                    // `eval` counts it. The RMSE divides by the active voxel count.
-                    for (s, v) in o.iter().zip(d) {
-                        let e = (*v as f64 - *s as f64).abs();
-                        fe.sum_sq += e * e;
-                        fe.max_abs = fe.max_abs.max(e);
-                    }
-                    fe.gpu_bound = fe.gpu_bound.max(fe.max_abs + slack);
-                    fe.max_abs = fe.max_abs.max(before);
-                }
-                fe
-            })
-            .collect()
+        use_errors(&pool.uses, &pool.bricks, decoded, |b| {
+            enc.slack[input_of[b as usize] as usize]
+        })
     } else {
         vec![FrameErr::default(); frames.len()]
     };
@@ -1065,13 +1050,7 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
     let unique_bricks = pool.brick_count();
     pool.bricks = Vec::new();
     pool.uses = Vec::new();
-    let mut m = transform.index_to_world;
-    for (r, row) in m.iter_mut().enumerate().take(3) {
-        row[3] = transform.index_to_world[r][3]
-            + (0..3)
-                .map(|c| transform.index_to_world[r][c] * offset[c] as f64)
-                .sum::<f64>();
-    }
+    let m = asset_index_to_world(&transform, offset);
     let asset = Asset {
         header: Header {
             tool: format!("vdbcook {}", env!("CARGO_PKG_VERSION")),

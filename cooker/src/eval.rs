@@ -83,10 +83,7 @@ fn mismatch(asset: &Asset, frame: usize, c: usize, grid: &FloatGrid) -> Option<S
         ));
     }
     let st = grid.stats();
-    let want = match h.channels.get(c) {
-        Some(ch) => ch.active_voxels[frame],
-        None => h.frames[frame].active_voxels,
-    };
+    let want = h.channel_active_voxels(c, frame);
     if st.active_voxels != want {
         return Some(format!(
             "it has {} active voxels, the asset's frame {frame} has {want}",
@@ -362,10 +359,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 for (c, name) in &compared {
                     // A channel cooked empty for want of its grid (--allow-missing-grid)
                     // compares as empty.
-                    let empty = match h.channels.get(*c) {
-                        Some(ch) => ch.active_voxels[fi] == 0,
-                        None => h.frames[fi].active_voxels == 0,
-                    };
+                    let empty = h.channel_active_voxels(*c, fi) == 0;
                     out.push(
                         match crate::cook::read_named_in(&file, f, name, &how, empty, false)? {
                             None => (ErrStats::new(), None),

@@ -106,10 +106,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     let channels: Vec<_> = (0..nch)
         .map(|c| {
-            let active = |fi: usize| match h.channels.get(c) {
-                Some(ch) => ch.active_voxels[fi],
-                None => h.frames[fi].active_voxels,
-            };
+            let active = |fi: usize| h.channel_active_voxels(c, fi);
             let per_frame: Vec<_> = (0..h.frames.len())
                 .map(|fi| {
                     let s = &stats[fi * nch + c];

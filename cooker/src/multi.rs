@@ -20,8 +20,8 @@ use vdbcook_vdb::{ErrorKind, Transform, VdbFile};
 use crate::bcenc::Bc7Quality;
 use crate::build::{build_frame, BuiltFrame, LeafContent, NonFinite, Region};
 use crate::cook::{
-    err, frame_info, peak_memory_bytes, read_named_in, section_sizes, topology_and_atlas, Args,
-    Cooked,
+    asset_index_to_world, err, frame_info, peak_memory_bytes, read_named_in, section_sizes,
+    topology_and_atlas, use_errors, Args, Cooked,
 };
 use crate::cook_report::{self as report, ChannelReport, CookReport};
 use crate::encode;
@@ -173,23 +173,28 @@ impl Channels {
                 .map(|b| b.as_ref().and_then(|b| b.regions.get(&o)))
                 .collect();
             let has_leaves = regs.iter().any(|r| matches!(r, Some(Region::Leaves(_))));
+            // Per channel, the ref of a constant over the whole region (`EMPTY` otherwise).
+            let region_tile: Vec<u32> = regs
+                .iter()
+                .map(|r| match r {
+                    Some(Region::Tile(v)) => pool.tile(*v),
+                    _ => EMPTY,
+                })
+                .collect();
             if !has_leaves {
                 // Every channel is a constant (or its background) over the region: a full node
                 // of tile refs, built once per tuple of values.
-                let key: Vec<u32> = regs
-                    .iter()
-                    .map(|r| match r {
-                        Some(Region::Tile(v)) => pool.tile(*v),
-                        _ => EMPTY,
-                    })
-                    .collect();
-                let node = match self.tile_nodes.get(&key) {
+                let node = match self.tile_nodes.get(&region_tile) {
                     Some(&nd) => nd,
                     None => {
-                        let refs: Vec<u32> =
-                            key.iter().copied().cycle().take(L2_SLOTS * n).collect();
+                        let refs: Vec<u32> = region_tile
+                            .iter()
+                            .copied()
+                            .cycle()
+                            .take(L2_SLOTS * n)
+                            .collect();
                         let nd = pool.node([u64::MAX; L2_WORDS], refs);
-                        self.tile_nodes.insert(key, nd);
+                        self.tile_nodes.insert(region_tile, nd);
                         nd
                     }
                 };
@@ -217,8 +222,7 @@ impl Channels {
                 }
                 for c in 0..n {
                     let r = match regs[c] {
-                        None => EMPTY,
-                        Some(Region::Tile(v)) => pool.tile(*v),
+                        None | Some(Region::Tile(_)) => region_tile[c],
                         Some(Region::Leaves(leaves)) => match leaves.get(cursor[c]) {
                             Some(l) if l.slot as usize == s => {
                                 cursor[c] += 1;
@@ -265,14 +269,6 @@ struct ChannelState {
     background_from: String,
     value_range: [f32; 2],
     active: Vec<u64>,
-}
-
-/// Error sums of one (frame, channel).
-#[derive(Default, Clone, Copy)]
-struct Err2 {
-    sum_sq: f64,
-    max_abs: f64,
-    gpu_bound: f64,
 }
 
 /// Cooks `frames` into a multi-channel asset of the grids `a.grids` (at least two).
@@ -484,37 +480,10 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
         encode::encode(&pool.bricks, &eopts)
     }
     .map_err(|m| err(&f0.path, ErrorKind::Unsupported, m))?;
-    let first_new_tile = pool.tiles.len() as u32;
-    pool.tiles.extend_from_slice(&enc.new_tiles);
-    let remap: Vec<u32> = enc
-        .remap
-        .iter()
-        .map(|&r| {
-            if r & TILE_BIT != 0 {
-                TILE_BIT | (first_new_tile + (r & !TILE_BIT))
-            } else {
-                r
-            }
-        })
-        .collect();
-    for refs in pool.l2_refs.iter_mut() {
-        for r in refs.iter_mut() {
-            if *r & TILE_BIT == 0 {
-                *r = remap[*r as usize];
-            }
-        }
-    }
+    let remap = pool.apply_encoding(enc.remap.iter().copied(), &enc.new_tiles);
     let decoded = enc.decoded_or(&pool.bricks);
     let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
-    let mut roots = vec![EMPTY; frames.len() * root_len];
-    for (fi, entries) in pool.frames.iter().enumerate() {
-        for (o, e) in entries {
-            let r = [0, 1, 2].map(|i| ((o[i] - offset[i]) / L2_SPAN) as usize);
-            roots[fi * root_len
-                + r[0]
-                + root_dims[0] as usize * (r[1] + root_dims[1] as usize * r[2])] = *e;
-        }
-    }
+    let roots = pool.roots(offset, root_dims);
     let rg = ranges(
         enc.brick_ranges.clone(),
         &pool.tiles,
@@ -523,39 +492,10 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
         root_len,
         &bgs,
     );
-    let mut l2_base = Vec::with_capacity(pool.l2_refs.len());
-    let mut l2_prefix = Vec::with_capacity(pool.l2_refs.len() * L2_WORDS);
-    let mut l3_refs = Vec::new();
-    for (nd, refs) in pool.l2_refs.iter().enumerate() {
-        l2_base.push((l3_refs.len() / n) as u32);
-        let mut c = 0u16;
-        for w in &pool.l2_masks[nd * L2_WORDS..(nd + 1) * L2_WORDS] {
-            l2_prefix.push(c);
-            c += w.count_ones() as u16;
-        }
-        l3_refs.extend_from_slice(refs);
-    }
+    let (l2_base, l2_prefix, l3_refs) = pool.layout(n);
     // Error per (frame, channel) over every brick use; tiles from the source are exact, lossy
     // tiles are in `decoded`.
-    let errs: Vec<Err2> = pool
-        .uses
-        .par_iter()
-        .map(|uses| {
-            let mut fe = Err2::default();
-            for &b in uses {
-                let r = b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS;
-                let mut m = 0.0f64;
-                for (s, v) in pool.bricks[r.clone()].iter().zip(&decoded[r]) {
-                    let e = (*v as f64 - *s as f64).abs();
-                    fe.sum_sq += e * e;
-                    m = m.max(e);
-                }
-                fe.gpu_bound = fe.gpu_bound.max(m + enc.slack[b as usize] as f64);
-                fe.max_abs = fe.max_abs.max(m);
-            }
-            fe
-        })
-        .collect();
+    let errs = use_errors(&pool.uses, &pool.bricks, decoded, |b| enc.slack[b as usize]);
     let err_of = |f: usize, c: usize| errs.get(f * n + c).copied().unwrap_or_default();
     // Stored bricks and atlas bytes each channel reads.
     let mut per_channel_bricks = vec![BTreeSet::new(); n];
@@ -578,13 +518,7 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
     let unique_bricks = pool.brick_count();
     pool.bricks = Vec::new();
     pool.uses = Vec::new();
-    let mut m = transform.index_to_world;
-    for (r, row) in m.iter_mut().enumerate().take(3) {
-        row[3] = transform.index_to_world[r][3]
-            + (0..3)
-                .map(|c| transform.index_to_world[r][c] * offset[c] as f64)
-                .sum::<f64>();
-    }
+    let m = asset_index_to_world(&transform, offset);
     let shared_budget = match &budgets[..] {
         [b0, rest @ ..] if rest.iter().all(|b| b.map(|x| x.0) == b0.map(|x| x.0)) => {
             b0.map(|x| x.0)

@@ -168,6 +168,69 @@ impl Pool {
         self.frames.push(entries);
     }
 
+    /// Points every brick ref at what the encoder made of its brick: `encoded` yields, per pool
+    /// brick, the encoder's ref (a final brick index, or `TILE_BIT | k` for the `k`-th of
+    /// `new_tiles`, which are appended to the pool's tiles). Returns the final ref per pool brick.
+    pub fn apply_encoding(
+        &mut self,
+        encoded: impl Iterator<Item = u32>,
+        new_tiles: &[f32],
+    ) -> Vec<u32> {
+        let first_new_tile = self.tiles.len() as u32;
+        self.tiles.extend_from_slice(new_tiles);
+        let remap: Vec<u32> = encoded
+            .map(|r| {
+                if r & TILE_BIT != 0 {
+                    TILE_BIT | (first_new_tile + (r & !TILE_BIT))
+                } else {
+                    r
+                }
+            })
+            .collect();
+        for refs in self.l2_refs.iter_mut() {
+            for r in refs.iter_mut() {
+                if *r & TILE_BIT == 0 {
+                    *r = remap[*r as usize];
+                }
+            }
+        }
+        remap
+    }
+
+    /// Every frame's root entries over the extent `(offset, root_dims)` of [`Pool::extent`]
+    /// (`EMPTY` where a frame has no region).
+    pub fn roots(&self, offset: [i32; 3], root_dims: [u32; 3]) -> Vec<u32> {
+        let root_len = root_dims.iter().map(|&d| d as usize).product::<usize>();
+        let mut roots = vec![EMPTY; self.frames.len() * root_len];
+        for (fi, entries) in self.frames.iter().enumerate() {
+            for (o, e) in entries {
+                let r = [0, 1, 2].map(|i| ((o[i] - offset[i]) / L2_SPAN) as usize);
+                roots[fi * root_len
+                    + r[0]
+                    + root_dims[0] as usize * (r[1] + root_dims[1] as usize * r[2])] = *e;
+            }
+        }
+        roots
+    }
+
+    /// The asset's `l2_base` (in slots), `l2_prefix` and `l3_refs` of the nodes, whose refs hold
+    /// `channels` per slot.
+    pub fn layout(&self, channels: usize) -> (Vec<u32>, Vec<u16>, Vec<u32>) {
+        let mut l2_base = Vec::with_capacity(self.l2_refs.len());
+        let mut l2_prefix = Vec::with_capacity(self.l2_refs.len() * L2_WORDS);
+        let mut l3_refs = Vec::new();
+        for (n, refs) in self.l2_refs.iter().enumerate() {
+            l2_base.push((l3_refs.len() / channels) as u32);
+            let mut c = 0u16;
+            for w in &self.l2_masks[n * L2_WORDS..(n + 1) * L2_WORDS] {
+                l2_prefix.push(c);
+                c += w.count_ones() as u16;
+            }
+            l3_refs.extend_from_slice(refs);
+        }
+        (l2_base, l2_prefix, l3_refs)
+    }
+
     /// The extent every frame fits in: (index offset, root dims), or an error naming the extent.
     pub fn extent(&self) -> Result<([i32; 3], [u32; 3]), String> {
         let mut lo = [i32::MAX; 3];

@@ -632,6 +632,7 @@ impl StreamingVolume {
                 off_tiles,
                 off_brick_ranges,
                 off_brick_quant,
+                // No channel backgrounds: a streamed asset has one channel (`new` refuses more).
                 off_brick_quant,
             ],
             self.buffers.bricks_per_buffer(),

@@ -347,6 +347,13 @@ impl Header {
             None => self.background,
         }
     }
+    /// Active voxels of channel `c`'s source grid in `frame`.
+    pub fn channel_active_voxels(&self, c: usize, frame: usize) -> u64 {
+        match self.channels.get(c) {
+            Some(ch) => ch.active_voxels[frame],
+            None => self.frames[frame].active_voxels,
+        }
+    }
     /// The channel named `name`.
     pub fn channel_index(&self, name: &str) -> Option<usize> {
         (0..self.channel_count()).find(|&c| self.channel_name(c) == name)

@@ -221,38 +221,54 @@ impl<'a> Tracer<'a> {
         t_max: f64,
         scratch: &mut Scratch,
     ) -> f64 {
-        let ray = IndexRay::new(
-            self.xf.index_of(origin),
+        let ray = self.primary_ray(origin, dir);
+        match ray.clip(self.extent) {
+            Some((t0, t1)) if t1.min(t_max) > t0 => {
+                let absorb = self.settings.absorb as f64;
+                self.depth_along(&ray, t0, t1.min(t_max), absorb, scratch)
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// The index-space ray from world point `eye` along world direction `dir` (normalized
+    /// here).
+    fn primary_ray(&self, eye: [f64; 3], dir: [f64; 3]) -> IndexRay {
+        IndexRay::new(
+            self.xf.index_of(eye),
             self.xf.dir_to_index(normalize(dir)),
             self.voxel_units(),
-        );
+        )
+    }
+
+    /// The `Density` walk's optical depth `τ` of channel 0 along `ray` for `t ∈ [t0, t1]`,
+    /// stopping once `absorb·τ ≥ OPAQUE_DEPTH`.
+    fn depth_along(
+        &self,
+        ray: &IndexRay,
+        t0: f64,
+        t1: f64,
+        absorb: f64,
+        scratch: &mut Scratch,
+    ) -> f64 {
         let mut v = Density {
             per_t: ray.per_t,
-            absorb: self.settings.absorb as f64,
+            absorb,
             tau: 0.0,
             steps: 0,
             emission: None,
             light: [0.0; 3],
         };
-        if let Some((t0, t1)) = ray.clip(self.extent) {
-            let t1 = t1.min(t_max);
-            if t1 > t0 {
-                walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
-            }
-        }
+        walk(&self.grid, ray, t0, t1, &mut scratch.primary, &mut v);
         v.tau
     }
 
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
     /// here). `pixel` seeds delta tracking (`y·width + x` in `render`).
     pub fn trace(&self, eye: [f64; 3], dir: [f64; 3], pixel: u32, scratch: &mut Scratch) -> Sample {
-        let mut out = self.trace_mode(eye, dir, pixel, scratch);
+        let ray = self.primary_ray(eye, dir);
+        let mut out = self.trace_mode(ray, dir, pixel, scratch);
         if let Some(ce) = &self.channel_emission {
-            let ray = IndexRay::new(
-                self.xf.index_of(eye),
-                self.xf.dir_to_index(normalize(dir)),
-                self.voxel_units(),
-            );
             let ext = match self.settings.mode {
                 Mode::Density => self.settings.absorb as f64,
                 _ => self.extinction,
@@ -286,18 +302,12 @@ impl<'a> Tracer<'a> {
             return light;
         }
         // Channel 0's optical depth from the extent's entry to the box's.
-        let mut v = Density {
-            per_t: ray.per_t,
-            absorb: ext,
-            tau: 0.0,
-            steps: 0,
-            emission: None,
-            light: [0.0; 3],
+        let tau = if a > t0 {
+            self.depth_along(ray, t0, a, ext, scratch)
+        } else {
+            0.0
         };
-        if a > t0 {
-            walk(&self.grid, ray, t0, a, &mut scratch.primary, &mut v);
-        }
-        let mut trans = (-ext * v.tau).exp();
+        let mut trans = (-ext * tau).exp();
         let asset = self.grid.asset;
         let frame = self.settings.frame;
         let (clo, chi) = (lo.map(|c| c as i64), hi.map(|c| c as i64));
@@ -325,17 +335,12 @@ impl<'a> Tracer<'a> {
     /// [`Tracer::trace`] without emission from another channel.
     fn trace_mode(
         &self,
-        eye: [f64; 3],
+        ray: IndexRay,
         dir: [f64; 3],
         pixel: u32,
         scratch: &mut Scratch,
     ) -> Sample {
         let s = &self.settings;
-        let ray = IndexRay::new(
-            self.xf.index_of(eye),
-            self.xf.dir_to_index(normalize(dir)),
-            self.voxel_units(),
-        );
         let clip = ray.clip(self.extent);
         let miss = |value: f32, alpha: f32| Sample {
             rgba: [0.0, 0.0, 0.0, alpha],
@@ -536,11 +541,7 @@ impl Tracer<'_> {
         if self.settings.mode != Mode::Lit {
             return self.trace(eye, dir, pixel, scratch);
         }
-        let ray = IndexRay::new(
-            self.xf.index_of(eye),
-            self.xf.dir_to_index(normalize(dir)),
-            self.voxel_units(),
-        );
+        let ray = self.primary_ray(eye, dir);
         self.lit(ray, dir, ray.clip(self.extent), t_max, pixel, scratch)
     }
 }
