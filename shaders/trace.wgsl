@@ -129,21 +129,22 @@ fn vis_skip(m: f32) -> bool {
     return !(m > params.cutoff);
 }
 
-// Emission from channel `params.emit_channel` along `ray` (`vdbcook_trace::Tracer`'s
+// Emission from channel `params.emit_channel` along `ray` up to `t_end` (`vdbcook_trace::Tracer`'s
 // `ChannelEmission`): over the voxels of the channel's box inside the root extent, each
 // `T · E · ℓ · φ(x)` with `x = ext·ρ·ℓ` (ρ: channel 0, nearest voxel), `T` starting from channel
-// 0's exact optical depth from the extent's entry to the box's; stops once T < 1e-6.
-fn channel_emission(ray: VdbRay, ext: f32) -> vec3<f32> {
+// 0's exact optical depth from the extent's entry to the box's; stops once T < 1e-6. `ext` 0:
+// no attenuation (delta tracking's track-length estimator over one flight).
+fn channel_emission(ray: VdbRay, ext: f32, t_end: f32) -> vec3<f32> {
     var light = vec3<f32>(0.0);
     let c = vdb_clip(ray, params.extent.xyz);
     let b = vdb_clip_box(ray, params.emit_lo.xyz, params.emit_hi.xyz);
     let a0 = max(c.x, b.x);
-    let a1 = min(c.y, b.y);
+    let a1 = min(min(c.y, b.y), t_end);
     if (!(a0 < a1)) {
         return light;
     }
     var tau = 0.0;
-    if (a0 > c.x) {
+    if (a0 > c.x && ext > 0.0) {
         tau = vdb_optical_depth(params.frame_root, ray, c.x, a0, ext);
     }
     var trans = exp(-ext * tau);
@@ -154,10 +155,12 @@ fn channel_emission(ray: VdbRay, ext: f32) -> vec3<f32> {
             break;
         }
         let l = (s.tb - s.ta) * ray.per_t;
-        let rho = vdb_value(params.frame_root, s.cell);
         var x = 0.0;
-        if (rho > 0.0) {
-            x = ext * rho * l;
+        if (ext > 0.0) {
+            let rho = vdb_value(params.frame_root, s.cell);
+            if (rho > 0.0) {
+                x = ext * rho * l;
+            }
         }
         let e = exp(-x);
         let v = vdb_value_c(params.frame_root, s.cell, params.emit_channel);
@@ -682,12 +685,16 @@ fn ratio_shadow(p: vec3<f32>, rng: ptr<function, u32>) -> f32 {
     return weight;
 }
 
-// One delta-tracking path along the primary ray: (light scored, escaped 0 or 1).
+// One delta-tracking path along the primary ray: (light scored, escaped 0 or 1); `v_hit_t` is
+// set to where the flight ended (`VDB_BIG` if it escaped).
 fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f32> {
     let ext = params.extinction;
+    v_hit_t = VDB_BIG;
     var w = wk_init(ray, t0, t1);
     var events = MAX_EVENTS;
     var lum = 0.0;
+    // One exit at the end (no return from inside the loops).
+    var escaped = 1.0;
     for (var g = 0; g < WALK_SPANS; g++) {
         let sp = wk_next(ray, &w, -VDB_BIG);
         if (!sp.ok) {
@@ -710,7 +717,8 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
         for (var n = 0u; n <= MAX_EVENTS; n++) {
             if (events == 0u) {
                 // Out of events: absorbed.
-                return vec2<f32>(lum, 0.0);
+                escaped = 0.0;
+                break;
             }
             events -= 1u;
             s -= log(1.0 - rng_uniform(rng)) / mu_bar;
@@ -732,13 +740,18 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
             if (null_collision) {
                 continue; // null collision
             }
+            escaped = 0.0;
             if (rng_uniform(rng) < params.albedo) {
                 lum = ratio_shadow(p, rng);
             }
-            return vec2<f32>(lum, 0.0);
+            break;
+        }
+        if (escaped == 0.0) {
+            v_hit_t = s / ray.per_t;
+            break;
         }
     }
-    return vec2<f32>(lum, 1.0);
+    return vec2<f32>(lum, escaped);
 }
 
 // hsv(h, s, 1), h in turns (`vdbcook_trace::color::hue`).
@@ -846,11 +859,18 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     let r = delta_path(ray, mclip.x, mclip.y, &rng);
                     lum += r.x;
                     escaped += r.y;
+                    if (TRACE_EMISSION && params.emit_channel != 0u) {
+                        // Another channel's emission: the track-length estimator of the flight.
+                        v_emit += channel_emission(ray, 0.0, v_hit_t);
+                    }
                 }
                 let n = f32(params.spp);
                 lt = vec2<f32>(lum / n, escaped / n);
                 v_emit /= n;
             }
+        } else if (params.mode == MODE_DELTA && TRACE_EMISSION && params.emit_channel != 0u) {
+            // No medium on the ray: every flight escapes.
+            v_emit = channel_emission(ray, 0.0, VDB_BIG);
         }
         rgba = vec4<f32>(params.light_color.xyz * lt.x + lit + v_emit, 1.0 - lt.y);
         value = lt.y;
@@ -884,9 +904,9 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     if (TRACE_EMISSION && params.emit_channel != 0u) {
         if (params.mode == MODE_DENSITY) {
-            rgba += vec4<f32>(channel_emission(ray, params.absorb), 0.0);
+            rgba += vec4<f32>(channel_emission(ray, params.absorb, VDB_BIG), 0.0);
         } else if (params.mode == MODE_SCATTER || params.mode == MODE_LIT) {
-            rgba += vec4<f32>(channel_emission(ray, params.extinction), 0.0);
+            rgba += vec4<f32>(channel_emission(ray, params.extinction, VDB_BIG), 0.0);
         }
     }
     rgba = finite4(rgba);

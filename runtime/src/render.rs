@@ -442,7 +442,9 @@ impl Renderer {
     /// into `encoder` when the frame, the light or the medium changed (the first lit render
     /// also makes the light volume's buffers, grown when a larger grid needs them). As with the
     /// parameter uniform, one render per submission: a second render recorded into the same
-    /// encoder overwrites the first one's uniforms.
+    /// encoder overwrites the first one's uniforms. Delta tracking: render at most 64 samples
+    /// per pixel per submission and average progressive batches (`first_sample`); on lavapipe
+    /// one dispatch of 256 samples came back biased dark (`vdbcook`'s `gpu::sample_batches`).
     pub fn render(
         &self,
         queue: &wgpu::Queue,
@@ -596,10 +598,16 @@ impl Renderer {
                         self.vol.channels.len() + 1
                     )));
                 };
-                if ![Mode::Density, Mode::SingleScatter, Mode::Lit].contains(&settings.mode) {
+                let shaded = [
+                    Mode::Density,
+                    Mode::SingleScatter,
+                    Mode::DeltaTracking,
+                    Mode::Lit,
+                ];
+                if !shaded.contains(&settings.mode) {
                     return Err(RuntimeError::Setting(format!(
-                        "emission from another channel is drawn in the density, scatter and lit \
-                         modes; {:?} reads emission from the rendered grid only",
+                        "emission from another channel is drawn in the shaded modes (density, \
+                         scatter, delta, lit); {:?} draws no emission",
                         settings.mode
                     )));
                 }

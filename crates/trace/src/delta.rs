@@ -63,6 +63,9 @@ pub(crate) struct Path<'a, 't> {
     /// where the span can emit).
     pub emitted: [f64; 3],
     pub events: u32,
+    /// Where the flight ended (`t`): its real collision, or the end of the walk (set by the
+    /// caller) if it escaped.
+    pub end_t: f64,
 }
 
 impl Path<'_, '_> {
@@ -91,7 +94,8 @@ impl Path<'_, '_> {
         let tracer = self.tracer;
         let mut lum = 0.0;
         let cache = &mut *self.shadow_cache;
-        let flow = track(&ray, mu_bar, ta, tb, &mut rng, &mut events, |_, p, rng| {
+        let mut end_t = self.end_t;
+        let flow = track(&ray, mu_bar, ta, tb, &mut rng, &mut events, |s, p, rng| {
             let v = value(p);
             let sigma = (v as f64).max(0.0);
             if let Some(e) = &emission {
@@ -107,11 +111,13 @@ impl Path<'_, '_> {
             if null {
                 return Flow::Go; // null collision
             }
+            end_t = s / ray.per_t;
             if rng.uniform() < tracer.albedo {
                 lum = tracer.ratio_shadow(p, tracer.settings.gain as f64, rng, cache);
             }
             Flow::Stop
         });
+        self.end_t = end_t;
         self.rng = rng;
         self.events = events;
         self.lum += lum;

@@ -78,8 +78,8 @@ struct Flight<'e> {
     extinction: f64,
     rng: Rng64,
     events: u32,
-    /// The collision point (cell space), once found.
-    hit: Option<[f64; 3]>,
+    /// The collision point (cell space) and its `t`, once found.
+    hit: Option<([f64; 3], f64)>,
     /// The event budget ran out (the path counts as absorbed).
     exhausted: bool,
     /// The settings' emission, its table, and the majorant floor `1 / step`.
@@ -106,7 +106,7 @@ impl SpanSampler for Flight<'_> {
             None => base,
         };
         let boosted = mu_bar != base;
-        let (ext, throughput) = (self.extinction, self.throughput);
+        let (ext, throughput, per_t) = (self.extinction, self.throughput, self.ray.per_t);
         let mut emitted = [0.0f64; 3];
         let mut hit = None;
         let flow = track(
@@ -116,7 +116,7 @@ impl SpanSampler for Flight<'_> {
             tb,
             &mut self.rng,
             &mut self.events,
-            |_, p, rng| {
+            |t, p, rng| {
                 let v = value(p);
                 let sigma = (v as f64).max(0.0);
                 if let Some((e, table, _)) = &emission {
@@ -133,7 +133,7 @@ impl SpanSampler for Flight<'_> {
                 if null {
                     return Flow::Go;
                 }
-                hit = Some(p);
+                hit = Some((p, t / per_t));
                 Flow::Stop
             },
         );
@@ -175,14 +175,24 @@ impl Tracer<'_> {
                 throughput,
                 emitted: [0.0; 3],
             };
-            if let Some((t0, t1)) = ray.clip(self.extent) {
+            let clip = ray.clip(self.extent);
+            if let Some((t0, t1)) = clip {
                 walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut f);
             }
             *rng = f.rng;
             for (r, e) in radiance.iter_mut().zip(f.emitted) {
                 *r += e;
             }
-            let Some(p) = f.hit else {
+            if let (Some(ce), Some((_, t1))) = (&self.channel_emission, clip) {
+                // Another channel's emission by the track-length estimator: `∫ E ds` up to the
+                // collision (or the exit), whose mean is `∫ T E ds`.
+                let end = f.hit.map_or(t1, |(_, t)| t);
+                let e = self.emission_of_channel(ce, &ray, 0.0, end, scratch);
+                for (r, e) in radiance.iter_mut().zip(e) {
+                    *r += throughput * e;
+                }
+            }
+            let Some((p, _)) = f.hit else {
                 if f.exhausted {
                     return (radiance, false);
                 }

@@ -68,7 +68,9 @@ pub struct Tracer<'a> {
 /// mode's march: `∫ T(s) · E(c(s)) ds` over the voxels of `bbox` (where the channel is above the
 /// emission's floor), `T` the transmittance of channel 0 from the eye with the mode's extinction
 /// (`absorb` in `Density`, `absorb + scatter` in `SingleScatter` and `Lit`), each voxel exact
-/// for nearest-voxel values: `T · E · ℓ · φ(σℓ)`.
+/// for nearest-voxel values: `T · E · ℓ · φ(σℓ)`. The Monte Carlo modes (`DeltaTracking`,
+/// `Reference`) take it by the track-length estimator instead: each free flight adds
+/// `∫ E ds` up to where it collided, whose mean is the same `∫ T E ds`.
 pub(crate) struct ChannelEmission {
     emission: Emission,
     channel: usize,
@@ -76,8 +78,14 @@ pub(crate) struct ChannelEmission {
     bbox: Option<([f64; 3], [f64; 3])>,
 }
 
-/// Modes that draw emission from another channel.
-const CHANNEL_EMISSION_MODES: [Mode; 3] = [Mode::Density, Mode::SingleScatter, Mode::Lit];
+/// Modes that draw emission from another channel (every shaded mode; the debug views draw none).
+const CHANNEL_EMISSION_MODES: [Mode; 5] = [
+    Mode::Density,
+    Mode::SingleScatter,
+    Mode::DeltaTracking,
+    Mode::Reference,
+    Mode::Lit,
+];
 
 impl<'a> Tracer<'a> {
     /// Validates the settings and the transform and precomputes per-render constants.
@@ -100,8 +108,8 @@ impl<'a> Tracer<'a> {
             }
             if !CHANNEL_EMISSION_MODES.contains(&settings.mode) {
                 return Err(TraceError::Setting(format!(
-                    "emission from another channel ('{}') is drawn in the density, scatter and \
-                     lit modes; {:?} reads emission from the rendered grid only",
+                    "emission from another channel ('{}') is drawn in the shaded modes (density, \
+                     scatter, delta, reference, lit); {:?} draws no emission",
                     asset.header.channel_name(e.channel),
                     settings.mode
                 )));
@@ -271,9 +279,11 @@ impl<'a> Tracer<'a> {
         if let Some(ce) = &self.channel_emission {
             let ext = match self.settings.mode {
                 Mode::Density => self.settings.absorb as f64,
+                // Drawn inside their own flights.
+                Mode::DeltaTracking | Mode::Reference => return out,
                 _ => self.extinction,
             };
-            let e = self.emission_of_channel(ce, &ray, ext, scratch);
+            let e = self.emission_of_channel(ce, &ray, ext, f64::INFINITY, scratch);
             for (o, e) in out.rgba.iter_mut().zip(e) {
                 *o += e as f32;
             }
@@ -281,13 +291,15 @@ impl<'a> Tracer<'a> {
         out
     }
 
-    /// [`ChannelEmission`] along `ray`: the voxels of its box the ray crosses inside the root
-    /// extent, behind channel 0's optical depth from the ray's entry into the extent.
-    fn emission_of_channel(
+    /// [`ChannelEmission`] along `ray` up to `t_end`: the voxels of its box the ray crosses
+    /// inside the root extent, behind channel 0's optical depth from the ray's entry into the
+    /// extent with extinction `ext` (0: no attenuation, the track-length estimator's segment).
+    pub(crate) fn emission_of_channel(
         &self,
         ce: &ChannelEmission,
         ray: &IndexRay,
         ext: f64,
+        t_end: f64,
         scratch: &mut Scratch,
     ) -> [f64; 3] {
         let mut light = [0.0f64; 3];
@@ -297,12 +309,12 @@ impl<'a> Tracer<'a> {
         let Some((a, b)) = ray.clip_box(lo, hi) else {
             return light;
         };
-        let (a, b) = (a.max(t0), b.min(t1));
+        let (a, b) = (a.max(t0), b.min(t1).min(t_end));
         if !(a < b) {
             return light;
         }
         // Channel 0's optical depth from the extent's entry to the box's.
-        let tau = if a > t0 {
+        let tau = if a > t0 && ext > 0.0 {
             self.depth_along(ray, t0, a, ext, scratch)
         } else {
             0.0
@@ -313,7 +325,11 @@ impl<'a> Tracer<'a> {
         let (clo, chi) = (lo.map(|c| c as i64), hi.map(|c| c as i64));
         walk_cells(ray, 1.0, clo, chi, a, b, |cell, ta, tb| {
             let l = (tb - ta) * ray.per_t;
-            let rho = asset.value(frame, cell);
+            let rho = if ext > 0.0 {
+                asset.value(frame, cell)
+            } else {
+                0.0
+            };
             let x = if rho > 0.0 { ext * rho as f64 * l } else { 0.0 };
             let r = ce
                 .emission
@@ -448,12 +464,21 @@ impl<'a> Tracer<'a> {
                         lum: 0.0,
                         emitted: [0.0; 3],
                         events: MAX_EVENTS,
+                        end_t: t1,
                     };
                     walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                     lum += v.lum;
                     escaped += v.escaped as u32;
+                    let end_t = v.end_t;
                     for (a, e) in emitted.iter_mut().zip(v.emitted) {
                         *a += e;
+                    }
+                    if let Some(ce) = &self.channel_emission {
+                        // The track-length estimator over the flight.
+                        let e = self.emission_of_channel(ce, &ray, 0.0, end_t, scratch);
+                        for (a, e) in emitted.iter_mut().zip(e) {
+                            *a += e;
+                        }
                     }
                 }
                 let n = s.spp as f64;
