@@ -141,7 +141,7 @@ pub struct Args {
     /// The grid whose values are the Kelvin of --emission, when it is not the rendered one: a
     /// channel of a multi-channel asset (fire: `density` absorbs, `temperature` glows; default
     /// for such an asset: its `temperature`, `heat` or `temp` channel), or for VDB input a
-    /// second grid cooked with --grid (density, scatter and lit modes).
+    /// second grid cooked with --grid (every shaded mode).
     #[arg(long, value_name = "NAME", requires = "emission")]
     emission_grid: Option<String>,
     /// Random seed (delta, reference).

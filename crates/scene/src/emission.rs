@@ -19,7 +19,7 @@ pub struct Emission {
     pub intensity: f32,
     /// The channel whose values are the temperature: 0, the rendered grid itself (its values
     /// absorb and emit), or a later channel of a multi-channel asset (fire: `density` absorbs,
-    /// `temperature` emits), drawn in the density, scatter and lit modes.
+    /// `temperature` emits), drawn in every shaded mode.
     pub channel: usize,
 }
 
