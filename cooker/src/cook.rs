@@ -86,6 +86,8 @@ pub struct Args {
     pub grid: Option<String>,
     /// Cook several float grids into one multi-channel asset on one shared topology (fire:
     /// `--grids density,temperature,flame`); the first is the one plain renders show. At most 8.
+    /// `--grids auto` picks them by name from the first frame as `inspect` suggests (a density,
+    /// a temperature and a flame grid of Blender, Houdini or EmberGen caches).
     #[arg(
         long,
         value_delimiter = ',',
@@ -113,6 +115,10 @@ pub struct Args {
     /// naming the frame).
     #[arg(long)]
     pub allow_missing_grid: bool,
+    /// Keep a channel of --grids that carries nothing (every active value within its budget of
+    /// its background, or none at all); by default it is dropped with a note in the report.
+    #[arg(long)]
+    pub keep_empty_channels: bool,
     /// Replace NaN and ±Inf active values with VALUE (by default they are an error).
     #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
     pub replace_non_finite: Option<f32>,
@@ -154,6 +160,7 @@ impl Args {
             iterations: None,
             variance_threshold: None,
             allow_missing_grid: false,
+            keep_empty_channels: false,
             replace_non_finite: None,
             quiet: true,
             no_non_finite_flag: false,
@@ -656,6 +663,40 @@ pub fn cook(a: &Args) -> Result<Cooked, CliError> {
 /// options it has validated (`Args::validate`): `run` and the manifest check their outputs
 /// against the frames first, and the frames are not listed twice.
 pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
+    if crate::multi::is_auto(a) {
+        let f0 = &frames[0].path;
+        let file = VdbFile::open(f0)?;
+        let pick = crate::grid_pick::suggest(&file);
+        if pick.grids.is_empty() {
+            let floats = file.float_grid_labels();
+            return Err(err(
+                f0,
+                ErrorKind::GridSelection,
+                format!(
+                    "--grids auto: no float grid here is named as a density, temperature or \
+                     flame grid (float grids: {}); name the grids with --grids A,B",
+                    if floats.is_empty() {
+                        "none".into()
+                    } else {
+                        floats.join(", ")
+                    }
+                ),
+            ));
+        }
+        let mut picked = a.clone();
+        picked.grids = pick.grids;
+        Progress::with(a.progress.clone(), a.json || a.quiet, !a.quiet).note(&format!(
+            "note: --grids auto cooks {} (named as in {}){}",
+            picked.grids.join(","),
+            f0.display(),
+            pick.skipped
+                .iter()
+                .map(|(g, why)| format!("; not '{g}': {why}"))
+                .collect::<String>()
+        ));
+        crate::multi::validate(&picked)?;
+        return cook_frames(&picked, frames);
+    }
     if a.grids.len() > 1 {
         return crate::multi::cook_channels(a, frames);
     }
@@ -1210,6 +1251,7 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             write: st.write,
         },
         channels: Vec::new(),
+        dropped_channels: Vec::new(),
     };
     Ok(Cooked {
         asset,
@@ -1321,6 +1363,18 @@ fn print_summary(d: &Value) {
         println!(
             "  budget         every voxel within {budget:.3e}{how}; any conformant GPU reads within {:.3e}",
             e["max_abs_any_gpu"].as_f64().unwrap_or(0.0)
+        );
+    }
+    let dropped: Vec<&str> = d["dropped_channels"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|c| c["name"].as_str())
+        .collect();
+    if !dropped.is_empty() {
+        println!(
+            "  dropped        {} (carry nothing within their budgets)",
+            dropped.join(", ")
         );
     }
     let c = &d["clustering"];

@@ -49,6 +49,22 @@ pub struct CookReport {
     /// single-grid cook (its figures are the ones above).
     #[serde(default)]
     pub channels: Vec<ChannelReport>,
+    /// Grids of `--grids` left out because they carry nothing: every active value of every
+    /// frame within the channel's budget of its background (exactly the background in a
+    /// lossless cook), or no active value at all. Empty unless some were dropped.
+    #[serde(default)]
+    pub dropped_channels: Vec<DroppedChannel>,
+}
+
+/// A grid of `--grids` that was not cooked (`CookReport::dropped_channels`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DroppedChannel {
+    pub name: String,
+    pub background: f32,
+    /// `[min, max]` of its active values over all frames (`None`: none).
+    pub value_range: Option<[f32; 2]>,
+    /// The budget it was held to (`None`: lossless, so only the background itself counts).
+    pub max_error: Option<f32>,
 }
 
 /// One channel of a multi-channel cook. Its error figures are over its own stored voxels in its

@@ -1,5 +1,6 @@
 //! `vdbcook inspect`: lists every grid of every input file with what OpenVDB would report —
-//! type, class, storage, transform, active voxels (tiles counted by size), bbox and value range.
+//! type, class, storage, transform, active voxels (tiles counted by size), bbox and value range
+//! — and which grids a multi-channel cook would pick (`grid_pick`, `cook --grids auto`).
 
 use rayon::prelude::*;
 use serde_json::{json, Value};
@@ -44,12 +45,20 @@ fn inspect_file(path: &std::path::Path) -> Result<Value, CliError> {
     for (i, g) in file.grids.iter().enumerate() {
         grids.push(grid_json(&file, i, g)?);
     }
+    let pick = crate::grid_pick::suggest(&file);
+    let skipped: Vec<Value> = pick
+        .skipped
+        .iter()
+        .map(|(name, why)| json!({"name": name, "why": why}))
+        .collect();
     Ok(json!({
         "file": path.display().to_string(),
         "file_version": file.file_version,
         "library_version": [file.library_version.0, file.library_version.1],
         "bytes": file.len_bytes(),
         "grids": grids,
+        "suggested_grids": pick.grids,
+        "suggested_skipped": skipped,
     }))
 }
 
@@ -207,6 +216,21 @@ fn print_table(d: &Value) {
             .map(|(s, w)| format!("{s:<w$}"))
             .collect();
         println!("  {}", line.join("  ").trim_end());
+    }
+    let picked: Vec<&str> = d["suggested_grids"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|g| g.as_str())
+        .collect();
+    if picked.len() > 1 {
+        println!(
+            "  suggested channels: --grids {} (what `cook --grids auto` cooks)",
+            picked.join(",")
+        );
+    }
+    for s in d["suggested_skipped"].as_array().into_iter().flatten() {
+        println!("  not suggested: {}: {}", f(&s["name"]), f(&s["why"]));
     }
     println!();
 }

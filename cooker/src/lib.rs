@@ -17,6 +17,7 @@ pub mod encode;
 pub mod errors;
 pub mod eval;
 pub mod gpu;
+pub mod grid_pick;
 pub mod info;
 pub mod inspect;
 pub mod manifest;

@@ -23,15 +23,23 @@ use crate::cook::{
     asset_index_to_world, err, frame_info, peak_memory_bytes, read_named_in, section_sizes,
     topology_and_atlas, use_errors, Args, Cooked,
 };
-use crate::cook_report::{self as report, ChannelReport, CookReport};
+use crate::cook_report::{self as report, ChannelReport, CookReport, DroppedChannel};
 use crate::encode;
 use crate::errors::CliError;
 use crate::pool::{ranges, Pool};
 use crate::progress::Progress;
 
-/// Checks the multi-channel options (`--grids`, per-channel `--max-error`) before any work.
+/// `--grids auto`: the grids are picked from the first frame (`grid_pick`) when the cook starts.
+pub fn is_auto(a: &Args) -> bool {
+    matches!(&a.grids[..], [g] if g == "auto")
+}
+
+/// Checks the multi-channel options (`--grids`, per-channel `--max-error`) before any work;
+/// `--grids auto` counts as several grids whose names are not known yet (checked again once
+/// picked).
 pub fn validate(a: &Args) -> Result<(), CliError> {
     let bad = |m: String| Err(CliError::Usage(m));
+    let auto = is_auto(a);
     if a.grids.len() > MAX_CHANNELS {
         return bad(format!(
             "--grids names {} grids; an asset holds at most {MAX_CHANNELS}",
@@ -47,7 +55,9 @@ pub fn validate(a: &Args) -> Result<(), CliError> {
         }
     }
     for (name, e) in &a.max_error_per {
-        let known = if a.grids.is_empty() {
+        let known = if auto {
+            true
+        } else if a.grids.is_empty() {
             a.grid.as_deref() == Some(name.as_str()) || (a.grid.is_none() && name == "density")
         } else {
             a.grids.contains(name)
@@ -71,7 +81,7 @@ pub fn validate(a: &Args) -> Result<(), CliError> {
     if a.grids.is_empty() && a.max_error_per.len() > 1 {
         return bad("budgets for several grids need --grids naming them".into());
     }
-    if a.grids.len() > 1 {
+    if a.grids.len() > 1 || auto {
         let refuse = |what: &str| {
             bad(format!(
                 "{what} is not supported with several grids (--grids) yet: cook the channels \
@@ -458,6 +468,50 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             (None, false) => None,
         })
         .collect();
+    // Channels after the first that carry nothing are not cooked: cook the others again.
+    let dropped: Vec<DroppedChannel> = (1..n)
+        .filter(|_| !a.keep_empty_channels)
+        .filter_map(|c| {
+            let (r, bg) = (states[c].value_range, bgs[c]);
+            let e = budgets[c].map(|b| b.0);
+            let none = r[0] > r[1]; // never set: no active value
+            let e0 = e.unwrap_or(0.0);
+            (none || (r[0] >= bg - e0 && r[1] <= bg + e0)).then(|| DroppedChannel {
+                name: names[c].clone(),
+                background: bg,
+                value_range: (!none).then_some(r),
+                max_error: e,
+            })
+        })
+        .collect();
+    if !dropped.is_empty() {
+        progress.note(&format!(
+            "note: not cooked, as they carry nothing (every active value within the channel's \
+             budget of its background, or none; --keep-empty-channels keeps them): {}",
+            dropped
+                .iter()
+                .map(|d| match d.value_range {
+                    None => format!("'{}' (no active value)", d.name),
+                    Some([lo, hi]) => format!(
+                        "'{}' (values {lo}..{hi}, background {}{})",
+                        d.name,
+                        d.background,
+                        d.max_error
+                            .map(|e| format!(", budget {e}"))
+                            .unwrap_or_default()
+                    ),
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        let mut kept = a.clone();
+        kept.grids.retain(|g| !dropped.iter().any(|d| &d.name == g));
+        kept.max_error_per.retain(|(g, _)| kept.grids.contains(g));
+        kept.keep_empty_channels = true;
+        let mut cooked = crate::cook::cook_frames(&kept, frames)?;
+        cooked.report.dropped_channels = dropped;
+        return Ok(cooked);
+    }
     let t = Instant::now();
     let stage = progress.stage("encode", "blocks");
     let pool = &mut ch.pool;
@@ -726,6 +780,7 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             write: 0.0,
         },
         channels: channel_reports,
+        dropped_channels: Vec::new(),
     };
     Ok(Cooked {
         asset,

@@ -670,3 +670,130 @@ fn fire_emission_from_a_channel_converges_in_delta_and_reference() {
     assert!((ratio - 1.0).abs() < 0.02, "reference: sum ratio {ratio}");
     assert!(rmse < 0.05, "reference: relative RMSE {rmse}");
 }
+
+/// A channel whose every active value lies within its budget of its background carries nothing
+/// the asset can show: it is not cooked, and the report says so with its range (OpenVDB's own
+/// min/max of the grid over the frames). Dropped down to one grid, the asset is the single-grid
+/// cook of that grid, byte for byte; `--keep-empty-channels` keeps it; lossless cooks drop only
+/// channels that are exactly their background.
+#[test]
+fn channels_that_carry_nothing_are_dropped_with_a_note() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("a.vdbc");
+    let r = cook(&out, &["--max-error", "0.01,temperature=5,flame=5"]);
+    let dropped = r["dropped_channels"].as_array().unwrap();
+    assert_eq!(dropped.len(), 1, "{dropped:?}");
+    assert_eq!(dropped[0]["name"], "flame");
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for f in 0..4 {
+        let t = fire_truth(f, "flame");
+        if t["active_voxels"].as_u64().unwrap() > 0 {
+            lo = lo.min(t["value_min"].as_f64().unwrap());
+            hi = hi.max(t["value_max"].as_f64().unwrap());
+        }
+    }
+    assert_eq!(dropped[0]["value_range"][0].as_f64().unwrap(), lo);
+    assert_eq!(dropped[0]["value_range"][1].as_f64().unwrap(), hi);
+    let names: Vec<&str> = r["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["density", "temperature"]);
+    let info = json(&["info", "--json", out.to_str().unwrap()]);
+    assert_eq!(info["channels"].as_array().unwrap().len(), 2);
+    // Down to one grid: the single-grid cook.
+    let one = d.path().join("one.vdbc");
+    let r = json(&[
+        "cook",
+        "--json",
+        FIRE,
+        "--grids",
+        "density,flame",
+        "--max-error",
+        "density=0.01,flame=5",
+        "-o",
+        one.to_str().unwrap(),
+    ]);
+    assert_eq!(r["dropped_channels"][0]["name"], "flame");
+    let single = d.path().join("single.vdbc");
+    json(&[
+        "cook",
+        "--json",
+        FIRE,
+        "--grid",
+        "density",
+        "--max-error",
+        "0.01",
+        "-o",
+        single.to_str().unwrap(),
+    ]);
+    assert!(
+        std::fs::read(&one).unwrap() == std::fs::read(&single).unwrap(),
+        "not the single-grid asset"
+    );
+    // Kept when asked; a lossless cook drops none of the fire's grids.
+    let kept = d.path().join("kept.vdbc");
+    let r = cook(
+        &kept,
+        &[
+            "--max-error",
+            "0.01,temperature=5,flame=5",
+            "--keep-empty-channels",
+        ],
+    );
+    assert_eq!(r["channels"].as_array().unwrap().len(), 3);
+    assert!(r["dropped_channels"].as_array().unwrap().is_empty());
+    let r = cook(&d.path().join("lossless.vdbc"), &[]);
+    assert!(r["dropped_channels"].as_array().unwrap().is_empty());
+}
+
+/// `inspect` suggests the grids of a fire cache by name (the fixture's writer names them as
+/// Houdini and EmberGen do), leaving out a grid on another transform with why; `cook --grids
+/// auto` cooks exactly what `--grids` naming them cooks, and refuses clearly where nothing
+/// matches or where several grids are not supported.
+#[test]
+fn grids_auto_cooks_what_inspect_suggests() {
+    let d = tempfile::tempdir().unwrap();
+    let ins = json(&["inspect", "--json", &format!("{FIRE}/fire.0001.vdb")]);
+    assert_eq!(ins["files"][0]["suggested_grids"], serde_json::json!(GRIDS));
+    let mixed = json(&["inspect", "--json", "fixtures/vdb/fire_mixed_xform.vdb"]);
+    let skipped = &mixed["files"][0]["suggested_skipped"][0];
+    assert_eq!(skipped["name"], "temperature");
+    assert!(skipped["why"].as_str().unwrap().contains("transform"));
+    let auto = d.path().join("auto.vdbc");
+    let named = d.path().join("named.vdbc");
+    json(&[
+        "cook",
+        "--json",
+        FIRE,
+        "--grids",
+        "auto",
+        "--max-error",
+        "0.01,temperature=5",
+        "-o",
+        auto.to_str().unwrap(),
+    ]);
+    cook(&named, &["--max-error", "0.01,temperature=5"]);
+    assert!(std::fs::read(&auto).unwrap() == std::fs::read(&named).unwrap());
+    let out = d.path().join("x.vdbc");
+    let o = out.to_str().unwrap();
+    refused(
+        &[
+            "cook",
+            "fixtures/vdb/levelset_sphere.vdb",
+            "--grids",
+            "auto",
+            "-o",
+            o,
+        ],
+        &out,
+        &["--grids auto", "no float grid", "float grids: "],
+    );
+    refused(
+        &["cook", FIRE, "--grids", "auto", "--clusters", "4", "-o", o],
+        &out,
+        &["--clusters"],
+    );
+}
