@@ -26,6 +26,7 @@ report-docs:
     target/release/vdbcook report ../shared/samples/wdas-cloud/wdas_cloud_sixteenth.vdb -o docs/report/wdas
     target/release/vdbcook report ../shared/samples/stormscape-cloud-seq -o docs/report/stormscape
     target/release/vdbcook report bench-data/smoke100 -o docs/report/smoke100
+    cargo bench -p vdbcook --bench channel_payloads -- fixtures/seq/fire density,temperature,flame docs/report/channels
 
 # Regenerate fixtures/ with OpenVDB (installs Debian's OpenVDB packages first).
 fixtures:

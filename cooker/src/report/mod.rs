@@ -6,7 +6,7 @@
 //! as JSON, CSV and Markdown. Everything is computed before DIR is touched: a failure leaves
 //! nothing behind. Three stages, one module each: `collect` → `figures` → `write`.
 
-mod chart;
+pub mod chart;
 mod collect;
 mod figures;
 mod peers;
