@@ -307,7 +307,7 @@ fn main() {
             md += &format!(" {mx:.2e} | {rm:.2e} |");
             ch.push(json!({"name": names[c], "max_abs_rel": mx, "rmse_rel": rm}));
             points.push(Point {
-                label: format!("{}", names[c]),
+                label: names[c].clone(),
                 x: mx,
                 y: (atlas + ref_bytes) as f64,
                 series: k,
