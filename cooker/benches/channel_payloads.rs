@@ -16,9 +16,9 @@ use serde_json::json;
 use vdbcook::bcenc::{encode_bc4, encode_bc7, Bc7Quality};
 use vdbcook::cook;
 use vdbcook::report::chart::{scatter_chart, Point, Series, PALETTE};
-use vdbcook_asset::bc::{decode_bc4_block, decode_bc7_block};
-use vdbcook_asset::payload::{dequantize, quantize, vox_index};
-use vdbcook_asset::{Asset, BRICK_VOXELS, EMPTY, TILE_BIT};
+use vdbcook_asset::bc::decode_bc7_block;
+use vdbcook_asset::payload::{decode_brick, dequantize, quantize, vox_index};
+use vdbcook_asset::{Asset, PayloadFormat, BRICK_VOXELS, EMPTY, TILE_BIT};
 
 /// One slot's value source for one channel.
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -77,17 +77,14 @@ fn via_bc4(v: &[f32; BRICK_VOXELS]) -> [f32; BRICK_VOXELS] {
             }
         }
     }
-    let blocks = encode_bc4(8, 64, &surf);
     let mut out = [0.0; BRICK_VOXELS];
-    for (i, b) in blocks.chunks_exact(8).enumerate() {
-        let t = decode_bc4_block(b.try_into().unwrap());
-        let (bx, by) = (i % 2, i / 2);
-        for (k, &q) in t.iter().enumerate() {
-            let (x, row) = (4 * bx + k % 4, 4 * by + k / 4);
-            let (z, y) = (row / 8, row % 8);
-            out[vox_index(x, y, z)] = dequantize(q, lo, hi);
-        }
-    }
+    // The surface's block order is the asset's BC4 brick layout.
+    decode_brick(
+        PayloadFormat::Bc4,
+        &encode_bc4(8, 64, &surf),
+        [lo, hi],
+        &mut out,
+    );
     out
 }
 

@@ -261,8 +261,7 @@ mod imp {
                         };
                         image = Some(match image {
                             None if batches.len() == 1 => img,
-                            None => scaled(img, weight),
-                            Some(acc) => add_scaled(acc, &img, weight),
+                            acc => add_scaled(acc, img, weight),
                         });
                     }
                 }
@@ -279,21 +278,17 @@ mod imp {
         }
     }
 
-    /// `img` times `k`.
-    fn scaled(mut img: Image, k: f32) -> Image {
-        img.rgba
-            .iter_mut()
-            .chain(img.value.iter_mut())
-            .for_each(|v| *v *= k);
-        img
-    }
-
-    /// `acc + k · img`.
-    fn add_scaled(mut acc: Image, img: &Image, k: f32) -> Image {
-        for (a, b) in acc.rgba.iter_mut().zip(&img.rgba) {
-            *a += k * b;
-        }
-        for (a, b) in acc.value.iter_mut().zip(&img.value) {
+    /// `acc + k · img` (`k · img` without `acc`).
+    fn add_scaled(acc: Option<Image>, mut img: Image, k: f32) -> Image {
+        let Some(mut acc) = acc else {
+            img.rgba
+                .iter_mut()
+                .chain(img.value.iter_mut())
+                .for_each(|v| *v *= k);
+            return img;
+        };
+        let sums = acc.rgba.iter_mut().chain(acc.value.iter_mut());
+        for (a, b) in sums.zip(img.rgba.iter().chain(&img.value)) {
             *a += k * b;
         }
         acc

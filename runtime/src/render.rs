@@ -598,19 +598,6 @@ impl Renderer {
                         self.vol.channels.len() + 1
                     )));
                 };
-                let shaded = [
-                    Mode::Density,
-                    Mode::SingleScatter,
-                    Mode::DeltaTracking,
-                    Mode::Lit,
-                ];
-                if !shaded.contains(&settings.mode) {
-                    return Err(RuntimeError::Setting(format!(
-                        "emission from another channel is drawn in the shaded modes (density, \
-                         scatter, delta, lit); {:?} draws no emission",
-                        settings.mode
-                    )));
-                }
                 emit_box = if e.range[0] >= ch.background {
                     ch.boxes[frame]
                 } else {

@@ -78,15 +78,6 @@ pub(crate) struct ChannelEmission {
     bbox: Option<([f64; 3], [f64; 3])>,
 }
 
-/// Modes that draw emission from another channel (every shaded mode; the debug views draw none).
-const CHANNEL_EMISSION_MODES: [Mode; 5] = [
-    Mode::Density,
-    Mode::SingleScatter,
-    Mode::DeltaTracking,
-    Mode::Reference,
-    Mode::Lit,
-];
-
 impl<'a> Tracer<'a> {
     /// Validates the settings and the transform and precomputes per-render constants.
     pub fn new(
@@ -104,14 +95,6 @@ impl<'a> Tracer<'a> {
                     "emission channel {} is not in the asset ({} channel(s))",
                     e.channel,
                     asset.channel_count()
-                )));
-            }
-            if !CHANNEL_EMISSION_MODES.contains(&settings.mode) {
-                return Err(TraceError::Setting(format!(
-                    "emission from another channel ('{}') is drawn in the shaded modes (density, \
-                     scatter, delta, reference, lit); {:?} draws no emission",
-                    asset.header.channel_name(e.channel),
-                    settings.mode
                 )));
             }
             // Where the channel exceeds its background, or everywhere when its background
