@@ -54,6 +54,26 @@ pub struct CookReport {
     /// lossless cook), or no active value at all. Empty unless some were dropped.
     #[serde(default)]
     pub dropped_channels: Vec<DroppedChannel>,
+    /// The coarser levels of `--lod`; `None` without it.
+    #[serde(default)]
+    pub lod: Option<LodReport>,
+}
+
+/// What `--lod` stored (`CookReport::lod`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LodReport {
+    /// Coarser levels stored (level k: 2^k voxels per axis in one).
+    pub levels: u32,
+    /// L2 nodes and bricks only the coarser levels use.
+    pub l2_nodes: u64,
+    pub bricks: u64,
+    /// GPU bytes the levels add (`bytes.topology` and `bytes.atlas` include them).
+    pub topology_bytes: u64,
+    pub atlas_bytes: u64,
+    /// Those bytes over the GPU bytes of the full-resolution frames alone.
+    pub share: f64,
+    /// Largest |decoded − box mean| over the levels' bricks (within `max_error`; 0 lossless).
+    pub max_abs: f64,
 }
 
 /// A grid of `--grids` that was not cooked (`CookReport::dropped_channels`).

@@ -129,6 +129,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         })
         .collect();
     let per_frame_bytes = asset.root_len() as u64 * 4 + 8 * nch as u64;
+    let levels: Vec<_> = crate::lod::per_level(&asset)
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            json!({"level": k, "voxel_span": 1u64 << k, "bricks": l.bricks,
+                   "new_bricks": l.new_bricks, "new_atlas_bytes": l.new_atlas_bytes})
+        })
+        .collect();
     let bpv = |b: u64| {
         if active > 0 {
             b as f64 * 8.0 / active as f64
@@ -164,6 +172,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "bytes_per_extra_static_frame": per_frame_bytes,
         "frames": frames,
         "channels": channels,
+        "lod_levels": h.lod_levels,
+        "levels": levels,
     });
     if a.json {
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
@@ -231,6 +241,18 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         topology + atlas
     );
     println!("  topology {:.3} bit per active voxel; each extra frame of a static volume costs {per_frame_bytes} bytes", bpv(topology));
+    if h.lod_levels > 0 {
+        println!(
+            "  levels of detail ({} coarser; bricks over all frames, new = used by no finer level):",
+            h.lod_levels
+        );
+        for l in &levels {
+            println!(
+                "    level {} ({:>4}^3 voxels per voxel) {:>8} bricks, {:>8} new ({} atlas bytes)",
+                l["level"], l["voxel_span"], l["bricks"], l["new_bricks"], l["new_atlas_bytes"]
+            );
+        }
+    }
     println!("  sections (raw / in file):");
     for s in &sections {
         println!(

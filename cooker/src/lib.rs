@@ -20,6 +20,7 @@ pub mod gpu;
 pub mod grid_pick;
 pub mod info;
 pub mod inspect;
+pub mod lod;
 pub mod manifest;
 pub mod multi;
 pub mod output;

@@ -614,6 +614,7 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             sections: Vec::new(),
             content_hash: 0,
             channels,
+            lod_levels: 0,
         },
         roots,
         frame_ranges: rg.frames,
@@ -781,6 +782,7 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
         },
         channels: channel_reports,
         dropped_channels: Vec::new(),
+        lod: None,
     };
     Ok(Cooked {
         asset,

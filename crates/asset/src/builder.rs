@@ -217,6 +217,7 @@ impl AssetBuilder {
                 sections: vec![],
                 content_hash: 0,
                 channels: Vec::new(),
+                lod_levels: 0,
             },
             roots: vec![],
             frame_ranges: vec![],

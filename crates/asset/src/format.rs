@@ -3,12 +3,17 @@
 use serde::{Deserialize, Serialize};
 
 pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
-/// The newest version this build writes and reads: several channels on one topology
-/// ([`Header::channels`]). Single-channel assets are still written as
-/// [`FORMAT_VERSION_SINGLE`], byte for byte what earlier builds wrote.
-pub const FORMAT_VERSION: u32 = 3;
+/// The newest version this build writes and reads: a level-of-detail chain
+/// ([`Header::lod_levels`] > 0), with one channel or several. Assets without one are still
+/// written as [`FORMAT_VERSION_SINGLE`] or [`FORMAT_VERSION_CHANNELS`], byte for byte what
+/// earlier builds wrote.
+pub const FORMAT_VERSION: u32 = 4;
+/// Several channels on one topology ([`Header::channels`]), no level-of-detail chain.
+pub const FORMAT_VERSION_CHANNELS: u32 = 3;
 /// The version of single-channel assets (no `channels` in the header).
 pub const FORMAT_VERSION_SINGLE: u32 = 2;
+/// Most coarser levels one asset holds (2¹² = 4096 voxels, the largest extent, down to one).
+pub const MAX_LOD_LEVELS: u32 = 12;
 /// Most channels one asset holds.
 pub const MAX_CHANNELS: usize = 8;
 /// Root entry: the 128³ region is background. In a multi-channel asset also a leaf ref: this
@@ -242,6 +247,11 @@ pub struct Header {
     /// channel 0 is `grid_name` with `background`. Empty for a single-channel asset (version 2):
     /// its one channel is `grid_name`.
     pub channels: Vec<ChannelInfo>,
+    /// Coarser levels stored after the full-resolution frames (format version 4; 0 in versions
+    /// 2 and 3). Level `k` of frame `f` is the root set `f + k·frames`, over the same L2 nodes,
+    /// tiles and bricks: its voxel `i` is the mean of level `k − 1`'s voxels `2i + {0,1}³`
+    /// (background where nothing is stored), in an index space scaled by `2^-k`.
+    pub lod_levels: u32,
 }
 
 /// One grid of a multi-channel asset. All channels share the asset's topology (the union of
@@ -277,6 +287,71 @@ pub(crate) struct HeaderV2 {
     pub brick_counts: [u64; 5],
     pub sections: Vec<SectionInfo>,
     pub content_hash: u64,
+}
+
+/// The header as format version 3 stores it (several channels, no level-of-detail chain):
+/// [`Header`] without `lod_levels`. Frozen, as [`HeaderV2`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct HeaderV3 {
+    pub tool: String,
+    pub options: CookOptions,
+    pub grid_name: String,
+    pub frames: Vec<FrameInfo>,
+    pub index_offset: [i32; 3],
+    pub root_dims: [u32; 3],
+    pub index_to_world: [[f64; 4]; 4],
+    pub source_map: String,
+    pub voxel_size: [f64; 3],
+    pub background: f32,
+    pub brick_counts: [u64; 5],
+    pub sections: Vec<SectionInfo>,
+    pub content_hash: u64,
+    pub channels: Vec<ChannelInfo>,
+}
+
+impl From<&Header> for HeaderV3 {
+    fn from(h: &Header) -> HeaderV3 {
+        let v2 = HeaderV2::from(h);
+        HeaderV3 {
+            tool: v2.tool,
+            options: v2.options,
+            grid_name: v2.grid_name,
+            frames: v2.frames,
+            index_offset: v2.index_offset,
+            root_dims: v2.root_dims,
+            index_to_world: v2.index_to_world,
+            source_map: v2.source_map,
+            voxel_size: v2.voxel_size,
+            background: v2.background,
+            brick_counts: v2.brick_counts,
+            sections: v2.sections,
+            content_hash: v2.content_hash,
+            channels: h.channels.clone(),
+        }
+    }
+}
+
+impl From<HeaderV3> for Header {
+    fn from(h: HeaderV3) -> Header {
+        Header {
+            channels: h.channels,
+            ..Header::from(HeaderV2 {
+                tool: h.tool,
+                options: h.options,
+                grid_name: h.grid_name,
+                frames: h.frames,
+                index_offset: h.index_offset,
+                root_dims: h.root_dims,
+                index_to_world: h.index_to_world,
+                source_map: h.source_map,
+                voxel_size: h.voxel_size,
+                background: h.background,
+                brick_counts: h.brick_counts,
+                sections: h.sections,
+                content_hash: h.content_hash,
+            })
+        }
+    }
 }
 
 impl From<&Header> for HeaderV2 {
@@ -316,6 +391,7 @@ impl From<HeaderV2> for Header {
             sections: h.sections,
             content_hash: h.content_hash,
             channels: Vec::new(),
+            lod_levels: 0,
         }
     }
 }
@@ -327,11 +403,17 @@ impl Header {
     }
     /// The format version this header is written as.
     pub fn format_version(&self) -> u32 {
-        if self.channels.is_empty() {
+        if self.lod_levels > 0 {
+            FORMAT_VERSION
+        } else if self.channels.is_empty() {
             FORMAT_VERSION_SINGLE
         } else {
-            FORMAT_VERSION
+            FORMAT_VERSION_CHANNELS
         }
+    }
+    /// Levels stored: the full resolution and [`Header::lod_levels`] coarser ones.
+    pub fn level_count(&self) -> usize {
+        1 + self.lod_levels as usize
     }
     /// Name of channel `c`.
     pub fn channel_name(&self, c: usize) -> &str {
@@ -361,10 +443,10 @@ impl Header {
     /// Encodes the header as its version stores it (bincode 2, standard config).
     pub(crate) fn encode(&self) -> Result<Vec<u8>, crate::AssetError> {
         let config = bincode::config::standard();
-        let r = if self.channels.is_empty() {
-            bincode::serde::encode_to_vec(HeaderV2::from(self), config)
-        } else {
-            bincode::serde::encode_to_vec(self, config)
+        let r = match self.format_version() {
+            FORMAT_VERSION_SINGLE => bincode::serde::encode_to_vec(HeaderV2::from(self), config),
+            FORMAT_VERSION_CHANNELS => bincode::serde::encode_to_vec(HeaderV3::from(self), config),
+            _ => bincode::serde::encode_to_vec(self, config),
         };
         r.map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))
     }

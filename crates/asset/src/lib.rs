@@ -39,11 +39,23 @@
 //! region is an L2 node whose 4096 slots all hold tile refs). Bricks, tiles and payloads form one
 //! pool shared by all channels. Single-channel assets are version 2, without `channels`.
 //!
+//! # Level of detail (format version 4)
+//! An asset cooked with `--lod` also stores `L = Header::lod_levels` coarser levels of every
+//! frame, each a box-filtered 2× reduction of the one before, down to (at most) one brick. They
+//! are more root sets in `roots` and `frame_ranges`, after the full-resolution ones: level `k`
+//! of frame `f` is root set `f + k·frames` ([`Asset::lod_set`]), over the same L2 nodes, tiles
+//! and bricks (deduplicated with the full-resolution ones) and the same `root_dims` (a coarse
+//! level uses the first `⌈dims / 2^k⌉` entries per axis; the rest are `EMPTY`). Level `k`'s
+//! asset index `i` covers full-resolution indices `2^k·i + [0, 2^k)³`; its value is the mean of
+//! level `k − 1`'s eight voxels `2i + {0,1}³` (background where nothing is stored), so every
+//! level's value is the mean of the full-resolution voxels it covers, up to the payload's error.
+//! Node, brick and root-set ranges bound each level's own values, as at full resolution.
+//!
 //! # The file
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `b"VDBCOOK\x1a"` |
-//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several) |
+//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several, 4 with coarser levels) |
 //! | 12 | 4 | header length `H` (`u32` LE) |
 //! | 16 | H | [`Header`], bincode 2 (standard config) |
 //! | 16 + H | … | sections: zstd frames at `Header::sections[i].offset` (relative to 16 + H) |
@@ -73,9 +85,10 @@ pub use sample::LeafRef;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Asset {
     pub header: Header,
-    /// `frames × root_len` entries: `EMPTY`, `TILE_BIT | tile`, or an L2 node index.
+    /// `frames × levels × root_len` entries (root set `f + level·frames` at
+    /// `(f + level·frames)·root_len`): `EMPTY`, `TILE_BIT | tile`, or an L2 node index.
     pub roots: Vec<u32>,
-    /// Per frame `[min, max]` of stored values over the frame's extent.
+    /// Per root set (frame and level) and channel, `[min, max]` of stored values over its extent.
     pub frame_ranges: Vec<[f32; 2]>,
     /// Per L2 node, 64 words: which of the 4096 slots exist.
     pub l2_masks: Vec<u64>,
@@ -99,6 +112,22 @@ pub struct Asset {
 impl Asset {
     pub fn frame_count(&self) -> usize {
         self.header.frames.len()
+    }
+    /// Levels stored (1 without a level-of-detail chain).
+    pub fn level_count(&self) -> usize {
+        self.header.level_count()
+    }
+    /// Root sets stored: every frame at every level (`frames × levels`).
+    pub fn root_set_count(&self) -> usize {
+        self.frame_count() * self.level_count()
+    }
+    /// The root set of `frame` at `level` (0 = full resolution): pass it as the `frame` of any
+    /// per-frame accessor ([`Asset::value`], [`Asset::leaf_at`], [`Asset::for_each_leaf`],
+    /// [`Asset::frame_range`], [`Asset::frame_roots`]) to read that level, whose asset index
+    /// `i` covers full-resolution indices `2^level · i + [0, 2^level)³`.
+    pub fn lod_set(&self, frame: usize, level: usize) -> usize {
+        debug_assert!(frame < self.frame_count() && level < self.level_count());
+        frame + level * self.frame_count()
     }
     /// Channels stored (1 for a single-channel asset).
     pub fn channel_count(&self) -> usize {

@@ -48,10 +48,10 @@ impl Asset {
             return bad("not a vdbcook asset (magic number missing)");
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4"));
-        if version != FORMAT_VERSION && version != FORMAT_VERSION_SINGLE {
+        if !(FORMAT_VERSION_SINGLE..=FORMAT_VERSION).contains(&version) {
             return bad(format!(
                 "asset format version {version}; this build reads versions \
-                 {FORMAT_VERSION_SINGLE} and {FORMAT_VERSION}"
+                 {FORMAT_VERSION_SINGLE} to {FORMAT_VERSION}"
             ));
         }
         let hlen = u32::from_le_bytes(bytes[12..16].try_into().expect("4")) as usize;
@@ -69,9 +69,22 @@ impl Asset {
                 bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
             (h.into(), used)
         } else {
-            let (h, used): (Header, usize) =
-                bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
-            if h.channels.len() < 2 || h.channels.len() > MAX_CHANNELS {
+            let (h, used): (Header, usize) = if version == FORMAT_VERSION_CHANNELS {
+                let (h, used): (HeaderV3, usize) =
+                    bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
+                (h.into(), used)
+            } else {
+                bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?
+            };
+            if version == FORMAT_VERSION && (h.lod_levels == 0 || h.lod_levels > MAX_LOD_LEVELS) {
+                return bad(format!(
+                    "a version-{version} asset has 1..={MAX_LOD_LEVELS} coarser levels, this one {}",
+                    h.lod_levels
+                ));
+            }
+            if (version == FORMAT_VERSION_CHANNELS || !h.channels.is_empty())
+                && (h.channels.len() < 2 || h.channels.len() > MAX_CHANNELS)
+            {
                 return bad(format!(
                     "a version-{version} asset has 2..={MAX_CHANNELS} channels, this one {}",
                     h.channels.len()
@@ -148,6 +161,8 @@ impl Asset {
         }
         let root_len: usize = header.root_dims.iter().map(|&d| d as usize).product();
         let nch = header.channel_count();
+        // Root sets: every frame at every level.
+        let nsets = nframes * header.level_count();
         // Element counts implied by the sections, checked for consistency.
         let n_l2 = raw[3].len() / 4;
         let n_bricks = raw[8].len() / 8;
@@ -163,8 +178,8 @@ impl Asset {
             ));
         }
         let mut expect: Vec<(usize, u64)> = vec![
-            (0, (nframes * root_len * 4) as u64),
-            (1, (nframes * nch) as u64 * 8),
+            (0, (nsets * root_len * 4) as u64),
+            (1, (nsets * nch) as u64 * 8),
             (2, n_l2 as u64 * L2_WORDS as u64 * 8),
             (3, n_l2 as u64 * 4),
             (4, n_l2 as u64 * L2_WORDS as u64 * 2),
@@ -210,6 +225,12 @@ impl Asset {
 
     /// Checks every index and count (also used on freshly cooked assets in tests).
     pub fn validate(&self) -> Result<(), AssetError> {
+        if self.header.lod_levels > MAX_LOD_LEVELS {
+            return bad(format!(
+                "{} coarser levels; an asset holds at most {MAX_LOD_LEVELS}",
+                self.header.lod_levels
+            ));
+        }
         let n_l2 = self.l2_count();
         let n_tiles = self.tiles.len();
         let n_bricks = self.brick_count();
@@ -224,6 +245,15 @@ impl Asset {
                 (r as usize) < n_bricks
             }
         };
+        if self.roots.len() != self.root_set_count() * self.root_len() {
+            return bad(format!(
+                "{} root entries for {} frame(s) at {} level(s) of {} regions",
+                self.roots.len(),
+                self.frame_count(),
+                self.level_count(),
+                self.root_len()
+            ));
+        }
         for (i, &e) in self.roots.iter().enumerate() {
             let fine = e == EMPTY
                 || if e & TILE_BIT != 0 {
@@ -269,7 +299,7 @@ impl Asset {
         }
         if !self.l3_refs.len().is_multiple_of(nch)
             || self.l2_ranges.len() != n_l2 * nch
-            || self.frame_ranges.len() != self.frame_count() * nch
+            || self.frame_ranges.len() != self.root_set_count() * nch
         {
             return bad(format!(
                 "leaf refs, node or frame ranges are not {nch} per slot, node and frame"

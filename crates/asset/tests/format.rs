@@ -74,6 +74,7 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
             sections: vec![],
             content_hash: 0,
             channels: Vec::new(),
+            lod_levels: 0,
         },
         roots: vec![0, TILE_BIT | 1, 0, EMPTY],
         frame_ranges: vec![[0.0, 777.0], [0.0, 777.0]],
@@ -367,5 +368,85 @@ fn corrupt_multi_channel_files_are_refused_without_panic() {
     }
     for cut in (0..bytes.len()).step_by(7) {
         assert!(Asset::from_bytes(&bytes[..cut]).is_err(), "cut {cut}");
+    }
+}
+
+/// `two_channel_asset` read as one frame with one coarser level: its second frame's roots
+/// become the level's root set (the format does not check that a level is a box filter; the
+/// cooker's tests do).
+fn lod_asset() -> Asset {
+    let mut a = two_channel_asset();
+    a.header.frames.truncate(1);
+    for c in &mut a.header.channels {
+        c.active_voxels.truncate(1);
+    }
+    a.header.lod_levels = 1;
+    a
+}
+
+#[test]
+fn assets_with_levels_are_version_4_and_round_trip() {
+    let a = lod_asset();
+    a.validate().unwrap();
+    assert_eq!(
+        (a.frame_count(), a.level_count(), a.root_set_count()),
+        (1, 2, 2)
+    );
+    assert_eq!(a.lod_set(0, 1), 1);
+    let (bytes, header) = a.to_bytes().unwrap();
+    assert_eq!(
+        u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+        FORMAT_VERSION
+    );
+    let mut expect = a.clone();
+    expect.header = header;
+    assert_eq!(Asset::from_bytes(&bytes).unwrap(), expect, "v4 round trip");
+    // Level 1 reads what the second root set holds (frame 1 of the two-channel asset).
+    let two = two_channel_asset();
+    for p in [[0i64, 0, 0], [9, 1, 1], [130, 3, 3]] {
+        for c in 0..2 {
+            assert_eq!(a.value_c(a.lod_set(0, 1), p, c), two.value_c(1, p, c));
+        }
+    }
+    // A single channel with levels is version 4 too.
+    let (mut s, _) = sample_asset(PayloadFormat::F32);
+    s.roots.extend_from_within(..);
+    s.frame_ranges.extend_from_within(..);
+    s.header.lod_levels = 1;
+    s.validate().unwrap();
+    let (sb, _) = s.to_bytes().unwrap();
+    assert_eq!(
+        u32::from_le_bytes(sb[8..12].try_into().unwrap()),
+        FORMAT_VERSION
+    );
+    assert_eq!(Asset::from_bytes(&sb).unwrap().level_count(), 2);
+}
+
+#[test]
+fn level_counts_that_do_not_match_the_roots_are_refused() {
+    for (levels, why) in [(2u32, "root entries"), (MAX_LOD_LEVELS + 1, "at most")] {
+        let mut a = lod_asset();
+        a.header.lod_levels = levels;
+        let e = a.validate().unwrap_err().0;
+        assert!(e.contains(why), "{levels}: {e}");
+        // Written anyway (the writer does not validate), the loader refuses the file.
+        if let Ok((bytes, _)) = a.to_bytes() {
+            assert!(Asset::from_bytes(&bytes).is_err());
+        }
+    }
+    let (bytes, _) = lod_asset().to_bytes().unwrap();
+    let orig = Asset::from_bytes(&bytes).unwrap();
+    let mut state = 0x51_7c_c1_b7_27_22_0a_95u64;
+    for pos in 0..bytes.len() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let mut d = bytes.clone();
+        d[pos] ^= (state as u8) | 1;
+        let r = std::panic::catch_unwind(|| Asset::from_bytes(&d).map(|x| x.validate()));
+        let r = r.unwrap_or_else(|_| panic!("panic on a flipped byte at {pos}"));
+        if let Ok(Ok(())) = r {
+            assert_eq!(Asset::from_bytes(&d).unwrap(), orig, "flip at {pos}");
+        }
     }
 }

@@ -1,0 +1,221 @@
+//! Level of detail (`cook --lod`, issue 13 item 2): every coarser level holds the box mean of
+//! the source voxels it covers, as OpenVDB's file says them (read independently here, voxel by
+//! voxel, into a dense array), within the payload's error; the full-resolution frames are what
+//! a cook without `--lod` stores; the chain ends at one brick; bytes and determinism.
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::{sample, vdbcook as run};
+use vdbcook::cook::{self, Args};
+use vdbcook_asset::{Asset, LeafRef, FORMAT_VERSION, FORMAT_VERSION_SINGLE};
+use vdbcook_vdb::VdbFile;
+
+fn smoke5() -> String {
+    common::root()
+        .join("fixtures/seq/smoke5")
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn cook_with(input: &str, format: &str, max_error: Option<f32>, lod: Option<&str>) -> cook::Cooked {
+    let mut a = Args::defaults(vec![input.to_string()], PathBuf::from("unused.vdbc"));
+    a.format = Some(format.into());
+    a.max_error = max_error;
+    a.lod = lod.map(|l| vdbcook::lod::parse_levels(l).unwrap());
+    cook::cook(&a).unwrap()
+}
+
+/// The source frame over the asset's extent, dense in asset index order (`x + X·(y + Y·z)`),
+/// inactive voxels at the background, straight from the VDB file.
+fn dense_source(asset: &Asset, path: &std::path::Path) -> (Vec<f64>, [usize; 3]) {
+    let file = VdbFile::open(path).unwrap();
+    let grid = file
+        .read_float_grid(file.select(Some(&asset.header.grid_name)).unwrap())
+        .unwrap();
+    let dims = asset.header.root_dims.map(|d| d as usize * 128);
+    let off = asset.header.index_offset;
+    let bg = asset.header.background as f64;
+    let look = grid.lookup();
+    let mut out = vec![bg; dims[0] * dims[1] * dims[2]];
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                let s = [x as i32 + off[0], y as i32 + off[1], z as i32 + off[2]];
+                let (v, active) = look.value_at(s);
+                if active {
+                    out[x + dims[0] * (y + dims[1] * z)] = v as f64;
+                }
+            }
+        }
+    }
+    (out, dims)
+}
+
+/// Largest |asset level `k` − box mean of the source| over every voxel of the level, and the
+/// largest |value| (for a relative tolerance); also checks the level's root-set range bounds it.
+fn level_error(asset: &Asset, frame: usize, k: usize, src: &[f64], dims: [usize; 3]) -> f64 {
+    let s = 1usize << k;
+    let d = dims.map(|n| n / s);
+    let set = asset.lod_set(frame, k);
+    let range = asset.frame_range(set, 0);
+    let mut worst = 0f64;
+    for z in 0..d[2] {
+        for y in 0..d[1] {
+            for x in 0..d[0] {
+                let mut sum = 0f64;
+                for dz in 0..s {
+                    for dy in 0..s {
+                        let row = dims[0] * (y * s + dy + dims[1] * (z * s + dz));
+                        sum += src[row + x * s..row + x * s + s].iter().sum::<f64>();
+                    }
+                }
+                let mean = sum / (s * s * s) as f64;
+                let got = asset.value(set, [x as i64, y as i64, z as i64]);
+                assert!(
+                    got >= range[0] && got <= range[1],
+                    "level {k} voxel {:?} = {got} outside its range {range:?}",
+                    [x, y, z]
+                );
+                worst = worst.max((got as f64 - mean).abs());
+            }
+        }
+    }
+    worst
+}
+
+fn frame_path(i: usize) -> PathBuf {
+    common::root().join(format!("fixtures/seq/smoke5/smoke.000{}.vdb", i + 1))
+}
+
+#[test]
+fn lossless_levels_are_the_box_means_of_the_source() {
+    let plain = cook_with(&smoke5(), "f32", None, None);
+    let lod = cook_with(&smoke5(), "f32", None, Some("all"));
+    let (a, p) = (&lod.asset, &plain.asset);
+    assert_eq!(p.header.format_version(), FORMAT_VERSION_SINGLE);
+    assert_eq!(a.header.format_version(), FORMAT_VERSION);
+    // Down to one brick: the extent's longest side over 2^levels is 8 voxels.
+    let side = a.header.root_dims.iter().max().copied().unwrap() as usize * 128;
+    let levels = a.header.lod_levels as usize;
+    assert_eq!(side >> levels, 8, "{levels} levels over {side} voxels");
+    assert_eq!(lod.report.lod.as_ref().unwrap().levels as usize, levels);
+    assert_eq!(lod.report.lod.as_ref().unwrap().max_abs, 0.0);
+    // The file round-trips (the loader validates the level root sets).
+    let loaded = Asset::from_bytes(&lod.bytes).unwrap();
+    assert!(loaded.roots == a.roots && loaded.frame_ranges == a.frame_ranges);
+    assert_eq!(loaded.header.lod_levels, a.header.lod_levels);
+    for f in [0, 4] {
+        let (src, dims) = dense_source(a, &frame_path(f));
+        let peak = src.iter().fold(0f64, |m, v| m.max(v.abs()));
+        // Level 0 is the source exactly, and what the plain cook stores.
+        assert_eq!(level_error(a, f, 0, &src, dims), 0.0);
+        for (i, v) in src.iter().enumerate().step_by(97) {
+            let c = [
+                i % dims[0],
+                (i / dims[0]) % dims[1],
+                i / (dims[0] * dims[1]),
+            ]
+            .map(|c| c as i64);
+            assert_eq!(p.value(f, c), *v as f32);
+        }
+        for k in 1..=levels {
+            // Each level rounds its mean to f32 once: k roundings of values ≤ peak.
+            let tol = k as f64 * peak * f32::EPSILON as f64;
+            let e = level_error(a, f, k, &src, dims);
+            assert!(
+                e <= tol,
+                "frame {f} level {k}: {e:e} from the box mean (tol {tol:e})"
+            );
+        }
+        // The top level stores at most the one leaf at the origin.
+        let mut leaves = Vec::new();
+        a.for_each_leaf(a.lod_set(f, levels), |o, r, region| {
+            assert!(!region);
+            assert!(!matches!(r, LeafRef::Empty));
+            leaves.push(o);
+        });
+        assert!(
+            leaves.len() <= 1 && leaves.iter().all(|o| *o == [0, 0, 0]),
+            "{leaves:?}"
+        );
+    }
+}
+
+#[test]
+fn lossy_levels_stay_within_the_cooks_error_budget() {
+    let budget = 0.01f32;
+    let lod = cook_with(&smoke5(), "bc4", Some(budget), Some("3"));
+    let a = &lod.asset;
+    assert_eq!(a.header.lod_levels, 3);
+    let r = lod.report.lod.as_ref().unwrap();
+    assert!(r.max_abs > 0.0 && r.max_abs <= budget as f64, "{r:?}");
+    let (src, dims) = dense_source(a, &frame_path(2));
+    let peak = src.iter().fold(0f64, |m, v| m.max(v.abs()));
+    for k in 0..=3 {
+        let e = level_error(a, 2, k, &src, dims);
+        let tol = budget as f64 + 4.0 * peak * f32::EPSILON as f64;
+        assert!(e <= tol, "level {k}: {e:e} over the budget {budget}");
+    }
+}
+
+#[test]
+fn lod_cooks_are_byte_identical_at_any_thread_count_and_refuse_several_channels() {
+    let d = tempfile::tempdir().unwrap();
+    let out = |t: &str| d.path().join(format!("{t}.vdbc"));
+    for t in ["1", "2"] {
+        let o = out(t);
+        let (code, _, err) = run(&[
+            "--threads",
+            t,
+            "cook",
+            "fixtures/seq/smoke5",
+            "-o",
+            o.to_str().unwrap(),
+            "--format",
+            "bc4",
+            "--lod",
+            "all",
+        ]);
+        assert_eq!(code, 0, "{err}");
+    }
+    assert_eq!(
+        std::fs::read(out("1")).unwrap(),
+        std::fs::read(out("2")).unwrap()
+    );
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/seq/fire",
+        "-o",
+        out("fire").to_str().unwrap(),
+        "--grids",
+        "density,temperature",
+        "--lod",
+        "2",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--lod") && err.contains("several"), "{err}");
+    assert!(!out("fire").exists());
+    let (code, _, err) = run(&["cook", "fixtures/seq/smoke5", "-o", "x.vdbc", "--lod", "0"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("level count"), "{err}");
+}
+
+/// On the real cloud the chain's bytes are what `info` and the report say, and modest.
+#[test]
+fn lod_bytes_on_the_wdas_cloud() {
+    let Some(w) = sample("wdas-cloud/wdas_cloud_sixteenth.vdb") else {
+        return;
+    };
+    let plain = cook_with(&w, "bc4", None, None);
+    let lod = cook_with(&w, "bc4", None, Some("all"));
+    let r = lod.report.lod.clone().unwrap();
+    let plain_gpu = plain.report.bytes.topology + plain.report.bytes.atlas;
+    let lod_gpu = lod.report.bytes.topology + lod.report.bytes.atlas;
+    // The extra bytes are exactly what the levels add over the plain cook.
+    assert_eq!(lod_gpu - plain_gpu, r.topology_bytes + r.atlas_bytes);
+    assert!((r.share - (lod_gpu - plain_gpu) as f64 / plain_gpu as f64).abs() < 1e-12);
+    // A full chain of a cloud costs about a quarter: the first level dominates (docs/asset.md).
+    assert!(r.share > 0.05 && r.share < 0.35, "{r:?}");
+}
