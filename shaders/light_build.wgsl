@@ -20,7 +20,9 @@ struct LightParams {
     // Element of cell 0 in `lv_tau` (several light volumes share one buffer; the density
     // scratch holds one at a time).
     base: u32,
-    _pad1: u32,
+    // Level of detail the density pass reads (`LightGrid::density_level`); `frame_root` is that
+    // level's root set.
+    level: u32,
     _pad2: u32,
 }
 
@@ -45,7 +47,7 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = 0u; k < sub * sub * sub; k++) {
         let q = vec3<u32>(k % sub, (k / sub) % sub, k / (sub * sub));
         let f = (vec3<f32>(gid) + (vec3<f32>(q) + vec3<f32>(0.5)) / f32(sub)) * cell;
-        let a = vec3<i32>(floor(lp.lo.xyz + f));
+        let a = vec3<i32>(floor(lp.lo.xyz + f)) >> vec3<u32>(lp.level);
         let v = vdb_value(lp.frame_root, a);
         if (v > 0.0) {
             sum += v;

@@ -1080,7 +1080,8 @@ impl VolumeDrawer {
                 // A light volume per frame of the crossfade, in the instance's cell space;
                 // `lv_base*` hold their indices in `volumes` until `record` places them.
                 for (n, f) in [f0, f1].into_iter().enumerate() {
-                    let grid = LightGrid::new(self.vol.content[f], l.light_res);
+                    let grid =
+                        LightGrid::with_levels(self.vol.content[f], l.light_res, self.vol.lod.0);
                     let lp = LightParams::new(
                         &grid,
                         &xf,
@@ -1088,6 +1089,7 @@ impl VolumeDrawer {
                         extinction,
                         medium.unit,
                         roots[n],
+                        self.vol.lod,
                     );
                     let idx = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
                         volumes.push(lp);

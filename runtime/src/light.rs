@@ -27,10 +27,13 @@ pub(crate) struct LightParams {
     pub sun: [f32; 4],
     /// xyz: length per cell-space unit along each axis; w: the extinction.
     pub axis_len: [f32; 4],
+    /// Root offset of the frame at the density pass's level of detail.
     pub frame_root: u32,
     /// Element of cell 0 in the shared buffer (set by [`LightPass::record`]).
     pub base: u32,
-    pub _pad1: u32,
+    /// The density pass's level of detail (`LightGrid::density_level`): full-resolution
+    /// indices shift right by it.
+    pub level: u32,
     pub _pad2: u32,
 }
 
@@ -45,16 +48,18 @@ impl LightParams {
         extinction: f64,
         unit: LengthUnit,
         frame_root: u32,
+        (levels, level_stride): (usize, usize),
     ) -> LightParams {
         let ((l, sun_len), axis) = light_dirs(xf, light_dir, unit);
+        let (level, sub) = grid.density_level(levels);
         LightParams {
             lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
-            dims: [grid.dims[0], grid.dims[1], grid.dims[2], grid.sub],
+            dims: [grid.dims[0], grid.dims[1], grid.dims[2], sub],
             sun: [l[0], l[1], l[2], sun_len].map(|v| v as f32),
             axis_len: [axis[0], axis[1], axis[2], extinction].map(|v| v as f32),
-            frame_root,
+            frame_root: frame_root + level * level_stride as u32,
             base: 0,
-            _pad1: 0,
+            level,
             _pad2: 0,
         }
     }
@@ -290,7 +295,7 @@ mod tests {
                 axis_len,
                 frame_root,
                 base,
-                _pad1,
+                level,
                 _pad2,
             }),
         );

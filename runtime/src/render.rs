@@ -510,6 +510,7 @@ impl Renderer {
                 extinction,
                 settings.unit,
                 params.frame_root,
+                self.vol.lod,
             );
             self.light
                 .record(&self.device, encoder, &self.vol.group, &[lp])?
@@ -585,7 +586,8 @@ impl Renderer {
             0.0
         };
         let c = settings.light_color;
-        let grid = LightGrid::new(self.vol.content[frame], settings.light_res);
+        let grid =
+            LightGrid::with_levels(self.vol.content[frame], settings.light_res, self.vol.lod.0);
         // Emission from another channel: the modes' own emission is off (`emission.w = 0`) and
         // `channel_emission` draws it over the channel's box (as `vdbcook_trace::Tracer`).
         let mut emit_box = None;

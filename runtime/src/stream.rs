@@ -704,6 +704,7 @@ impl StreamingVolume {
                     .collect(),
             },
             frames,
+            levels: 1,
             root_len: asset.root_len(),
             root_dims: asset.header.root_dims,
             index_to_world: asset.header.index_to_world,

@@ -272,6 +272,9 @@ pub struct GpuVolume {
     pub(crate) bind_group: wgpu::BindGroup,
     layout: PayloadLayout,
     frames: usize,
+    /// Levels of detail uploaded (`Asset::level_count`; 1 for a streamed window): level `k` of
+    /// frame `f` is root set `f + k·frames`.
+    levels: usize,
     root_len: usize,
     root_dims: [u32; 3],
     index_to_world: [[f64; 4]; 4],
@@ -961,6 +964,7 @@ impl GpuVolume {
             bind_group,
             layout,
             frames: asset.frame_count(),
+            levels: asset.level_count(),
             root_len: asset.root_len(),
             root_dims: asset.header.root_dims,
             index_to_world: asset.header.index_to_world,
@@ -1109,6 +1113,9 @@ pub(crate) struct Bound {
     constants: Vec<(&'static str, f64)>,
     pub index_to_world: [[f64; 4]; 4],
     pub root_len: usize,
+    /// Levels of detail and the root-offset stride between levels (`frames · root_len`), for
+    /// `LightParams::new`.
+    pub lod: (usize, usize),
     pub extent: [f64; 3],
     /// Per frame: `GpuVolume::frame_bbox`, `content_box`, `frame_max`.
     pub bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
@@ -1196,6 +1203,7 @@ impl Bound {
             constants: volume.pipeline_constants(),
             index_to_world: volume.index_to_world,
             root_len: volume.root_len,
+            lod: (volume.levels, volume.frames * volume.root_len),
             extent: volume.root_extent(),
             bboxes: frames.clone().map(|f| volume.frame_bbox(f)).collect(),
             content: frames.clone().map(|f| volume.content_box(f)).collect(),

@@ -1357,6 +1357,56 @@ fn lit_light_volume_follows_the_frame_and_the_light() {
     }
 }
 
+/// An asset with a level of detail (`cook --lod`, format version 4): the light volume's
+/// density pass reads the coarser level's root set with indices shifted by the level, on cells
+/// snapped to its voxels (`LightGrid::with_levels`). The blob's second frame stands in as
+/// frame 0's level 1 (the runtime does not check that a level is a box filter; the cooker's
+/// `lod` tests do), so a pass reading the wrong root set or shift draws a different image.
+#[test]
+fn lit_reads_the_level_of_detail_like_the_cpu() {
+    let Some(gpu) = Gpu::new("lit_reads_the_level_of_detail_like_the_cpu") else {
+        return;
+    };
+    let plain = blob_asset(PayloadFormat::F32);
+    let mut lod = plain.clone();
+    lod.header.frames.truncate(1);
+    lod.header.lod_levels = 1;
+    lod.validate().unwrap();
+    let cam = vdbcook_trace::Camera::framing(&plain, 0, W as f64 / H as f64).unwrap();
+    let s = RenderSettings {
+        light_res: 6,
+        ..small(Mode::Lit, 0)
+    };
+    let content = vdbcook_trace::content_box(&lod, 0);
+    let grid = vdbcook_trace::LightGrid::with_levels(content, s.light_res, 2);
+    assert_eq!(
+        grid.density_level(2).0,
+        1,
+        "cells of {} voxels read level 1",
+        grid.cell
+    );
+    let mut images = Vec::new();
+    for asset in [&plain, &lod] {
+        let (_vol, r) = gpu.setup(asset);
+        let target = r.buffer_target(&gpu.device, W, H).unwrap();
+        let cpu = vdbcook_trace::render(asset, &cam, &s).unwrap();
+        let g = gpu.render(&r, &target, &cam, &s).unwrap();
+        let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+        eprintln!(
+            "levels {}: {bad} pixels differ (max {max_diff:.2e}) {first}",
+            asset.level_count()
+        );
+        assert!(bad * 1000 <= cpu.value.len() * 5, "{bad} pixels; {first}");
+        images.push(g.rgba);
+    }
+    let changed = images[0]
+        .iter()
+        .zip(&images[1])
+        .filter(|(a, b)| (*a - *b).abs() > 1e-2)
+        .count();
+    assert!(changed > 100, "the level changed only {changed} values");
+}
+
 /// The lit mode's trilinear density (`vdb_trilinear`, eight tree reads per sample) against the
 /// CPU's, on random bricks with tiles and negative values (f32 and BC4) and on the blob.
 #[test]

@@ -74,8 +74,66 @@ impl LightGrid {
         }
     }
 
+    /// [`LightGrid::new`] for an asset with `levels` levels of detail (`cook --lod`). Where
+    /// cells are wider than [`MAX_SUB`] voxels and a coarser level exists, the grid snaps to
+    /// that level's voxels: the corner down to a multiple of `2^k` voxels and the cell up to
+    /// `m·2^k` (`m ≤ MAX_SUB`, computed for the content widened by one such voxel so the cells
+    /// along the longest side stay `≤ res`): every cell is then exactly `m³` voxels of level
+    /// `k`, each the box mean of `8^k` full-resolution voxels, and the density pass is the exact
+    /// box filter of the cell in `m³ ≤ 64` reads (where [`LightGrid::new`]'s cells read one
+    /// voxel in every `cell / MAX_SUB` per axis). Cells may come out up to 1.5× wider than
+    /// `new`'s; the same as `new` without levels or with cells of at most `MAX_SUB` voxels.
+    pub fn with_levels(
+        content: Option<([f64; 3], [f64; 3])>,
+        res: u32,
+        levels: usize,
+    ) -> LightGrid {
+        let g = LightGrid::new(content, res);
+        let Some((lo, hi)) = content.filter(|(lo, hi)| (0..3).all(|a| hi[a] > lo[a])) else {
+            return g;
+        };
+        let (k, _) = g.density_level(levels);
+        if k == 0 {
+            return g;
+        }
+        let span = f64::from(1u32 << k);
+        let res = res.max(1);
+        let side = (0..3).fold(0.0f64, |m, a| m.max(hi[a] - lo[a]));
+        let wide = LightGrid {
+            cell: (side + span) / res as f64,
+            ..g
+        };
+        let (k, _) = wide.density_level(levels);
+        let span = f64::from(1u32 << k);
+        let cell = (wide.cell / span).ceil() * span;
+        let lo = lo.map(|v| (v / span).floor() * span);
+        let dims = [0, 1, 2].map(|a| (((hi[a] - lo[a]) / cell).ceil() as u32).clamp(1, res));
+        LightGrid {
+            lo,
+            cell,
+            dims,
+            sub: (cell.ceil() as u32).clamp(1, MAX_SUB),
+        }
+    }
+
     pub fn cells(&self) -> usize {
         self.dims.iter().map(|&d| d as usize).product()
+    }
+
+    /// The density pass on an asset with `levels` levels of detail (1: none): the level `k`
+    /// whose voxels (`2^k` full-resolution voxels wide) are the coarsest that still give a cell
+    /// at most [`MAX_SUB`] of them per axis, and the sample points per cell axis there,
+    /// `clamp(⌈cell / 2^k⌉, 1, MAX_SUB)`. Each read of level `k` is a box mean over `8^k`
+    /// voxels, so a cell up to `MAX_SUB·2^k` voxels wide is box-filtered exactly up to the cell's
+    /// misalignment with the level's voxels, where one level alone reads one voxel in every
+    /// `cell / MAX_SUB` (aliasing). `(0, sub)` without levels.
+    pub fn density_level(&self, levels: usize) -> (u32, u32) {
+        let mut k = 0u32;
+        while (k as usize) + 1 < levels && self.cell / f64::from(1u32 << k) > MAX_SUB as f64 {
+            k += 1;
+        }
+        let sub = ((self.cell / f64::from(1u32 << k)).ceil() as u32).clamp(1, MAX_SUB);
+        (k, sub)
     }
 
     /// The element of cell `c`.

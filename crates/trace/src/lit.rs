@@ -6,7 +6,10 @@
 //!    - density pass: a cell's density `D` is the mean of `max(v, 0)` over `sub³` nearest-voxel
 //!      reads at the centres of its `sub³` sub-cells, `sub = clamp(⌈cell⌉, 1, 4)`: a box filter
 //!      up to cells of 4 voxels; wider cells read one voxel in every `cell/4` per axis (they
-//!      alias: large assets at a low `light_res`);
+//!      alias: large assets at a low `light_res`) unless the asset has levels of detail
+//!      (`cook --lod`): then cells snap to whole voxels of the level `k` with `cell/2^k ≤ 4`
+//!      (`LightGrid::with_levels`) and read it (`LightGrid::density_level`), an exact box filter
+//!      of any cell width;
 //!    - sun pass: `τ_sun` at a cell centre is the integral of `D` toward the light (`l̂`, in
 //!      cell space) to the grid's far side by the trapezoid rule between the crossings of the
 //!      next slices' centre planes along `l̂`'s major axis, `D` bilinear in each
@@ -66,26 +69,29 @@ impl LightVolume {
         s: &RenderSettings,
         extinction: f64,
     ) -> LightVolume {
-        let grid = LightGrid::new(content_box(asset, frame), s.light_res);
+        let grid =
+            LightGrid::with_levels(content_box(asset, frame), s.light_res, asset.level_count());
         let [nx, ny, _] = grid.dims.map(|d| d as usize);
         let slab = nx * ny;
         let n = grid.cells();
 
         // Density pass, one z slab per task.
         let mut density = vec![0.0f32; n];
-        let sub = grid.sub as usize;
+        // With levels of detail, wide cells read the coarser level (`LightGrid::density_level`).
+        let (level, sub) = grid.density_level(asset.level_count());
+        let (sub, set) = (sub as usize, asset.lod_set(frame, level as usize));
         let fill = |(z, out): (usize, &mut [f32])| {
             for y in 0..ny {
                 for x in 0..nx {
+                    let c = [x, y, z];
                     let mut sum = 0.0f64;
                     for k in 0..sub * sub * sub {
                         let q = [k % sub, (k / sub) % sub, k / (sub * sub)];
-                        let c = [x, y, z];
                         let a = [0, 1, 2].map(|i| {
                             let f = (c[i] as f64 + (q[i] as f64 + 0.5) / sub as f64) * grid.cell;
-                            (grid.lo[i] + f).floor() as i64
+                            ((grid.lo[i] + f).floor() as i64) >> level
                         });
-                        let v = asset.value(frame, a);
+                        let v = asset.value(set, a);
                         if v > 0.0 {
                             sum += v as f64;
                         }
