@@ -121,8 +121,8 @@ pub struct Args {
     pub keep_empty_channels: bool,
     /// Also store coarser levels of every frame (level of detail for shadow and secondary
     /// rays): each a 2x box filter of the one before, `all` down to one 8^3 brick or N levels.
-    /// Same payload and error budget; about 1/7 more bytes for a full chain of a dense volume
-    /// (`lod` in --json says what it added). One grid only.
+    /// Same payload and error budget; +22% (WDAS cloud) to +99% (stormscape) GPU bytes on the
+    /// samples, docs/asset.md (`lod` in --json says what it added). One grid only.
     #[arg(long, value_name = "N|all", value_parser = crate::lod::parse_levels)]
     pub lod: Option<crate::lod::Levels>,
     /// Replace NaN and ±Inf active values with VALUE (by default they are an error).
