@@ -893,9 +893,8 @@ pub fn cook_frames(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
     let mut lod_bricks: Vec<u32> = Vec::new();
     if lod_levels > 0 {
         let stage = progress.stage("level of detail", "levels");
-        let before = pool.brick_count() as u32;
         crate::lod::add_levels(&mut pool, frames.len(), lod_levels, offset, bg);
-        lod_bricks = crate::lod::pool_bricks(&pool, frames.len(), before);
+        lod_bricks = crate::lod::pool_bricks(&pool, frames.len());
         stage.finish();
     }
 

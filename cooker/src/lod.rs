@@ -205,21 +205,17 @@ pub fn add_levels(pool: &mut Pool, frames: usize, levels: u32, offset: [i32; 3],
     pool.track_uses = track;
 }
 
-/// Pool bricks (pre-encode indices) the coarser levels use: those from `first_new` on, plus
-/// full-resolution bricks a level shares (for the levels' error figure).
-pub fn pool_bricks(pool: &Pool, frames: usize, first_new: u32) -> Vec<u32> {
+/// Pool bricks (pre-encode indices) the coarser levels use, their own and those they share
+/// with full resolution (for the levels' error figure).
+pub fn pool_bricks(pool: &Pool, frames: usize) -> Vec<u32> {
     let mut out = std::collections::BTreeSet::new();
-    out.extend(first_new..pool.brick_count() as u32);
-    for entries in &pool.frames[frames..] {
-        for &(_, e) in entries {
-            if e != EMPTY && e & TILE_BIT == 0 {
-                out.extend(
-                    pool.l2_refs[e as usize]
-                        .iter()
-                        .filter(|&&r| r & TILE_BIT == 0)
-                        .copied(),
-                );
-            }
+    for &(_, e) in pool.frames[frames..].iter().flatten() {
+        if e != EMPTY && e & TILE_BIT == 0 {
+            out.extend(
+                pool.l2_refs[e as usize]
+                    .iter()
+                    .filter(|&&r| r & TILE_BIT == 0),
+            );
         }
     }
     out.into_iter().collect()
@@ -263,9 +259,11 @@ pub fn extra(asset: &vdbcook_asset::Asset) -> Extra {
                 .map(|w| w.count_ones() as usize)
                 .sum();
             let base = asset.l2_base[n] as usize * nch;
-            for &r in &asset.l3_refs[base..base + count * nch] {
-                if r == EMPTY {
-                } else if r & TILE_BIT != 0 {
+            for &r in asset.l3_refs[base..base + count * nch]
+                .iter()
+                .filter(|&&r| r != EMPTY)
+            {
+                if r & TILE_BIT != 0 {
                     u.2.insert(r & !TILE_BIT);
                 } else {
                     u.1.insert(r);

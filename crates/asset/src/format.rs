@@ -290,42 +290,18 @@ pub(crate) struct HeaderV2 {
 }
 
 /// The header as format version 3 stores it (several channels, no level-of-detail chain):
-/// [`Header`] without `lod_levels`. Frozen, as [`HeaderV2`].
+/// [`HeaderV2`]'s fields, then `channels`. bincode writes a nested struct's fields in place, so
+/// this is [`Header`] without `lod_levels`. Frozen, as [`HeaderV2`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub(crate) struct HeaderV3 {
-    pub tool: String,
-    pub options: CookOptions,
-    pub grid_name: String,
-    pub frames: Vec<FrameInfo>,
-    pub index_offset: [i32; 3],
-    pub root_dims: [u32; 3],
-    pub index_to_world: [[f64; 4]; 4],
-    pub source_map: String,
-    pub voxel_size: [f64; 3],
-    pub background: f32,
-    pub brick_counts: [u64; 5],
-    pub sections: Vec<SectionInfo>,
-    pub content_hash: u64,
+    pub v2: HeaderV2,
     pub channels: Vec<ChannelInfo>,
 }
 
 impl From<&Header> for HeaderV3 {
     fn from(h: &Header) -> HeaderV3 {
-        let v2 = HeaderV2::from(h);
         HeaderV3 {
-            tool: v2.tool,
-            options: v2.options,
-            grid_name: v2.grid_name,
-            frames: v2.frames,
-            index_offset: v2.index_offset,
-            root_dims: v2.root_dims,
-            index_to_world: v2.index_to_world,
-            source_map: v2.source_map,
-            voxel_size: v2.voxel_size,
-            background: v2.background,
-            brick_counts: v2.brick_counts,
-            sections: v2.sections,
-            content_hash: v2.content_hash,
+            v2: HeaderV2::from(h),
             channels: h.channels.clone(),
         }
     }
@@ -335,21 +311,7 @@ impl From<HeaderV3> for Header {
     fn from(h: HeaderV3) -> Header {
         Header {
             channels: h.channels,
-            ..Header::from(HeaderV2 {
-                tool: h.tool,
-                options: h.options,
-                grid_name: h.grid_name,
-                frames: h.frames,
-                index_offset: h.index_offset,
-                root_dims: h.root_dims,
-                index_to_world: h.index_to_world,
-                source_map: h.source_map,
-                voxel_size: h.voxel_size,
-                background: h.background,
-                brick_counts: h.brick_counts,
-                sections: h.sections,
-                content_hash: h.content_hash,
-            })
+            ..Header::from(h.v2)
         }
     }
 }

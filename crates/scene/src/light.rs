@@ -42,12 +42,9 @@ pub struct LightGrid {
     pub cell: f64,
     /// Cells per axis, each `1..=res`.
     pub dims: [u32; 3],
-    /// Sample points per axis per cell of the density pass (`sub³` nearest-voxel reads are
-    /// averaged into a cell's density): `clamp(ceil(cell), 1, MAX_SUB)`.
-    pub sub: u32,
 }
 
-/// Most density sample points per cell axis.
+/// Most density sample points per cell axis (`LightGrid::density_level`).
 pub const MAX_SUB: u32 = 4;
 
 impl LightGrid {
@@ -59,19 +56,13 @@ impl LightGrid {
                 lo: [0.0; 3],
                 cell: 1.0,
                 dims: [1; 3],
-                sub: 1,
             };
         };
         let res = res.max(1);
         let side = [0, 1, 2].map(|a| hi[a] - lo[a]);
         let cell = side.iter().fold(0.0f64, |m, &s| m.max(s)) / res as f64;
         let dims = side.map(|s| ((s / cell).ceil() as u32).clamp(1, res));
-        LightGrid {
-            lo,
-            cell,
-            dims,
-            sub: (cell.ceil() as u32).clamp(1, MAX_SUB),
-        }
+        LightGrid { lo, cell, dims }
     }
 
     /// [`LightGrid::new`] for an asset with `levels` levels of detail (`cook --lod`). Where
@@ -108,12 +99,7 @@ impl LightGrid {
         let cell = (wide.cell / span).ceil() * span;
         let lo = lo.map(|v| (v / span).floor() * span);
         let dims = [0, 1, 2].map(|a| (((hi[a] - lo[a]) / cell).ceil() as u32).clamp(1, res));
-        LightGrid {
-            lo,
-            cell,
-            dims,
-            sub: (cell.ceil() as u32).clamp(1, MAX_SUB),
-        }
+        LightGrid { lo, cell, dims }
     }
 
     pub fn cells(&self) -> usize {
