@@ -77,6 +77,10 @@ struct Params {
     // With `emit_channel`: the cell box [lo, hi) where that channel may glow (empty: lo > hi).
     emit_lo: vec4<f32>,
     emit_hi: vec4<f32>,
+    // The lit mode's primary levels of detail (`vdbcook_scene::level_start`): x levels read (1:
+    // full resolution only), y the root-offset stride between levels (frames · root length),
+    // z the camera's pixel angle (bits of an f32).
+    lod: vec4<u32>,
 }
 
 @group(1) @binding(0) var<uniform> params: Params;
@@ -296,6 +300,8 @@ struct Walker {
     ld: VdbDda,
     node: u32,
     in_node: bool,
+    // The root set walked (`params.frame_root` unless a level of detail is asked for).
+    root: u32,
 }
 
 struct WkSpan {
@@ -315,6 +321,7 @@ fn wk_init(ray: VdbRay, t0: f32, t1: f32) -> Walker {
     w.ld.budget = 0;
     w.node = 0u;
     w.in_node = false;
+    w.root = params.frame_root;
     return w;
 }
 
@@ -376,7 +383,7 @@ fn wk_next(ray: VdbRay, w: ptr<function, Walker>, lo: f32) -> WkSpan {
         if (!rs.ok) {
             return out;
         }
-        let e = vdb_root_entry(params.frame_root, rs.cell);
+        let e = vdb_root_entry((*w).root, rs.cell);
         if (e == VDB_EMPTY) {
             if (wk_skip(bg, lo)) {
                 continue;
@@ -540,12 +547,12 @@ fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
 
 // `vdb_trilinear` at `p` inside span `sp`: when the eight taps lie in the span's brick (about
 // two samples in three), read from the brick directly instead of descending the tree eight times.
-fn lit_trilinear(sp: WkSpan, p: vec3<f32>) -> f32 {
+fn lit_trilinear(sp: WkSpan, root: u32, p: vec3<f32>) -> f32 {
     let u = p - vec3<f32>(0.5);
     let base = floor(u);
     let b = vec3<i32>(base) - sp.origin;
     if (sp.brick == NO_BRICK || any(b < vec3<i32>(0)) || any(b > vec3<i32>(6))) {
-        return vdb_trilinear(params.frame_root, p);
+        return vdb_trilinear(root, p);
     }
     let f = u - base;
     var sum = 0.0;
@@ -560,9 +567,23 @@ fn lit_trilinear(sp: WkSpan, p: vec3<f32>) -> f32 {
     return sum;
 }
 
-// The lit march for t in [t0, t1]: (radiance rgb, transmittance). `dw`: the unit world direction.
+// `vdbcook_scene::level_start`: where level k begins along a ray whose pixel spans `grow`
+// voxels per unit of t.
+fn lod_start(k: u32, grow: f32) -> f32 {
+    if (k == 0u) {
+        return 0.0;
+    }
+    if (grow > 0.0) {
+        return f32(1u << min(k, 31u)) / grow;
+    }
+    return VDB_BIG;
+}
+
+// The lit march for t in [t0, t1] (the ray's clip to the root extent): (radiance rgb,
+// transmittance). `dw`: the unit world direction. Level k of detail (`params.lod`) is walked
+// over [t_k, t_{k+1}) in its cell space (full resolution's scaled by 2^-k, exact in binary),
+// clipped to the frame's content box widened to that level's leaves, stepping `step·2^k`.
 fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
-    let step = params.step;
     let octaves = params.lv_dims.w;
     let ms = params.ms.xyz;
     // The phase per octave at this ray's μ, the sky's (isotropic: 1).
@@ -570,58 +591,89 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     var sun_ph = lv_sun_phases(params.phase.xyz, ms.z, mu);
     let jitter = lv_jitter(params.seed, pixel);
     let ext = params.extinction;
-    var w = wk_init(ray, t0, t1);
+    let levels = max(params.lod.x, 1u);
+    let grow = bitcast<f32>(params.lod.z) * length(ray.d);
     var budget = MAX_MARCH_SAMPLES;
     var trans = 1.0;
     var rad = vec3<f32>(0.0);
-    for (var g = 0; g < WALK_SPANS; g++) {
-        let sp = wk_next(ray, &w, -3.0e38);
-        if (!sp.ok) {
-            break;
-        }
-        let sb = sp.tb * ray.per_t;
-        var k = max(ceil(sp.ta * ray.per_t / step - jitter), 0.0);
-        var stop = false;
-        for (var n = 0u; n <= MAX_MARCH_SAMPLES; n++) {
-            let s = (k + jitter) * step;
-            if (!(s < sb)) {
-                break;
-            }
-            k += 1.0;
-            if (budget == 0u) {
-                stop = true;
-                break;
-            }
-            budget -= 1u;
-            let p = ray.o + (s / ray.per_t) * ray.d;
-            var rho = 0.0;
-            if (LIT_TRILINEAR && params.ms.w != 0.0) {
-                rho = lit_trilinear(sp, p);
-            } else {
-                rho = wk_value(sp, p);
-            }
-            if (!(rho > 0.0)) {
-                continue;
-            }
-            let x = ext * rho * step;
-            let e = exp(-x);
-            if (TRACE_EMISSION && params.emission.w != 0.0) {
-                v_emit += trans * step * lv_phi(x, e) * emit_radiance(rho);
-            }
-            // The source where the step's light is scattered on average (`lit::mean_depth`).
-            let m = step * lv_mean_depth(x);
-            let tau = lit_lookup(ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d);
-            let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
-            let sky = lv_sky_source(ext * tau.y, params.sky.w);
-            rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
-            trans *= e;
-            if (trans < LV_MIN_TRANS) {
-                stop = true;
-                break;
-            }
-        }
+    var stop = false;
+    for (var lvl = 0u; lvl < levels; lvl++) {
         if (stop) {
             break;
+        }
+        let scale = 1.0 / f32(1u << lvl);
+        var lray = ray;
+        lray.o = ray.o * scale;
+        lray.d = ray.d * scale;
+        // The content box in the level's cell space, out to whole leaves of the level.
+        var clo = params.content_lo.xyz;
+        var chi = params.content_hi.xyz;
+        if (lvl > 0u) {
+            clo = floor(clo * (scale / 8.0)) * 8.0;
+            chi = ceil(chi * (scale / 8.0)) * 8.0;
+        }
+        let cb = vdb_clip_box(lray, clo, chi);
+        var a = max(t0, cb.x);
+        var b = min(t1, cb.y);
+        a = max(a, lod_start(lvl, grow));
+        if (lvl + 1u < levels) {
+            b = min(b, lod_start(lvl + 1u, grow));
+        }
+        if (!(b > a)) {
+            continue;
+        }
+        let root = params.frame_root + lvl * params.lod.y;
+        let step = params.step / scale;
+        var w = wk_init(lray, a, b);
+        w.root = root;
+        for (var g = 0; g < WALK_SPANS; g++) {
+            let sp = wk_next(lray, &w, -3.0e38);
+            if (!sp.ok) {
+                break;
+            }
+            let sb = sp.tb * ray.per_t;
+            var k = max(ceil(sp.ta * ray.per_t / step - jitter), 0.0);
+            for (var n = 0u; n <= MAX_MARCH_SAMPLES; n++) {
+                let s = (k + jitter) * step;
+                if (!(s < sb)) {
+                    break;
+                }
+                k += 1.0;
+                if (budget == 0u) {
+                    stop = true;
+                    break;
+                }
+                budget -= 1u;
+                let p = lray.o + (s / ray.per_t) * lray.d;
+                var rho = 0.0;
+                if (LIT_TRILINEAR && params.ms.w != 0.0) {
+                    rho = lit_trilinear(sp, root, p);
+                } else {
+                    rho = wk_value(sp, p);
+                }
+                if (!(rho > 0.0)) {
+                    continue;
+                }
+                let x = ext * rho * step;
+                let e = exp(-x);
+                if (TRACE_EMISSION && params.emission.w != 0.0) {
+                    v_emit += trans * step * lv_phi(x, e) * emit_radiance(rho);
+                }
+                // The source where the step's light is scattered on average (`lit::mean_depth`).
+                let m = step * lv_mean_depth(x);
+                let tau = lit_lookup(ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d);
+                let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+                let sky = lv_sky_source(ext * tau.y, params.sky.w);
+                rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
+                trans *= e;
+                if (trans < LV_MIN_TRANS) {
+                    stop = true;
+                    break;
+                }
+            }
+            if (stop) {
+                break;
+            }
         }
     }
     return vec4<f32>(rad, trans);
@@ -842,12 +894,15 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         var lt = vec2<f32>(0.0, 1.0);
         var lit = vec3<f32>(0.0);
         let mclip = media_clip(ray);
-        if (mclip.y > mclip.x) {
-            if (params.mode == MODE_LIT) {
-                let r = lit_primary(ray, dw, mclip.x, mclip.y, gid.y * w + gid.x);
+        if (params.mode == MODE_LIT) {
+            // Clipped per level of detail to that level's content box.
+            if (clip.y > clip.x) {
+                let r = lit_primary(ray, dw, clip.x, clip.y, gid.y * w + gid.x);
                 lit = r.xyz;
                 lt = vec2<f32>(0.0, r.w);
-            } else if (params.mode == MODE_SCATTER) {
+            }
+        } else if (mclip.y > mclip.x) {
+            if (params.mode == MODE_SCATTER) {
                 lt = scatter_primary(ray, mclip.x, mclip.y);
             } else {
                 let pixel = gid.y * w + gid.x;

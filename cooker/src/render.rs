@@ -124,6 +124,12 @@ pub struct Args {
     /// sample).
     #[arg(long, default_value = "nearest", value_parser = ["nearest", "trilinear"])]
     filter: String,
+    /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or
+    /// more, stepping 2^k voxels (mip-mapping along the ray, for far or low-resolution views).
+    /// Off by default: averaging density before the exponential makes far pixels slightly
+    /// more opaque than the pixel-area mean (docs/rendering.md has the figures).
+    #[arg(long)]
+    primary_lod: bool,
     /// Octave falloff of the lit mode's multiple scattering A,B,C: octave i scales the
     /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i
     /// (the default is fitted to the reference mode on three clouds: docs/rendering.md).
@@ -297,6 +303,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         ms,
         ms_sky: a.ms_sky,
         filter: Filter::parse(&a.filter).expect("clap checked"),
+        primary_lod: a.primary_lod,
     })
 }
 
@@ -926,6 +933,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let lit = json!({
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
             "ms_sky": short(s.ms_sky), "filter": s.filter.name(),
+            "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {
             settings.extend(lit.clone());

@@ -7,7 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    blackbody_table, depth_range, sky_diffusion, Affine, Filter, LightGrid, Mode,
+    blackbody_table, depth_range, pixel_angle, sky_diffusion, Affine, Filter, LightGrid, Mode,
     BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
@@ -77,6 +77,10 @@ struct Params {
     /// With `emit_channel`: the cell box `[lo, hi)` where that channel may glow (empty: lo > hi).
     emit_lo: [f32; 4],
     emit_hi: [f32; 4],
+    /// The lit mode's primary levels of detail (`vdbcook_scene::level_start`): levels read (1:
+    /// full resolution only), the root-offset stride between levels, the camera's pixel angle
+    /// (f32 bits), unused.
+    lod: [u32; 4],
 }
 
 const WORKGROUP: u32 = 8;
@@ -680,6 +684,16 @@ impl Renderer {
                 }),
             emit_lo: emit_box.map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
             emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1)),
+            lod: [
+                if settings.mode == Mode::Lit && settings.primary_lod {
+                    self.vol.lod.0.max(1) as u32
+                } else {
+                    1
+                },
+                self.vol.lod.1 as u32,
+                (pixel_angle(camera.fov_y_deg, height) as f32).to_bits(),
+                0,
+            ],
         };
         Ok((params, grid))
     }
@@ -744,6 +758,7 @@ mod tests {
                 emit_table,
                 emit_lo,
                 emit_hi,
+                lod,
             }),
         );
     }

@@ -1407,6 +1407,70 @@ fn lit_reads_the_level_of_detail_like_the_cpu() {
     assert!(changed > 100, "the level changed only {changed} values");
 }
 
+/// The lit mode's primary rays by pixel footprint (`primary_lod`, `vdbcook_scene::level_start`):
+/// where a pixel spans more than two voxels the rays read level 1, stepping two voxels; the GPU
+/// splits the rays and clips each level to its content box as the CPU does, nearest and
+/// trilinear, and the image differs from full resolution's.
+#[test]
+fn lit_primary_lod_matches_the_cpu() {
+    let Some(gpu) = Gpu::new("lit_primary_lod_matches_the_cpu") else {
+        return;
+    };
+    // Level 1 stands in as the first frame's blob at half the resolution (centre and radius
+    // halved), so the far part of each ray reads a coarser blob where the near part left off.
+    let mut lod = build(
+        [2, 2, 2],
+        rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
+        0.0,
+        &[
+            blob_frame([120.0, 100.0, 40.0], 34.0, 1.2, Some([1, 1, 1])),
+            blob_frame([60.0, 50.0, 20.0], 17.0, 1.2, None),
+        ],
+        PayloadFormat::F32,
+    );
+    lod.header.frames.truncate(1);
+    lod.header.lod_levels = 1;
+    lod.validate().unwrap();
+    // 40×24 pixels over the blob: a pixel spans about three voxels, so every ray reads level 1
+    // beyond the near side of the blob.
+    let (w, h) = (40, 24);
+    let cam = vdbcook_trace::Camera::framing(&lod, 0, w as f64 / h as f64).unwrap();
+    let (_vol, r) = gpu.setup(&lod);
+    let target = r.buffer_target(&gpu.device, w, h).unwrap();
+    for filter in [
+        vdbcook_trace::Filter::Nearest,
+        vdbcook_trace::Filter::Trilinear,
+    ] {
+        let mut images = Vec::new();
+        for primary_lod in [false, true] {
+            let s = RenderSettings {
+                light_res: 6,
+                filter,
+                primary_lod,
+                width: w,
+                height: h,
+                ..small(Mode::Lit, 0)
+            };
+            let cpu = vdbcook_trace::render(&lod, &cam, &s).unwrap();
+            let g = gpu.render(&r, &target, &cam, &s).unwrap();
+            let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+            eprintln!("{filter:?} primary_lod {primary_lod}: {bad} pixels differ (max {max_diff:.2e}) {first}");
+            assert!(bad * 100 <= cpu.value.len(), "{bad} pixels; {first}");
+            images.push(g.rgba);
+        }
+        let changed = images[0]
+            .iter()
+            .zip(&images[1])
+            .filter(|(a, b)| (*a - *b).abs() > 1e-2)
+            .count();
+        eprintln!("{filter:?}: level 1 changed {changed} values");
+        assert!(
+            changed * 10 > images[0].len(),
+            "level 1 changed only {changed} values"
+        );
+    }
+}
+
 /// The lit mode's trilinear density (`vdb_trilinear`, eight tree reads per sample) against the
 /// CPU's, on random bricks with tiles and negative values (f32 and BC4) and on the blob.
 #[test]

@@ -14,6 +14,7 @@
 mod camera;
 mod content;
 mod emission;
+mod footprint;
 mod light;
 mod settings;
 mod space;
@@ -21,6 +22,7 @@ mod space;
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
+pub use footprint::{level_start, pixel_angle};
 pub use light::{light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};
 pub use settings::{
     Filter, LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_LIGHT_RES,

@@ -156,6 +156,12 @@ pub struct RenderSettings {
     pub ms_sky: f32,
     /// How `Lit` reads the density (the other modes read the nearest voxel).
     pub filter: Filter,
+    /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
+    /// `--lod`) where a pixel spans more voxels (`crate::level_start`): level `k` where it
+    /// spans `2^k` or more, with the step `2^k` times longer. No effect on an asset without
+    /// levels. Off by default: the mean density of a level makes a far pixel more opaque than
+    /// the mean over the pixel of the full resolution's transmittance (Jensen's inequality).
+    pub primary_lod: bool,
 }
 
 impl Default for RenderSettings {
@@ -190,6 +196,7 @@ impl Default for RenderSettings {
             ms: [0.98, 0.9, 0.6],
             ms_sky: 0.25,
             filter: Filter::Nearest,
+            primary_lod: false,
         }
     }
 }

@@ -144,4 +144,7 @@ pub use vdbcook_scene::{
     MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
     MIN_STEP,
 };
-pub use vdbcook_scene::{length, light_dirs, normalize, octave_source, sky_diffusion, sky_source};
+pub use vdbcook_scene::{
+    length, level_start, light_dirs, normalize, octave_source, pixel_angle, sky_diffusion,
+    sky_source,
+};

@@ -229,6 +229,12 @@ impl Tracer<'_> {
     /// `a + ½`, each tap is `max(v, 0)` (NaN reads 0), read through the tree (`Asset::value`),
     /// so neighbouring bricks, tiles and unstored space join without seams.
     pub fn trilinear_density(&self, p: [f64; 3]) -> f64 {
+        self.trilinear_density_in(self.grid.frame, p)
+    }
+
+    /// [`Tracer::trilinear_density`] in root set `set` (a level of detail: `p` in its cell
+    /// space).
+    pub(crate) fn trilinear_density_in(&self, set: usize, p: [f64; 3]) -> f64 {
         let u = p.map(|c| c - 0.5);
         let base = u.map(|c| c.floor());
         let f = [0, 1, 2].map(|a| u[a] - base[a]);
@@ -241,7 +247,7 @@ impl Tracer<'_> {
                 *ax = base[axis] as i64 + hi as i64;
                 w *= if hi { f[axis] } else { 1.0 - f[axis] };
             }
-            let v = self.grid.asset.value(self.grid.frame, a);
+            let v = self.grid.asset.value(set, a);
             if v > 0.0 {
                 sum += w * v as f64;
             }
@@ -254,7 +260,13 @@ impl Tracer<'_> {
 pub(crate) struct LitMarch<'a, 't> {
     pub tracer: &'t Tracer<'a>,
     pub lv: &'t LightVolume,
+    /// The ray in full-resolution cell space (the light volume's lookups, the sample grid).
     pub ray: IndexRay,
+    /// The level of detail being walked (`Tracer::lit`): its root set, `2^−level` (full
+    /// resolution to the level's cell space) and the step there (`step·2^level`, in the unit).
+    pub set: usize,
+    pub scale: f64,
+    pub step: f64,
     pub jitter: f64,
     pub trans: f64,
     pub rad: [f64; 3],
@@ -289,6 +301,9 @@ impl<'a, 't> LitMarch<'a, 't> {
             tracer,
             lv,
             ray,
+            set: tracer.grid.frame,
+            scale: 1.0,
+            step: s.step as f64,
             jitter: lit_jitter(s.seed, pixel),
             trans: 1.0,
             rad: [0.0; 3],
@@ -313,7 +328,7 @@ impl SpanSampler for LitMarch<'_, '_> {
     ) -> Flow {
         let t = self.tracer;
         let s = &t.settings;
-        let step = s.step as f64;
+        let step = self.step;
         let (ext, albedo) = (t.extinction, t.albedo);
         let ray = self.ray;
         let (sa, sb) = (ta * ray.per_t, tb * ray.per_t);
@@ -328,10 +343,11 @@ impl SpanSampler for LitMarch<'_, '_> {
                 return Flow::Stop;
             }
             self.budget -= 1;
-            let p = ray.at(sd / ray.per_t);
+            // The sample in the level's cell space (the walk's and the values').
+            let p = ray.at(sd / ray.per_t).map(|c| c * self.scale);
             let rho = match s.filter {
                 Filter::Nearest => value(p) as f64,
-                Filter::Trilinear => t.trilinear_density(p),
+                Filter::Trilinear => t.trilinear_density_in(self.set, p),
             };
             if !(rho > 0.0) {
                 continue;

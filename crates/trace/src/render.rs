@@ -16,8 +16,8 @@ use crate::space::IndexRay;
 use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
-    blackbody_table, depth_range, normalize, stored_bbox, Affine, Camera, Emission, LengthUnit,
-    Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
+    blackbody_table, depth_range, length, level_start, normalize, stored_bbox, Affine, Camera,
+    Emission, LengthUnit, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -59,6 +59,11 @@ pub struct Tracer<'a> {
     pub(crate) emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
     /// The light volume of `Mode::Lit` (built in `new`; `None` in the other modes).
     pub(crate) light: Option<LightVolume>,
+    /// `Mode::Lit` with `primary_lod` on an asset with levels of detail: the frame at levels
+    /// `1..` (`levels[k − 1]` is level `k`), and the camera's pixel angle
+    /// (`vdbcook_scene::pixel_angle`). Empty otherwise: every ray reads full resolution.
+    pub(crate) levels: Vec<Grid<'a>>,
+    pub(crate) pixel_angle: f64,
     /// Emission read from another channel than the rendered one (`Emission::channel > 0`;
     /// `settings.emission` is then `None`, and this is added after the mode's march).
     pub(crate) channel_emission: Option<ChannelEmission>,
@@ -136,8 +141,17 @@ impl<'a> Tracer<'a> {
         let value_max = asset.frame_range(settings.frame, 0)[1];
         let light = (settings.mode == Mode::Lit)
             .then(|| LightVolume::build(asset, settings.frame, &xf, settings, extinction));
+        let levels = if settings.mode == Mode::Lit && settings.primary_lod {
+            (1..asset.level_count())
+                .map(|k| Grid::new(asset, asset.lod_set(settings.frame, k)))
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(Tracer {
             grid: Grid::new(asset, settings.frame),
+            levels,
+            pixel_angle: vdbcook_scene::pixel_angle(camera.fov_y_deg, settings.height),
             settings: settings.clone(),
             xf,
             extent: ext,
@@ -523,8 +537,34 @@ impl Tracer<'_> {
         };
         let mut v = LitMarch::new(self, lv, ray, dir, pixel);
         let t1 = t1.min(t_max);
-        if t1 > t0 {
-            walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
+        // Level k over [t_k, t_{k+1}) (`vdbcook_scene::level_start`; one level without levels).
+        let grow = length(ray.d);
+        for k in 0..=self.levels.len() {
+            let a = t0.max(level_start(k as u32, self.pixel_angle, grow));
+            let b = if k == self.levels.len() {
+                t1
+            } else {
+                t1.min(level_start(k as u32 + 1, self.pixel_angle, grow))
+            };
+            if !(b > a) {
+                continue;
+            }
+            let (grid, scale) = match k {
+                0 => (&self.grid, 1.0),
+                _ => (&self.levels[k - 1], 1.0 / f64::from(1u32 << k)),
+            };
+            v.set = grid.frame;
+            v.scale = scale;
+            v.step = self.settings.step as f64 / scale;
+            // The level's cell space is full resolution's scaled by 2^−k (exact in binary).
+            let lray = IndexRay::new(ray.o.map(|c| c * scale), ray.d.map(|c| c * scale), false);
+            let lray = IndexRay {
+                per_t: ray.per_t,
+                ..lray
+            };
+            if walk(grid, &lray, a, b, &mut scratch.primary, &mut v) == Flow::Stop {
+                break;
+            }
         }
         let c = [0, 1, 2].map(|i| (v.rad[i] + v.emit[i]) as f32);
         Sample {
