@@ -308,3 +308,86 @@ fn light_volume_cells_read_the_level_that_box_filters_them() {
         }
     }
 }
+
+/// Primary rays by pixel footprint (`RenderSettings::primary_lod`, off by default), where it
+/// fails: from a distance at which a pixel spans about four voxels, against the mean over each
+/// pixel's area (a full-resolution render 8× larger per axis, box-downsampled), the levels'
+/// mean density makes the image more opaque, hence brighter, than both the truth and point
+/// sampling at full resolution (Jensen's inequality), within a bound; the figures are in
+/// `docs/rendering.md`.
+#[test]
+fn primary_lod_is_brighter_than_the_pixel_area_mean() {
+    use vdbcook_trace::{render, Camera, Mode, RenderSettings};
+    let mut inputs = vec![frame_path(0).to_string_lossy().into_owned()];
+    if let Some(w) = sample("wdas-cloud/wdas_cloud_sixteenth.vdb") {
+        inputs.push(w);
+    }
+    let (w, h, f) = (64u32, 36u32, 8u32);
+    for input in inputs {
+        let lod = cook_with(&input, "f32", None, Some("all")).asset;
+        let near = Camera::framing(&lod, 0, w as f64 / h as f64).unwrap();
+        // Voxels per world unit (a uniform scale), and the distance at which a pixel spans 4.
+        let m = &lod.header.index_to_world;
+        let v = 1.0 / (m[0][0] * m[0][0] + m[1][0] * m[1][0] + m[2][0] * m[2][0]).sqrt();
+        let d0 = (0..3)
+            .map(|a| (near.eye[a] - near.look_at[a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let theta = vdbcook_trace::pixel_angle(near.fov_y_deg, h);
+        let k = 4.0 / (d0 * theta * v);
+        let cam = Camera {
+            eye: [0, 1, 2].map(|a| near.look_at[a] + k * (near.eye[a] - near.look_at[a])),
+            ..near
+        };
+        let s = |width, height, primary_lod| RenderSettings {
+            width,
+            height,
+            mode: Mode::Lit,
+            light_res: 32,
+            primary_lod,
+            ..Default::default()
+        };
+        let big = render(&lod, &cam, &s(w * f, h * f, false)).unwrap();
+        // The truth: each pixel's mean over its f×f sub-pixels, luminance.
+        let lum = |rgba: &[f32], i: usize| (rgba[4 * i] + rgba[4 * i + 1] + rgba[4 * i + 2]) as f64;
+        let mut truth = vec![0.0f64; (w * h) as usize];
+        for y in 0..h * f {
+            for x in 0..w * f {
+                truth[((y / f) * w + x / f) as usize] +=
+                    lum(&big.rgba, (y * w * f + x) as usize) / (f * f) as f64;
+            }
+        }
+        let score = |primary_lod| {
+            let img = render(&lod, &cam, &s(w, h, primary_lod)).unwrap();
+            let (mut se, mut sum, mut sum_t, mut n) = (0.0, 0.0, 0.0, 0);
+            for (i, &t) in truth.iter().enumerate() {
+                if t > 0.003 {
+                    let x = lum(&img.rgba, i);
+                    se += (x - t) * (x - t);
+                    sum += x;
+                    sum_t += t;
+                    n += 1;
+                }
+            }
+            let mean_t = sum_t / n as f64;
+            ((se / n as f64).sqrt() / mean_t, sum / sum_t, n, img.rgba)
+        };
+        let (e_full, r_full, n, full) = score(false);
+        let (e_lod, r_lod, _, coarse) = score(true);
+        eprintln!(
+            "{input}: {n} pixels; against the pixel-area mean: full resolution rel RMSE \
+             {e_full:.3} mean ratio {r_full:.3}; --primary-lod {e_lod:.3} / {r_lod:.3}"
+        );
+        let changed = full
+            .iter()
+            .zip(&coarse)
+            .filter(|(a, b)| (*a - *b).abs() > 1e-3)
+            .count();
+        assert!(changed > 0, "{input}: the levels were not read");
+        assert!(
+            r_lod > r_full && r_lod > 1.0,
+            "{input}: {r_lod} vs {r_full}"
+        );
+        assert!(r_lod < 1.2, "{input}: {r_lod}");
+    }
+}

@@ -127,6 +127,7 @@ fn render_json_reports_settings_camera_and_timing() {
         "ms_octaves",
         "ms",
         "filter",
+        "primary_lod",
     ] {
         assert!(!doc["settings"][k].is_null(), "missing settings.{k}");
     }
