@@ -193,16 +193,29 @@ fn check_modes(
 }
 
 fn blob_asset(format: PayloadFormat) -> Asset {
+    blob_asset_then(blob_frame([140.0, 110.0, 50.0], 28.0, 2.5, None), format)
+}
+
+/// The blob's first frame, then `second`.
+fn blob_asset_then(second: FrameSpec, format: PayloadFormat) -> Asset {
     build(
         [2, 2, 2],
         rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
         0.0,
         &[
             blob_frame([120.0, 100.0, 40.0], 34.0, 1.2, Some([1, 1, 1])),
-            blob_frame([140.0, 110.0, 50.0], 28.0, 2.5, None),
+            second,
         ],
         format,
     )
+}
+
+/// A two-frame asset read as one frame with one coarser level: its second frame becomes level 1.
+fn second_frame_as_level(mut asset: Asset) -> Asset {
+    asset.header.frames.truncate(1);
+    asset.header.lod_levels = 1;
+    asset.validate().unwrap();
+    asset
 }
 
 #[test]
@@ -1368,10 +1381,7 @@ fn lit_reads_the_level_of_detail_like_the_cpu() {
         return;
     };
     let plain = blob_asset(PayloadFormat::F32);
-    let mut lod = plain.clone();
-    lod.header.frames.truncate(1);
-    lod.header.lod_levels = 1;
-    lod.validate().unwrap();
+    let lod = second_frame_as_level(plain.clone());
     let cam = vdbcook_trace::Camera::framing(&plain, 0, W as f64 / H as f64).unwrap();
     let s = RenderSettings {
         light_res: 6,
@@ -1418,19 +1428,10 @@ fn lit_primary_lod_matches_the_cpu() {
     };
     // Level 1 stands in as the first frame's blob at half the resolution (centre and radius
     // halved), so the far part of each ray reads a coarser blob where the near part left off.
-    let mut lod = build(
-        [2, 2, 2],
-        rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
-        0.0,
-        &[
-            blob_frame([120.0, 100.0, 40.0], 34.0, 1.2, Some([1, 1, 1])),
-            blob_frame([60.0, 50.0, 20.0], 17.0, 1.2, None),
-        ],
+    let lod = second_frame_as_level(blob_asset_then(
+        blob_frame([60.0, 50.0, 20.0], 17.0, 1.2, None),
         PayloadFormat::F32,
-    );
-    lod.header.frames.truncate(1);
-    lod.header.lod_levels = 1;
-    lod.validate().unwrap();
+    ));
     // 40×24 pixels over the blob: a pixel spans about three voxels, so every ray reads level 1
     // beyond the near side of the blob.
     let (w, h) = (40, 24);

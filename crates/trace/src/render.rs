@@ -556,13 +556,8 @@ impl Tracer<'_> {
             v.set = grid.frame;
             v.scale = scale;
             v.step = self.settings.step as f64 / scale;
-            // The level's cell space is full resolution's scaled by 2^−k (exact in binary).
-            let lray = IndexRay::new(ray.o.map(|c| c * scale), ray.d.map(|c| c * scale), false);
-            let lray = IndexRay {
-                per_t: ray.per_t,
-                ..lray
-            };
-            if walk(grid, &lray, a, b, &mut scratch.primary, &mut v) == Flow::Stop {
+            // The level's cell space is full resolution's scaled by 2^−k.
+            if walk(grid, &ray.scaled(scale), a, b, &mut scratch.primary, &mut v) == Flow::Stop {
                 break;
             }
         }

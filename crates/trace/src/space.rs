@@ -39,6 +39,17 @@ impl IndexRay {
         self.clip_box([0.0; 3], ext)
     }
 
+    /// The same ray in a cell space scaled by `s` (a level of detail: `s = 2^−k`, exact in
+    /// binary), keeping `t` and `per_t`.
+    pub fn scaled(&self, s: f64) -> IndexRay {
+        IndexRay {
+            o: self.o.map(|c| c * s),
+            d: self.d.map(|c| c * s),
+            inv: self.inv.map(|c| c / s),
+            per_t: self.per_t,
+        }
+    }
+
     /// The `t` interval (from `t ≥ 0`) inside the half-open box `[lo, hi)`; `None` if empty. An
     /// axis the ray does not move along must hold the origin inside `[lo, hi)`.
     pub fn clip_box(&self, lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
