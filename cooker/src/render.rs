@@ -13,7 +13,7 @@ use std::time::Instant;
 use serde_json::json;
 use vdbcook_asset::Asset;
 use vdbcook_trace::{
-    Camera, Emission, Filter, Image, LengthUnit, Mode, RenderSettings, Scratch, Tracer,
+    Camera, Emission, Filter, Image, LengthUnit, Mode, MsModel, RenderSettings, Scratch, Tracer,
 };
 
 use crate::cook;
@@ -116,9 +116,15 @@ pub struct Args {
     ms_octaves: u32,
     /// Diffusion scale of the lit mode's multiply scattered sky light: 0 keeps all the sky
     /// light the medium scatters, 1 attenuates it as diffusion theory does (default fitted to
-    /// the reference).
-    #[arg(long, default_value_t = 0.25)]
-    ms_sky: f32,
+    /// the reference: 0.25 with --ms-model octaves, 0.5 with diffusion).
+    #[arg(long)]
+    ms_sky: Option<f32>,
+    /// Multiple scattering of the lit mode's sun: octaves (closed form of the depth toward the
+    /// sun; CPU and GPU) or diffusion (a flux-limited diffusion solve over the light volume:
+    /// light spreads sideways, leaks out of thin edges; more accurate, CPU only for now:
+    /// docs/rendering.md has the figures).
+    #[arg(long, default_value = "octaves", value_parser = ["octaves", "diffusion"])]
+    ms_model: String,
     /// How the lit mode reads the density: nearest (the voxel holding the sample, the medium the
     /// reference sees) or trilinear (smooth up close, no seams between bricks; eight reads per
     /// sample).
@@ -258,6 +264,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
             }
         },
     };
+    let ms_model = MsModel::parse(&a.ms_model).expect("clap checked");
     let ms = match numbers("ms", &a.ms)?[..] {
         [x, y, z] => [x as f32, y as f32, z as f32],
         ref v => return Err(other(format!("--ms takes A,B,C, got {} numbers", v.len()))),
@@ -301,7 +308,8 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         light_res: a.light_res,
         ms_octaves: a.ms_octaves,
         ms,
-        ms_sky: a.ms_sky,
+        ms_sky: a.ms_sky.unwrap_or(ms_model.default_ms_sky()),
+        ms_model,
         filter: Filter::parse(&a.filter).expect("clap checked"),
         primary_lod: a.primary_lod,
     })
@@ -762,6 +770,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         None => None,
     };
+    if a.backend == "gpu" && s.mode == Mode::Lit && s.ms_model == MsModel::Diffusion {
+        return Err(CliError::Usage(
+            "--ms-model diffusion runs on the CPU only for now: use --backend cpu (or auto)".into(),
+        ));
+    }
     if a.backend == "gpu" && s.mode == Mode::Reference {
         return Err(CliError::Usage(
             "--mode reference is the CPU path tracer: use --backend cpu (or auto)".into(),
@@ -772,6 +785,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "gpu" => Some(Gpu::open().map_err(other)?),
         // The reference path tracer is CPU only: `auto` takes the CPU for it.
         "auto" if s.mode == Mode::Reference => None,
+        "auto" if s.mode == Mode::Lit && s.ms_model == MsModel::Diffusion => None,
         "auto" => Gpu::open().ok().filter(|g| !g.is_software()),
         _ => None,
     };
@@ -932,7 +946,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         // The lit mode's keys (one json! per object keeps the macro's recursion shallow).
         let lit = json!({
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
-            "ms_sky": short(s.ms_sky), "filter": s.filter.name(),
+            "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
             "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {

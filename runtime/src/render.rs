@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
     blackbody_table, depth_range, pixel_angle, sky_diffusion, Affine, Filter, LightGrid, Mode,
-    BLACKBODY_TABLE_LEN, MAX_SIDE,
+    MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -564,6 +564,13 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<(Params, LightGrid)> {
         let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
+        if settings.mode == Mode::Lit && settings.ms_model == MsModel::Diffusion {
+            return Err(RuntimeError::Unsupported(
+                "ms_model Diffusion (the lit mode's diffusion solve runs on the CPU tracer only \
+                 for now; use MsModel::Octaves)"
+                    .into(),
+            ));
+        }
         if settings.emission.is_some() && !self.emission {
             return Err(RuntimeError::Unsupported(
                 "emission: this renderer's pipeline was built without it; create it with \

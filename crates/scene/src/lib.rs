@@ -13,6 +13,7 @@
 
 mod camera;
 mod content;
+mod diffusion;
 mod emission;
 mod footprint;
 mod light;
@@ -21,11 +22,12 @@ mod space;
 
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
+pub use diffusion::{ms_levels, DiffusionInputs, MS_COARSEST, MS_ITERATIONS, MS_VACUUM};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};
 pub use light::{light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};
 pub use settings::{
-    Filter, LengthUnit, Mode, RenderSettings, TraceError, MAX_BOUNCES, MAX_LIGHT_RES,
+    Filter, LengthUnit, Mode, MsModel, RenderSettings, TraceError, MAX_BOUNCES, MAX_LIGHT_RES,
     MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

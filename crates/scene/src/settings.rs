@@ -88,6 +88,42 @@ impl Filter {
     }
 }
 
+/// How `Lit` approximates the sun's multiple scattering (light scattered twice or more).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum MsModel {
+    /// Closed-form octaves of the optical depth toward the sun at the sample
+    /// (`crate::octave_source`, `RenderSettings::{ms, ms_octaves}`); CPU and GPU.
+    #[default]
+    Octaves,
+    /// A flux-limited diffusion solve over the light volume's cells, fed by the sun's first
+    /// scattering (`vdbcook_trace::diffusion`): light spreads between cells, leaks out of thin
+    /// edges and is absorbed in thick cores. CPU only for now.
+    Diffusion,
+}
+
+impl MsModel {
+    pub fn name(self) -> &'static str {
+        match self {
+            MsModel::Octaves => "octaves",
+            MsModel::Diffusion => "diffusion",
+        }
+    }
+    pub fn parse(s: &str) -> Option<MsModel> {
+        [MsModel::Octaves, MsModel::Diffusion]
+            .into_iter()
+            .find(|m| m.name() == s)
+    }
+    /// The `ms_sky` this model was measured best with against the reference on three clouds
+    /// (`docs/rendering.md`): the sun's share of the image decides how much of the sky's
+    /// scattered light the fit leaves.
+    pub fn default_ms_sky(self) -> f32 {
+        match self {
+            MsModel::Octaves => 0.25,
+            MsModel::Diffusion => 0.5,
+        }
+    }
+}
+
 /// The length that `absorb`, `scatter`, `step`, `shadow_step` and `gain` are measured in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum LengthUnit {
@@ -154,6 +190,9 @@ pub struct RenderSettings {
     /// (`vdbcook_scene::sky_source`), in `[0, MAX_MS_SKY]`: 0 keeps all the sky light the medium
     /// scatters, 1 is diffusion theory's `√(3(1 − α)(1 − ḡα))`.
     pub ms_sky: f32,
+    /// How `Lit` approximates the sun's multiple scattering (`ms_octaves` and `ms` are the
+    /// octaves model's).
+    pub ms_model: MsModel,
     /// How `Lit` reads the density (the other modes read the nearest voxel).
     pub filter: Filter,
     /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
@@ -194,7 +233,8 @@ impl Default for RenderSettings {
             // RMSE over the WDAS cloud, a stormscape frame and a generated smoke.
             ms_octaves: 8,
             ms: [0.98, 0.9, 0.6],
-            ms_sky: 0.25,
+            ms_sky: MsModel::Octaves.default_ms_sky(),
+            ms_model: MsModel::Octaves,
             filter: Filter::Nearest,
             primary_lod: false,
         }

@@ -28,7 +28,9 @@
 //!    with the step size); stops once `T < LIT_MIN_TRANS`.
 //! 3. **Source** `S = sun·Σᵢ … + sky·…` with the light volume's depths at the sample
 //!    (trilinear): the sun's by `vdbcook_scene::octave_source`, octave `i` with the dual-lobe
-//!    phase's `g` scaled by `c^i` at `μ = d·l`; the sky's (a uniform sky, isotropic) by
+//!    phase's `g` scaled by `c^i` at `μ = d·l` (`MsModel::Octaves`), or single scattering
+//!    `p(μ)·e^{−σ·τ_sun}` plus the diffusion solve's `φ/4π` (`MsModel::Diffusion`: the
+//!    light volume's third field, `crate::diffusion`); the sky's (a uniform sky, isotropic) by
 //!    `vdbcook_scene::sky_source`, which returns what the medium takes out of the sky's beam
 //!    attenuated as diffusion would (exactly the sky at albedo 1: the white furnace holds).
 //!
@@ -39,8 +41,10 @@ use rayon::prelude::*;
 use vdbcook_asset::Asset;
 use vdbcook_scene::{
     content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
-    LightGrid, RenderSettings, MAX_MS_OCTAVES,
+    LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
 };
+
+use crate::diffusion::{self, DiffusionInputs};
 
 use crate::dda::{ceil_f64, Flow};
 use crate::reference::phase;
@@ -57,6 +61,9 @@ pub struct LightVolume {
     pub grid: LightGrid,
     pub density: Vec<f32>,
     pub tau: Vec<[f32; 2]>,
+    /// `MsModel::Diffusion`: per cell the multiply scattered sun light `φ/4π` per unit sun
+    /// irradiance (`crate::diffusion::solve`); empty for the octaves model.
+    pub ms: Vec<f32>,
 }
 
 impl LightVolume {
@@ -154,7 +161,41 @@ impl LightVolume {
         for (i, t) in tau.iter_mut().enumerate() {
             t[1] = sky_depth(t_mean[i], tau_mean[i], extinction) as f32;
         }
-        LightVolume { grid, density, tau }
+        let ms = match s.ms_model {
+            MsModel::Octaves => Vec::new(),
+            MsModel::Diffusion => {
+                let inputs = DiffusionInputs::new(
+                    &grid,
+                    ((l, sun_len), axis_len),
+                    (s.absorb, s.scatter),
+                    (s.phase_g, s.phase_w),
+                );
+                diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs)
+            }
+        };
+        LightVolume {
+            grid,
+            density,
+            tau,
+            ms,
+        }
+    }
+
+    /// `MsModel::Diffusion`'s `φ/4π` at cell-space point `p`: trilinear weighted by the cells'
+    /// densities (empty cells hold 0 and would darken the medium's edge), 0 where all eight are
+    /// empty.
+    pub fn ms_at(&self, p: [f64; 3]) -> f64 {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (i, w) in self.grid.taps(p) {
+            let d = w * self.density[i] as f64;
+            num += d * self.ms[i] as f64;
+            den += d;
+        }
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
     }
 
     /// The sun's optical depth (length units) at cell-space point `p`, anywhere: inside the
@@ -359,8 +400,14 @@ impl SpanSampler for LitMarch<'_, '_> {
             // segment centred on the sample, light is scattered at depth `m` into it with
             // density ∝ e^{−σs}.
             let m = step * mean_depth(x);
-            let [ts, tk] = self.lv.lookup(ray.at((sd - 0.5 * step + m) / ray.per_t));
-            let sun = octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]);
+            let q = ray.at((sd - 0.5 * step + m) / ray.per_t);
+            let [ts, tk] = self.lv.lookup(q);
+            let sun = match s.ms_model {
+                MsModel::Octaves => {
+                    octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize])
+                }
+                MsModel::Diffusion => self.sun_phase[0] * (-ext * ts).exp() + self.lv.ms_at(q),
+            };
             let sky = sky_source(ext * tk, self.sky_k);
             let w = self.trans * albedo * (1.0 - e);
             for c in 0..3 {

@@ -1,0 +1,86 @@
+//! The constants and inputs of `Lit`'s diffusion model of multiple scattering
+//! (`MsModel::Diffusion`), defined once for the CPU solver (`vdbcook_trace::diffusion`, whose
+//! module docs state the method) and the GPU passes (`shaders/light_build.wgsl`'s `ms_*`).
+
+use crate::LightGrid;
+
+/// Jacobi sweeps per level.
+pub const MS_ITERATIONS: usize = 16;
+/// The coarsest level has no side longer than this (cells).
+pub const MS_COARSEST: u32 = 6;
+/// Resistance of the half-face toward empty space or the grid's edge (Marshak's vacuum
+/// boundary: the net flux out is half the fluence).
+pub const MS_VACUUM: f64 = 2.0;
+
+/// The cells per axis of each level of the solve over `dims`: `dims` itself, then each next
+/// one 2× coarser (rounded up) until no side exceeds [`MS_COARSEST`].
+pub fn ms_levels(dims: [u32; 3]) -> Vec<[u32; 3]> {
+    let mut out = vec![dims];
+    while let Some(d) = out.last().filter(|d| d.iter().any(|&v| v > MS_COARSEST)) {
+        let c = d.map(|v| v.div_ceil(2));
+        out.push(c);
+    }
+    out
+}
+
+/// The medium and the sun as the solve sees them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiffusionInputs {
+    /// Extinction per unit density per unit length.
+    pub extinction: f64,
+    pub albedo: f64,
+    /// The phase's mean cosine `ḡ`.
+    pub mean_cos: f64,
+    /// Length (in the settings' unit) of one cell edge along each axis.
+    pub h: [f64; 3],
+    /// Length of the sun's ray across one cell slab along its major axis.
+    pub chord: f64,
+}
+
+impl DiffusionInputs {
+    /// The inputs over `grid` for the sun `(l, len)` and axis lengths of
+    /// [`crate::light_dirs`], extinction `absorb + scatter` and the dual-lobe phase `(g, w)`.
+    pub fn new(
+        grid: &LightGrid,
+        ((l, sun_len), axis_len): (([f64; 3], f64), [f64; 3]),
+        (absorb, scatter): (f32, f32),
+        (g, w): ([f32; 2], f32),
+    ) -> DiffusionInputs {
+        let extinction = absorb as f64 + scatter as f64;
+        let m = (0..3)
+            .max_by(|&a, &b| l[a].abs().total_cmp(&l[b].abs()))
+            .unwrap_or(0);
+        let w = w as f64;
+        DiffusionInputs {
+            extinction,
+            albedo: if extinction > 0.0 {
+                scatter as f64 / extinction
+            } else {
+                0.0
+            },
+            mean_cos: w * g[0] as f64 + (1.0 - w) * g[1] as f64,
+            h: axis_len.map(|a| a * grid.cell),
+            chord: grid.cell / l[m].abs() * sun_len,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_halve_rounding_up_until_the_coarsest() {
+        assert_eq!(ms_levels([4, 6, 1]), vec![[4, 6, 1]]);
+        assert_eq!(
+            ms_levels([54, 41, 64]),
+            vec![
+                [54, 41, 64],
+                [27, 21, 32],
+                [14, 11, 16],
+                [7, 6, 8],
+                [4, 3, 4]
+            ]
+        );
+    }
+}
