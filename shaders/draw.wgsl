@@ -43,6 +43,7 @@ struct DrawView {
     sky: vec4<f32>,
     phase: vec4<f32>,
     ms: vec4<f32>,
+    // Octaves of the sun's multiple scattering; 0: the diffusion model.
     ms_octaves: u32,
     seed: u32,
     _pad0: u32,
@@ -89,6 +90,8 @@ struct DrawInstance {
 @group(1) @binding(2) var draw_depth: texture_depth_2d;
 @group(1) @binding(3) var draw_out: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(0) var<storage, read> draw_lv: array<vec2<f32>>;
+// The diffusion model's (ρ·φ/4π, ρ) per cell, laid out as `draw_lv` (`light_build.wgsl`).
+@group(2) @binding(1) var<storage, read> draw_lv_ms: array<vec2<f32>>;
 
 // Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
 const DRAW_LIT: bool = {{DRAW_LIT}};
@@ -105,6 +108,17 @@ fn draw_lv_lookup(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> ve
         out += t.w[k] * draw_lv[base + t.idx[k]];
     }
     return out;
+}
+
+// The diffusion model's φ/4π of the light volume at `base` at `p`: trilinear weighted by the
+// cells' densities, 0 where all eight are empty (the tracer's `lit_diffusion`).
+fn draw_ms_lookup(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> f32 {
+    let t = lv_taps(p, lo.xyz, lo.w, dims.xyz);
+    var acc = vec2<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        acc += t.w[k] * draw_lv_ms[base + t.idx[k]];
+    }
+    return select(0.0, acc.x / acc.y, acc.y > 0.0);
 }
 
 // The lit march's density of one frame at cell-space point `p`: the nearest voxel (≥ 0), or
@@ -162,7 +176,17 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         if (a > 0.0) {
             tau = mix(tau, draw_lv_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q), a);
         }
-        let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+        var sun = 0.0;
+        if (octaves == 0u) {
+            // The diffusion model: single scattering plus the solve's φ/4π.
+            var diffuse = draw_ms_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q);
+            if (a > 0.0) {
+                diffuse = mix(diffuse, draw_ms_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q), a);
+            }
+            sun = sun_ph[0] * exp(-ext * tau.x) + diffuse;
+        } else {
+            sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+        }
         let sky = lv_sky_source(ext * tau.y, inst.sky_k);
         rad += trans * inst.albedo * (1.0 - e) * (draw_view.light_color.xyz * sun + draw_view.sky.xyz * sky);
         trans *= e;

@@ -202,3 +202,201 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     lv_tau[i].y = tau_sky;
 }
+
+// ---- The diffusion model of multiple scattering (`vdbcook_trace::diffusion`) ---------------
+// Run after the passes above for the same volume (they leave its cell densities in
+// `lv_density` and τ_sun in `lv_tau`): `ms_source_main` fills level 0, `ms_restrict_main`
+// each coarser level from the finer one, then from the coarsest level down
+// `ms_prolong_main` starts a level from its parent (0 at the coarsest) and `MS_ITERATIONS`
+// Jacobi sweeps of `ms_limit_main` + `ms_update_main` run there; `ms_store_main` writes
+// (ρ·φ/4π, ρ) per cell of level 0 into `lv_ms_out`, which the tracer reads density-weighted.
+// One `MsParams` record per level and sweep parity (bound with a dynamic offset).
+
+struct MsParams {
+    // xyz: this level's cells per axis; w: the sweep's parity (0: φ in A → B, 1: B → A).
+    dims: vec4<u32>,
+    // x: this level's first element in `lv_ms`; y: its finer child's; z: its coarser
+    // parent's; w: 1 when it has a parent.
+    off: vec4<u32>,
+    // xyz: the child's cells per axis (w unused).
+    child: vec4<u32>,
+    // xyz: the parent's cells per axis (w unused).
+    parent: vec4<u32>,
+    // xyz: the cell edge per axis (length unit); w: the albedo.
+    h: vec4<f32>,
+    // x: the phase's mean cosine; y: the sun's chord per cell slab; z: the extinction.
+    medium: vec4<f32>,
+}
+
+// Per level at `off.x` over n cells: st [0, n), sr [n, 2n), q [2n, 3n), φ A [3n, 4n),
+// φ B [4n, 5n), the half-cell resistances [5n, 8n) (three per cell, x y z).
+@group(2) @binding(0) var<storage, read_write> lv_ms: array<f32>;
+@group(2) @binding(1) var<uniform> mp: MsParams;
+@group(2) @binding(2) var<storage, read_write> lv_ms_out: array<vec2<f32>>;
+
+// `vdbcook_trace::diffusion::MS_VACUUM`.
+const MS_VACUUM: f32 = 2.0;
+
+fn ms_cells(d: vec3<u32>) -> u32 {
+    return d.x * d.y * d.z;
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn ms_source_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    let albedo = mp.h.w;
+    let chord = mp.medium.y;
+    let ext = mp.medium.z;
+    let st = ext * max(lv_density[i], 0.0);
+    let x = st * chord;
+    let entry = max(ext * lv_tau[lp.base + i].x - 0.5 * x, 0.0);
+    lv_ms[o + i] = st;
+    lv_ms[o + n + i] = st * (1.0 - mp.medium.x * albedo);
+    lv_ms[o + 2u * n + i] = albedo * exp(-entry) * (1.0 - exp(-x)) / chord;
+}
+
+// A coarse cell: the means of the (up to) 8 finer cells it covers (missing ones count 0).
+@compute @workgroup_size(4, 4, 4)
+fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let cd = mp.child.xyz;
+    let cn = ms_cells(cd);
+    let co = mp.off.y;
+    var acc = vec3<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        let c = 2u * gid + vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u);
+        if (all(c < cd)) {
+            let j = lv_index(c, cd);
+            acc += vec3<f32>(lv_ms[co + j], lv_ms[co + cn + j], lv_ms[co + 2u * cn + j]) / 8.0;
+        }
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    lv_ms[o + i] = acc.x;
+    lv_ms[o + n + i] = acc.y;
+    lv_ms[o + 2u * n + i] = acc.z;
+}
+
+// φ A of a level from its parent's φ A (each cell its parent's value), 0 at the coarsest.
+@compute @workgroup_size(4, 4, 4)
+fn ms_prolong_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let n = ms_cells(dims);
+    var v = 0.0;
+    if (mp.off.w != 0u) {
+        let pd = mp.parent.xyz;
+        v = lv_ms[mp.off.z + 3u * ms_cells(pd) + lv_index(gid / 2u, pd)];
+    }
+    lv_ms[mp.off.x + 3u * n + lv_index(gid, dims)] = v;
+}
+
+// The sweep's input φ of cell `c` (0 outside the level).
+fn ms_phi(c: vec3<i32>) -> f32 {
+    let dims = mp.dims.xyz;
+    if (any(c < vec3<i32>(0)) || any(vec3<u32>(c) >= dims)) {
+        return 0.0;
+    }
+    let n = ms_cells(dims);
+    return lv_ms[mp.off.x + (3u + mp.dims.w) * n + lv_index(vec3<u32>(c), dims)];
+}
+
+// The half-cell resistances of a cell: ½h·(3·sr + |∇φ|/φ) (Wilson's flux limiter).
+@compute @workgroup_size(4, 4, 4)
+fn ms_limit_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    if (!(lv_ms[o + i] > 0.0)) {
+        return;
+    }
+    let c = vec3<i32>(gid);
+    var g2 = 0.0;
+    for (var a = 0u; a < 3u; a++) {
+        var e = vec3<i32>(0);
+        e[a] = 1;
+        let d = (ms_phi(c + e) - ms_phi(c - e)) / (2.0 * mp.h[a]);
+        g2 += d * d;
+    }
+    let phi = ms_phi(c);
+    var lim = 0.0;
+    if (phi > 0.0) {
+        lim = sqrt(g2) / phi;
+    }
+    let sr = lv_ms[o + n + i];
+    for (var a = 0u; a < 3u; a++) {
+        lv_ms[o + 5u * n + 3u * i + a] = 0.5 * mp.h[a] * (3.0 * sr + lim);
+    }
+}
+
+// One Jacobi sweep of the balance: φ ← (q + Σ φ_j/(h·R)) / (σ(1 − α) + Σ 1/(h·R)).
+@compute @workgroup_size(4, 4, 4)
+fn ms_update_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    let out = o + (4u - mp.dims.w) * n + i;
+    let st = lv_ms[o + i];
+    if (!(st > 0.0)) {
+        lv_ms[out] = 0.0;
+        return;
+    }
+    let c = vec3<i32>(gid);
+    var diag = st * (1.0 - mp.h.w);
+    var off = 0.0;
+    for (var a = 0u; a < 3u; a++) {
+        let hi = lv_ms[o + 5u * n + 3u * i + a];
+        for (var s = 0u; s < 2u; s++) {
+            var e = vec3<i32>(0);
+            e[a] = select(-1, 1, s == 1u);
+            let cj = c + e;
+            var r = hi + MS_VACUUM;
+            var pj = 0.0;
+            if (all(cj >= vec3<i32>(0)) && all(vec3<u32>(cj) < dims)) {
+                let j = lv_index(vec3<u32>(cj), dims);
+                if (lv_ms[o + j] > 0.0) {
+                    r = hi + lv_ms[o + 5u * n + 3u * j + a];
+                    pj = ms_phi(cj);
+                }
+            }
+            let g = 1.0 / (mp.h[a] * r);
+            diag += g;
+            off += g * pj;
+        }
+    }
+    lv_ms[out] = (lv_ms[o + 2u * n + i] + off) / diag;
+}
+
+// Level 0's result for the tracer: (ρ·φ/4π, ρ) per cell.
+@compute @workgroup_size(4, 4, 4)
+fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let rho = lv_density[i];
+    let phi = lv_ms[mp.off.x + 3u * n + i] / 12.566370614359172;
+    lv_ms_out[lp.base + i] = vec2<f32>(rho * phi, rho);
+}

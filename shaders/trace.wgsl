@@ -61,7 +61,8 @@ struct Params {
     // each mode's own march; else `channel_emission`, with `emission.w` 0).
     emit_channel: u32,
     // The lit mode (`vdbcook_trace`'s `lit` module): the light volume's grid (xyz: corner of
-    // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves), the octave
+    // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves, 0 for the
+    // diffusion model), the octave
     // falloff (x, y, z: a, b, c), the sky radiance (xyz; w: k of `lv_sky_source`), the phase (x, y: g0, g1, z: weight) and
     // the unit world direction toward the light (xyz); ms.w: 1 for trilinear density.
     lv_lo: vec4<f32>,
@@ -86,8 +87,10 @@ struct Params {
 @group(1) @binding(0) var<uniform> params: Params;
 @group(2) @binding(0) var out_texture: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(2) @binding(1) var<storage, read_write> out_buffer: array<f32>;
-// Group 3: the lit mode's light volume, (τ_sun, τ_sky) per cell (`light_build.wgsl`).
+// Group 3: the lit mode's light volume, (τ_sun, τ_sky) per cell, and the diffusion model's
+// (ρ·φ/4π, ρ) per cell (`light_build.wgsl`; written only for that model).
 @group(3) @binding(0) var<storage, read> lv_tau: array<vec2<f32>>;
+@group(3) @binding(1) var<storage, read> lv_diffusion: array<vec2<f32>>;
 
 // Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
 const TRACE_EMISSION: bool = {{EMISSION}};
@@ -545,6 +548,17 @@ fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
     return out;
 }
 
+// The diffusion model's φ/4π at `p`: trilinear weighted by the cells' densities
+// (`LightVolume::ms_at`), 0 where all eight cells are empty.
+fn lit_diffusion(p: vec3<f32>) -> f32 {
+    let t = lv_taps(p, params.lv_lo.xyz, params.lv_lo.w, params.lv_dims.xyz);
+    var acc = vec2<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        acc += t.w[k] * lv_diffusion[t.idx[k]];
+    }
+    return select(0.0, acc.x / acc.y, acc.y > 0.0);
+}
+
 // `vdb_trilinear` at `p` inside span `sp`: when the eight taps lie in the span's brick (about
 // two samples in three), read from the brick directly instead of descending the tree eight times.
 fn lit_trilinear(sp: WkSpan, root: u32, p: vec3<f32>) -> f32 {
@@ -661,8 +675,15 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
                 }
                 // The source where the step's light is scattered on average (`lit::mean_depth`).
                 let m = step * lv_mean_depth(x);
-                let tau = lit_lookup(ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d);
-                let sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+                let q = ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d;
+                let tau = lit_lookup(q);
+                var sun = 0.0;
+                if (octaves == 0u) {
+                    // The diffusion model: single scattering plus the solve's φ/4π.
+                    sun = sun_ph[0] * exp(-ext * tau.x) + lit_diffusion(q);
+                } else {
+                    sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+                }
                 let sky = lv_sky_source(ext * tau.y, params.sky.w);
                 rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
                 trans *= e;

@@ -121,7 +121,7 @@ pub struct Args {
     ms_sky: Option<f32>,
     /// Multiple scattering of the lit mode's sun: octaves (closed form of the depth toward the
     /// sun; CPU and GPU) or diffusion (a flux-limited diffusion solve over the light volume:
-    /// light spreads sideways, leaks out of thin edges; more accurate, CPU only for now:
+    /// light spreads sideways, leaks out of thin edges; more accurate:
     /// docs/rendering.md has the figures).
     #[arg(long, default_value = "octaves", value_parser = ["octaves", "diffusion"])]
     ms_model: String,
@@ -770,11 +770,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         None => None,
     };
-    if a.backend == "gpu" && s.mode == Mode::Lit && s.ms_model == MsModel::Diffusion {
-        return Err(CliError::Usage(
-            "--ms-model diffusion runs on the CPU only for now: use --backend cpu (or auto)".into(),
-        ));
-    }
     if a.backend == "gpu" && s.mode == Mode::Reference {
         return Err(CliError::Usage(
             "--mode reference is the CPU path tracer: use --backend cpu (or auto)".into(),
@@ -785,7 +780,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "gpu" => Some(Gpu::open().map_err(other)?),
         // The reference path tracer is CPU only: `auto` takes the CPU for it.
         "auto" if s.mode == Mode::Reference => None,
-        "auto" if s.mode == Mode::Lit && s.ms_model == MsModel::Diffusion => None,
         "auto" => Gpu::open().ok().filter(|g| !g.is_software()),
         _ => None,
     };

@@ -26,9 +26,16 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
-use vdbcook_scene::{Affine, LightGrid, MAX_SIDE};
+use vdbcook_scene::{light_dirs, Affine, DiffusionInputs, LightGrid, MsModel, MAX_SIDE};
 
 use crate::light::{LightParams, LightPass};
+
+/// The light volumes one draw needs (deduplicated), and the diffusion inputs of each
+/// (`MsModel::Diffusion`), as `LightPass::record` takes them.
+struct LitVolumes {
+    volumes: Vec<LightParams>,
+    diffusion: Vec<Option<DiffusionInputs>>,
+}
 use crate::upload::{Bound, GpuVolume};
 use crate::{LengthUnit, Result, RuntimeError, LIGHT_WGSL, VOLUME_WGSL};
 
@@ -418,6 +425,9 @@ pub struct Lighting {
     /// March step, in the medium's length unit.
     pub step: f32,
     pub light_res: u32,
+    /// How the sun's multiple scattering is approximated (the tracer's `--ms-model`; the
+    /// octaves read `ms_octaves` and `ms`).
+    pub ms_model: vdbcook_scene::MsModel,
     pub ms_octaves: u32,
     pub ms: [f32; 3],
     /// Seeds the per-pixel offset of the samples (change it per frame for temporal
@@ -452,6 +462,7 @@ impl Lighting {
             phase_w: s.phase_w,
             step: s.step,
             light_res: s.light_res,
+            ms_model: s.ms_model,
             ms_octaves: s.ms_octaves,
             ms: s.ms,
             ms_sky: s.ms_sky,
@@ -476,6 +487,7 @@ impl Lighting {
             phase_w: self.phase_w,
             step: self.step,
             light_res: self.light_res,
+            ms_model: self.ms_model,
             ms_octaves: self.ms_octaves,
             ms: self.ms,
             ms_sky: self.ms_sky,
@@ -849,12 +861,16 @@ impl VolumeDrawer {
             ));
         }
         let (draws, volumes) = self.instances(DVec3::ZERO, instances, medium)?;
-        let (bases, pool) = if volumes.is_empty() {
+        let (bases, pool) = if volumes.volumes.is_empty() {
             (Vec::new(), None)
         } else {
-            let (_, bases, pool) = self
-                .light
-                .record(device, encoder, &self.vol.group, &volumes)?;
+            let (_, bases, pool) = self.light.record(
+                device,
+                encoder,
+                &self.vol.group,
+                &volumes.volumes,
+                &volumes.diffusion,
+            )?;
             (bases, Some(pool))
         };
         let mut casters: Vec<ShadowInstance> = draws
@@ -862,7 +878,7 @@ impl VolumeDrawer {
             .filter(|d| d.lit != 0)
             .map(|d| {
                 // The cell-space direction toward the sun: its light volume's.
-                let sun = volumes[d.lv_base0 as usize].sun;
+                let sun = volumes.volumes[d.lv_base0 as usize].sun;
                 let with_base =
                     |dims: [u32; 4], idx: u32| [dims[0], dims[1], dims[2], bases[idx as usize]];
                 ShadowInstance {
@@ -1014,14 +1030,15 @@ impl VolumeDrawer {
         eye: DVec3,
         instances: &[Instance],
         medium: &Medium,
-    ) -> Result<(Vec<DrawInstance>, Vec<LightParams>)> {
+    ) -> Result<(Vec<DrawInstance>, LitVolumes)> {
         if let Some(l) = &medium.lighting {
             l.settings(medium)
                 .validate(self.vol.frames())
                 .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
         }
         let mut out = Vec::with_capacity(instances.len());
-        let mut volumes = Vec::new();
+        let mut volumes: Vec<LightParams> = Vec::new();
+        let mut diffusion: Vec<Option<DiffusionInputs>> = Vec::new();
         for (i, inst) in instances.iter().enumerate() {
             inst.validate()
                 .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
@@ -1093,6 +1110,15 @@ impl VolumeDrawer {
                     );
                     let idx = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
                         volumes.push(lp);
+                        diffusion.push((l.ms_model == MsModel::Diffusion).then(|| {
+                            DiffusionInputs::new(
+                                &grid,
+                                light_dirs(&xf, l.light_dir, medium.unit),
+                                extinction,
+                                albedo,
+                                (l.phase_g, l.phase_w),
+                            )
+                        }));
                         volumes.len() - 1
                     }) as u32;
                     let lo = [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32);
@@ -1107,7 +1133,10 @@ impl VolumeDrawer {
             out.push((distance, d));
         }
         out.sort_by(|x, y| x.0.total_cmp(&y.0));
-        Ok((out.into_iter().map(|(_, d)| d).collect(), volumes))
+        Ok((
+            out.into_iter().map(|(_, d)| d).collect(),
+            LitVolumes { volumes, diffusion },
+        ))
     }
 
     /// Records the draw of `instances` seen through `view` into `encoder`: a compute pass that
@@ -1139,12 +1168,16 @@ impl VolumeDrawer {
         if gpu_instances.is_empty() {
             return Ok(());
         }
-        let light_group = if volumes.is_empty() {
+        let light_group = if volumes.volumes.is_empty() {
             self.light.empty_group.clone()
         } else {
-            let (group, bases, _) =
-                self.light
-                    .record(device, encoder, &self.vol.group, &volumes)?;
+            let (group, bases, _) = self.light.record(
+                device,
+                encoder,
+                &self.vol.group,
+                &volumes.volumes,
+                &volumes.diffusion,
+            )?;
             for d in gpu_instances.iter_mut().filter(|d| d.lit != 0) {
                 d.lv_base0 = bases[d.lv_base0 as usize];
                 d.lv_base1 = bases[d.lv_base1 as usize];
@@ -1187,7 +1220,11 @@ impl VolumeDrawer {
                 lighting.ms[2],
                 (lighting.filter == vdbcook_scene::Filter::Trilinear) as u32 as f32,
             ],
-            ms_octaves: lighting.ms_octaves,
+            // 0: the diffusion model (`draw.wgsl`'s `draw_lit`).
+            ms_octaves: match lighting.ms_model {
+                vdbcook_scene::MsModel::Octaves => lighting.ms_octaves,
+                vdbcook_scene::MsModel::Diffusion => 0,
+            },
             seed: lighting.seed,
             _pad0: 0,
             _pad1: 0,

@@ -5,11 +5,18 @@
 //! entry: the last list built). The renderer and the drawer record the passes into the caller's
 //! encoder ahead of their own dispatch and read the volumes through one bind group (the
 //! renderer's group 3, `lv_tau`; the drawer's group 2, `draw_lv`).
+//!
+//! A volume built for `MsModel::Diffusion` also runs the diffusion solve (`ms_*` passes, six
+//! more pipelines over a scratch of every level, one `MsParams` record per level and sweep
+//! parity bound with a dynamic offset) and stores `(ρ·φ/4π, ρ)` per cell in a second buffer laid
+//! out as the first (binding 1 of the read group; the drawer does not read it).
 
 use std::sync::Mutex;
 
 use bytemuck::{Pod, Zeroable};
-use vdbcook_scene::{light_dirs, Affine, LengthUnit, LightGrid};
+use vdbcook_scene::{
+    light_dirs, ms_levels, Affine, DiffusionInputs, LengthUnit, LightGrid, MS_ITERATIONS,
+};
 use wgpu::util::DeviceExt;
 
 use crate::upload::{buffer_entry, GpuVolume};
@@ -69,22 +76,82 @@ impl LightParams {
     }
 }
 
+/// `MsParams` of `light_build.wgsl`: one level of the diffusion solve and one sweep parity.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub(crate) struct MsParams {
+    /// xyz: the level's cells per axis; w: the sweep's parity (0: φ A → B).
+    pub dims: [u32; 4],
+    /// x: the level's first element in the scratch; y: its finer child's; z: its parent's;
+    /// w: 1 when it has a parent.
+    pub off: [u32; 4],
+    /// xyz: the child's cells per axis.
+    pub child: [u32; 4],
+    /// xyz: the parent's cells per axis.
+    pub parent: [u32; 4],
+    /// xyz: the cell edge per axis (length unit); w: the albedo.
+    pub h: [f32; 4],
+    /// x: the phase's mean cosine; y: the sun's chord per cell slab; z: the extinction.
+    pub medium: [f32; 4],
+}
+
+/// The records of one volume's solve, `[level][parity]`, and the scratch it needs (f32s).
+fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize) {
+    let levels = ms_levels(dims);
+    let cells = |d: [u32; 3]| d.iter().map(|&v| v as usize).product::<usize>();
+    let mut offs = Vec::with_capacity(levels.len());
+    let mut total = 0usize;
+    for &d in &levels {
+        offs.push(total as u32);
+        total += 8 * cells(d);
+    }
+    let records = (0..levels.len())
+        .map(|k| {
+            let d = levels[k];
+            let child = k.checked_sub(1).map_or([0; 3], |c| levels[c]);
+            let parent = levels.get(k + 1).copied();
+            let scale = f64::from(1u32 << k);
+            [0u32, 1].map(|parity| MsParams {
+                dims: [d[0], d[1], d[2], parity],
+                off: [
+                    offs[k],
+                    k.checked_sub(1).map_or(0, |c| offs[c]),
+                    offs.get(k + 1).copied().unwrap_or(0),
+                    parent.is_some() as u32,
+                ],
+                child: [child[0], child[1], child[2], 0],
+                parent: parent.map_or([0; 4], |p| [p[0], p[1], p[2], 0]),
+                h: [m.h[0] * scale, m.h[1] * scale, m.h[2] * scale, m.albedo].map(|v| v as f32),
+                medium: [m.mean_cos, m.chord, m.extinction, 0.0].map(|v| v as f32),
+            })
+        })
+        .collect();
+    (records, total)
+}
+
 /// What was built last: the buffers and the uniforms of the volumes in them.
 #[derive(Default)]
 struct State {
-    /// The shared buffer (`vec2<f32>` per cell), its capacity in cells, its read bind group.
-    pool: Option<(wgpu::Buffer, usize, wgpu::BindGroup)>,
+    /// The shared buffers (`vec2<f32>` per cell: `(τ_sun, τ_sky)`, and the diffusion model's
+    /// `(ρ·φ/4π, ρ)`), their capacity in cells, their read bind group.
+    pool: Option<(wgpu::Buffer, wgpu::Buffer, usize, wgpu::BindGroup)>,
     /// The density scratch and its capacity in cells.
     scratch: Option<(wgpu::Buffer, usize)>,
-    /// The light volumes the pool holds (`None`: invalidated).
-    built: Option<Vec<LightParams>>,
+    /// The diffusion solve's scratch (every level of one volume) and its capacity in f32s.
+    ms_scratch: Option<(wgpu::Buffer, usize)>,
+    /// The light volumes the pool holds and the diffusion inputs of those that solve it
+    /// (`None`: invalidated).
+    built: Option<(Vec<LightParams>, Vec<Option<DiffusionInputs>>)>,
 }
 
 /// The light-volume passes of one renderer or drawer.
 pub(crate) struct LightPass {
     /// `light_build.wgsl`'s passes in their order: density, sun, the three axes, sky.
     passes: [wgpu::ComputePipeline; 6],
+    /// The diffusion solve's: source, restrict, prolong, limit, update, store.
+    ms_passes: [wgpu::ComputePipeline; 6],
     build_layout: wgpu::BindGroupLayout,
+    ms_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
     /// Bound at group 3 by draws that read no light volume.
     pub empty_group: wgpu::BindGroup,
@@ -92,6 +159,8 @@ pub(crate) struct LightPass {
 }
 
 const WORKGROUP: u32 = 4;
+/// Bytes of one [`MsParams`].
+const MS_PARAMS_SIZE: u64 = std::mem::size_of::<MsParams>() as u64;
 
 fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     buffer_entry(binding, wgpu::BufferBindingType::Storage { read_only })
@@ -117,9 +186,26 @@ impl LightPass {
                 storage(2, false),
             ],
         });
+        let ms_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vdbcook light diffusion"),
+            entries: &[
+                storage(0, false),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: wgpu::BufferSize::new(MS_PARAMS_SIZE),
+                    },
+                    count: None,
+                },
+                storage(2, false),
+            ],
+        });
         let read_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook light read"),
-            entries: &[storage(0, true)],
+            entries: &[storage(0, true), storage(1, true)],
         });
         let pipeline =
             |label, entry| volume.compute_pipeline(device, label, &module, entry, &[&build_layout]);
@@ -132,6 +218,23 @@ impl LightPass {
             "lv_sky_main",
         ]
         .map(|entry| pipeline("vdbcook light volume", entry));
+        let ms_passes = [
+            "ms_source_main",
+            "ms_restrict_main",
+            "ms_prolong_main",
+            "ms_limit_main",
+            "ms_update_main",
+            "ms_store_main",
+        ]
+        .map(|entry| {
+            volume.compute_pipeline(
+                device,
+                "vdbcook light diffusion",
+                &module,
+                entry,
+                &[&build_layout, &ms_layout],
+            )
+        });
         let empty = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook light volume (none)"),
             size: 8,
@@ -141,14 +244,22 @@ impl LightPass {
         let empty_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("vdbcook light volume (none)"),
             layout: &read_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: empty.as_entire_binding(),
-            }],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: empty.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: empty.as_entire_binding(),
+                },
+            ],
         });
         LightPass {
             passes,
+            ms_passes,
             build_layout,
+            ms_layout,
             read_layout,
             empty_group,
             state: Mutex::new(State::default()),
@@ -163,14 +274,20 @@ impl LightPass {
 
     /// Records the passes that build `volumes` one after the other into one buffer, unless the
     /// last call built the same ones (and its recording was submitted), and returns the bind
-    /// group that reads them, each one's base element, and the buffer.
+    /// group that reads them, each one's base element, and the buffer. `diffusion[i]`: the
+    /// inputs of volume `i`'s diffusion solve (`MsModel::Diffusion`), if it runs one (a
+    /// shorter slice: the rest run none).
     pub fn record(
         &self,
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         volume_group: &wgpu::BindGroup,
         volumes: &[LightParams],
+        diffusion: &[Option<DiffusionInputs>],
     ) -> Result<(wgpu::BindGroup, Vec<u32>, wgpu::Buffer), RuntimeError> {
+        let diffusion: Vec<Option<DiffusionInputs>> = (0..volumes.len())
+            .map(|i| diffusion.get(i).copied().flatten())
+            .collect();
         let mut placed = volumes.to_vec();
         let mut total = 0usize;
         for lp in &mut placed {
@@ -200,26 +317,94 @@ impl LightPass {
                 mapped_at_creation: false,
             })
         };
-        if state.pool.as_ref().is_none_or(|p| p.1 < total) {
+        if state.pool.as_ref().is_none_or(|p| p.2 < total) {
             let pool = buffer("vdbcook light volumes", 8 * total);
+            let ms_pool = buffer("vdbcook light diffusion", 8 * total);
             let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("vdbcook light read"),
                 layout: &self.read_layout,
-                entries: &[wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: pool.as_entire_binding(),
-                }],
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: pool.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: ms_pool.as_entire_binding(),
+                    },
+                ],
             });
-            state.pool = Some((pool, total, read));
+            state.pool = Some((pool, ms_pool, total, read));
             state.built = None;
         }
         if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
             state.scratch = Some((buffer("vdbcook light density", 4 * largest), largest));
         }
-        let (pool, _, read) = state.pool.as_ref().expect("just made");
+        // The diffusion solves' records, all volumes', each `align`-aligned.
+        let solves: Vec<Option<(Vec<[MsParams; 2]>, usize)>> = placed
+            .iter()
+            .zip(&diffusion)
+            .map(|(lp, m)| m.map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m)))
+            .collect();
+        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
+        if 4 * ms_floats > most {
+            return Err(RuntimeError::Limits(format!(
+                "the diffusion solve needs {} bytes of scratch, the device binds at most {most} \
+                 (lower light_res)",
+                4 * ms_floats
+            )));
+        }
+        if ms_floats > 0 && state.ms_scratch.as_ref().is_none_or(|s| s.1 < ms_floats) {
+            state.ms_scratch = Some((
+                buffer("vdbcook light diffusion scratch", 4 * ms_floats),
+                ms_floats,
+            ));
+        }
+        let (pool, ms_pool, _, read) = state.pool.as_ref().expect("just made");
         let (scratch, _) = state.scratch.as_ref().expect("just made");
-        if state.built.as_ref() != Some(&placed) {
-            for lp in &placed {
+        let key = (placed.clone(), diffusion.clone());
+        if state.built.as_ref() != Some(&key) {
+            let align =
+                (limits.min_uniform_buffer_offset_alignment as usize).max(MS_PARAMS_SIZE as usize);
+            let mut bytes: Vec<u8> = Vec::new();
+            for (records, _) in solves.iter().flatten() {
+                for r in records.iter().flatten() {
+                    bytes.extend_from_slice(bytemuck::bytes_of(r));
+                    bytes.resize(bytes.len().next_multiple_of(align), 0);
+                }
+            }
+            let ms_group = (!bytes.is_empty()).then(|| {
+                let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("vdbcook light diffusion params"),
+                    contents: &bytes,
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+                let (ms_scratch, _) = state.ms_scratch.as_ref().expect("made above");
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("vdbcook light diffusion"),
+                    layout: &self.ms_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: ms_scratch.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &uniform,
+                                offset: 0,
+                                size: wgpu::BufferSize::new(MS_PARAMS_SIZE),
+                            }),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: ms_pool.as_entire_binding(),
+                        },
+                    ],
+                })
+            });
+            let mut next_record = 0usize;
+            for (lp, solve) in placed.iter().zip(&solves) {
                 let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("vdbcook light params"),
                     contents: bytemuck::bytes_of(lp),
@@ -265,10 +450,45 @@ impl LightPass {
                     pass.set_bind_group(1, &group, &[]);
                     pass.dispatch_workgroups(size[0], size[1], size[2]);
                 }
+                if let (Some((records, _)), Some(ms_group)) = (solve, &ms_group) {
+                    let first = next_record;
+                    next_record += 2 * records.len();
+                    // The dynamic offset of level `k`'s record of `parity`.
+                    let at = |k: usize, parity: usize| ((first + 2 * k + parity) * align) as u32;
+                    let groups = |k: usize| {
+                        let d = records[k][0].dims;
+                        [d[0], d[1], d[2]].map(|v| v.div_ceil(WORKGROUP))
+                    };
+                    let [source, restrict, prolong, limit, update, store] = &self.ms_passes;
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("vdbcook light diffusion"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_bind_group(0, volume_group, &[]);
+                    pass.set_bind_group(1, &group, &[]);
+                    let mut run = |pipeline: &wgpu::ComputePipeline, k: usize, parity: usize| {
+                        pass.set_pipeline(pipeline);
+                        pass.set_bind_group(2, ms_group, &[at(k, parity)]);
+                        let [x, y, z] = groups(k);
+                        pass.dispatch_workgroups(x, y, z);
+                    };
+                    run(source, 0, 0);
+                    for k in 1..records.len() {
+                        run(restrict, k, 0);
+                    }
+                    for k in (0..records.len()).rev() {
+                        run(prolong, k, 0);
+                        for sweep in 0..MS_ITERATIONS {
+                            run(limit, k, sweep % 2);
+                            run(update, k, sweep % 2);
+                        }
+                    }
+                    run(store, 0, 0);
+                }
             }
         }
         let (read, pool) = (read.clone(), pool.clone());
-        state.built = Some(placed);
+        state.built = Some(key);
         Ok((read, bases, pool))
     }
 }
@@ -297,6 +517,23 @@ mod tests {
                 base,
                 level,
                 _pad2,
+            }),
+        );
+        assert_mirrors(
+            &format!(
+                "{}\n{}\n{}",
+                crate::VOLUME_WGSL,
+                crate::LIGHT_WGSL,
+                crate::LIGHT_BUILD_WGSL
+            ),
+            "MsParams",
+            rust_layout!(MsParams {
+                dims,
+                off,
+                child,
+                parent,
+                h,
+                medium,
             }),
         );
     }

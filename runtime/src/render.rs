@@ -7,8 +7,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    blackbody_table, depth_range, pixel_angle, sky_diffusion, Affine, Filter, LightGrid, Mode,
-    MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
+    blackbody_table, depth_range, light_dirs, pixel_angle, sky_diffusion, Affine, DiffusionInputs,
+    Filter, LightGrid, Mode, MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -516,8 +516,21 @@ impl Renderer {
                 params.frame_root,
                 self.vol.lod,
             );
+            let diffusion = (settings.ms_model == MsModel::Diffusion).then(|| {
+                DiffusionInputs::new(
+                    &grid,
+                    light_dirs(&self.xf, settings.light_dir, settings.unit),
+                    extinction,
+                    if extinction > 0.0 {
+                        settings.scatter as f64 / extinction
+                    } else {
+                        0.0
+                    },
+                    (settings.phase_g, settings.phase_w),
+                )
+            });
             self.light
-                .record(&self.device, encoder, &self.vol.group, &[lp])?
+                .record(&self.device, encoder, &self.vol.group, &[lp], &[diffusion])?
                 .0
         } else {
             self.light.empty_group.clone()
@@ -564,13 +577,6 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<(Params, LightGrid)> {
         let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
-        if settings.mode == Mode::Lit && settings.ms_model == MsModel::Diffusion {
-            return Err(RuntimeError::Unsupported(
-                "ms_model Diffusion (the lit mode's diffusion solve runs on the CPU tracer only \
-                 for now; use MsModel::Octaves)"
-                    .into(),
-            ));
-        }
         if settings.emission.is_some() && !self.emission {
             return Err(RuntimeError::Unsupported(
                 "emission: this renderer's pipeline was built without it; create it with \
@@ -659,7 +665,10 @@ impl Renderer {
                 grid.dims[0],
                 grid.dims[1],
                 grid.dims[2],
-                settings.ms_octaves,
+                match settings.ms_model {
+                    MsModel::Octaves => settings.ms_octaves,
+                    MsModel::Diffusion => 0,
+                },
             ],
             ms: [
                 settings.ms[0],

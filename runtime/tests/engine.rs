@@ -18,7 +18,7 @@ use vdbcook_runtime::{
     DrawTarget, Filter, GpuVolume, Instance, Lighting, Medium, RuntimeError, View, ViewRays,
     VolumeDrawer, DRAW_DEPTH_FORMATS,
 };
-use vdbcook_trace::{Camera, LengthUnit, RenderSettings, Scratch, Tracer};
+use vdbcook_trace::{Camera, LengthUnit, MsModel, RenderSettings, Scratch, Tracer};
 
 const W: u32 = 160;
 const H: u32 = 96;
@@ -562,6 +562,12 @@ fn lit_instances_match_the_cpu_lit_mode() {
             rotated,
             Filter::Nearest,
         ),
+        (
+            "rotated and scaled, frame 1, diffusion",
+            1.0,
+            rotated,
+            Filter::Nearest,
+        ),
     ];
     for (what, time, xf, filter) in cases {
         // The values read as Kelvin over a small range: the test is of the march, not of fire.
@@ -574,10 +580,17 @@ fn lit_instances_match_the_cpu_lit_mode() {
             });
         // With emission: a pure glow (no scattering, no light), thin enough to see into.
         let glow = emission.is_some();
+        let ms_model = if what.ends_with("diffusion") {
+            MsModel::Diffusion
+        } else {
+            MsModel::Octaves
+        };
         let medium = Medium {
             lighting: Some(Lighting {
                 filter,
                 emission,
+                ms_model,
+                ms_sky: ms_model.default_ms_sky(),
                 scatter: if glow { 0.0 } else { lighting.scatter },
                 ..lighting
             }),

@@ -32,7 +32,7 @@ use vdbcook_runtime::{
     GpuTimer, GpuVolume, Layout, Readback, Renderer, RuntimeError, UploadOptions, GPU_MODES,
     OPTIONAL_FEATURES,
 };
-use vdbcook_trace::{Image, Mode, RenderSettings};
+use vdbcook_trace::{Image, Mode, MsModel, RenderSettings};
 
 const W: u32 = 160;
 const H: u32 = 90;
@@ -1364,6 +1364,52 @@ fn lit_light_volume_follows_the_frame_and_the_light() {
             assert!(
                 changed > 100,
                 "frame {frame} sun {sun:?}: only {changed} values changed"
+            );
+        }
+        last = Some(g.rgba);
+    }
+}
+
+/// The diffusion model (`MsModel::Diffusion`): the light-volume build's solve (`ms_*` passes in
+/// `light_build.wgsl`: every level, every sweep) and the march's density-weighted read match the
+/// CPU's `vdbcook_trace::diffusion` through a sequence that switches the model, the frame and
+/// the sun (the light volume's cache must tell the models apart).
+#[test]
+fn lit_diffusion_matches_the_cpu() {
+    let Some(gpu) = Gpu::new("lit_diffusion_matches_the_cpu") else {
+        return;
+    };
+    let asset = blob_asset(PayloadFormat::F32);
+    let (_vol, r) = gpu.setup(&asset);
+    let target = r.buffer_target(&gpu.device, W, H).unwrap();
+    let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let mut last: Option<Vec<f32>> = None;
+    for (model, frame, sun) in [
+        (MsModel::Octaves, 0, [0.3, 0.3, 0.0]),
+        (MsModel::Diffusion, 0, [0.3, 0.3, 0.0]),
+        (MsModel::Diffusion, 1, [-0.5, 0.2, 0.6]),
+        (MsModel::Octaves, 1, [-0.5, 0.2, 0.6]),
+    ] {
+        let s = RenderSettings {
+            light_dir: sun,
+            ms_model: model,
+            ms_sky: model.default_ms_sky(),
+            ..small(Mode::Lit, frame)
+        };
+        let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
+        let g = gpu.render(&r, &target, &cam, &s).unwrap();
+        let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+        eprintln!("{model:?} frame {frame}: {bad} differ (max {max_diff:.2e}) {first}");
+        assert!(bad * 1000 <= cpu.value.len() * 5, "{bad} pixels; {first}");
+        if let Some(prev) = &last {
+            let changed = prev
+                .iter()
+                .zip(&g.rgba)
+                .filter(|(a, b)| (*a - *b).abs() > 1e-2)
+                .count();
+            assert!(
+                changed > 100,
+                "{model:?} frame {frame}: only {changed} values changed"
             );
         }
         last = Some(g.rgba);

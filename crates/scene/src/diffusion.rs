@@ -39,25 +39,22 @@ pub struct DiffusionInputs {
 
 impl DiffusionInputs {
     /// The inputs over `grid` for the sun `(l, len)` and axis lengths of
-    /// [`crate::light_dirs`], extinction `absorb + scatter` and the dual-lobe phase `(g, w)`.
+    /// [`crate::light_dirs`], `extinction` per unit density per length, `albedo` and the
+    /// dual-lobe phase `(g, w)`.
     pub fn new(
         grid: &LightGrid,
         ((l, sun_len), axis_len): (([f64; 3], f64), [f64; 3]),
-        (absorb, scatter): (f32, f32),
+        extinction: f64,
+        albedo: f64,
         (g, w): ([f32; 2], f32),
     ) -> DiffusionInputs {
-        let extinction = absorb as f64 + scatter as f64;
         let m = (0..3)
             .max_by(|&a, &b| l[a].abs().total_cmp(&l[b].abs()))
             .unwrap_or(0);
         let w = w as f64;
         DiffusionInputs {
             extinction,
-            albedo: if extinction > 0.0 {
-                scatter as f64 / extinction
-            } else {
-                0.0
-            },
+            albedo,
             mean_cos: w * g[0] as f64 + (1.0 - w) * g[1] as f64,
             h: axis_len.map(|a| a * grid.cell),
             chord: grid.cell / l[m].abs() * sun_len,

@@ -167,7 +167,12 @@ impl LightVolume {
                 let inputs = DiffusionInputs::new(
                     &grid,
                     ((l, sun_len), axis_len),
-                    (s.absorb, s.scatter),
+                    extinction,
+                    if extinction > 0.0 {
+                        s.scatter as f64 / extinction
+                    } else {
+                        0.0
+                    },
                     (s.phase_g, s.phase_w),
                 );
                 diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs)
