@@ -207,8 +207,9 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // Run after the passes above for the same volume (they leave its cell densities in
 // `lv_density` and τ_sun in `lv_tau`): `ms_source_main` fills level 0, `ms_restrict_main`
 // each coarser level from the finer one, then from the coarsest level down
-// `ms_prolong_main` starts a level from its parent (0 at the coarsest) and `MS_ITERATIONS`
-// Jacobi sweeps of `ms_limit_main` + `ms_update_main` run there; `ms_store_main` writes
+// `ms_prolong_main` starts a level from its parent (0 at the coarsest) and `ms_sweeps(level)`
+// Jacobi sweeps of `ms_limit_main` + `ms_update_main` run there (an even number: the result
+// ends in φ A); `ms_store_main` writes
 // (ρ·φ/4π, ρ) per cell of level 0 into `lv_ms_out`, which the tracer reads density-weighted.
 // One `MsParams` record per level and sweep parity (bound with a dynamic offset).
 

@@ -111,7 +111,8 @@ pub struct Args {
     /// content box (2..=256). Coarser is faster to build and blurs shadows.
     #[arg(long, default_value_t = 64)]
     light_res: u32,
-    /// Multiple-scattering octaves of the lit mode's sun (1 = single scattering, up to 8).
+    /// Multiple-scattering octaves of the lit mode's sun with --ms-model octaves (1 = single
+    /// scattering, up to 8).
     #[arg(long, default_value_t = 8)]
     ms_octaves: u32,
     /// Diffusion scale of the lit mode's multiply scattered sky light: 0 keeps all the sky
@@ -119,11 +120,11 @@ pub struct Args {
     /// the reference: 0.25 with --ms-model octaves, 0.5 with diffusion).
     #[arg(long)]
     ms_sky: Option<f32>,
-    /// Multiple scattering of the lit mode's sun: octaves (closed form of the depth toward the
-    /// sun; CPU and GPU) or diffusion (a flux-limited diffusion solve over the light volume:
-    /// light spreads sideways, leaks out of thin edges; more accurate:
-    /// docs/rendering.md has the figures).
-    #[arg(long, default_value = "octaves", value_parser = ["octaves", "diffusion"])]
+    /// Multiple scattering of the lit mode's sun: diffusion (a flux-limited diffusion solve
+    /// over the light volume: light spreads sideways, leaks out of thin edges; closer to the
+    /// reference) or octaves (closed forms of the depth toward the sun, --ms and --ms-octaves;
+    /// a cheaper light-volume build). docs/rendering.md has the figures.
+    #[arg(long, default_value = "diffusion", value_parser = ["diffusion", "octaves"])]
     ms_model: String,
     /// How the lit mode reads the density: nearest (the voxel holding the sample, the medium the
     /// reference sees) or trilinear (smooth up close, no seams between bricks; eight reads per
@@ -136,7 +137,7 @@ pub struct Args {
     /// more opaque than the pixel-area mean (docs/rendering.md has the figures).
     #[arg(long)]
     primary_lod: bool,
-    /// Octave falloff of the lit mode's multiple scattering A,B,C: octave i scales the
+    /// Octave falloff of --ms-model octaves A,B,C: octave i scales the
     /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i
     /// (the default is fitted to the reference mode on three clouds: docs/rendering.md).
     #[arg(long, default_value = "0.98,0.9,0.6", value_name = "A,B,C")]

@@ -1,5 +1,7 @@
 //! GPU time of one render per mode (`VDBCOOK_BENCH_MODES`, default `density,scatter,lit`; any
-//! of the tracer's mode names; `lit` twice: with its light volume cached, and rebuilt per render) from the default view at 640×360 and 1920×1080, measured with
+//! of the tracer's mode names; `lit` twice per multiple-scattering model (`VDBCOOK_BENCH_MS`,
+//! default `octaves,diffusion`): with its light volume cached, and rebuilt per render) from the
+//! default view at 640×360 and 1920×1080, measured with
 //! timestamp queries (`vdbcook_runtime::GpuTimer`) around the runtime's compute pass: median of
 //! RUNS (after one warm-up), plus the CPU wall time of submit-and-wait. Without
 //! `TIMESTAMP_QUERY` only the wall time is printed. The results: `docs/rendering.md`.
@@ -14,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use vdbcook_runtime::{
-    Asset, Camera, GpuTimer, GpuVolume, Layout, Mode, Renderer, Settings, UploadOptions,
+    Asset, Camera, GpuTimer, GpuVolume, Layout, Mode, MsModel, Renderer, Settings, UploadOptions,
 };
 
 const RUNS: usize = 5;
@@ -85,6 +87,11 @@ fn main() {
         .split(',')
         .map(|m| Mode::parse(m.trim()).unwrap_or_else(|| panic!("unknown mode {m}")))
         .collect();
+    let ms_models: Vec<MsModel> = std::env::var("VDBCOOK_BENCH_MS")
+        .unwrap_or_else(|_| "octaves,diffusion".into())
+        .split(',')
+        .map(|m| MsModel::parse(m.trim()).unwrap_or_else(|| panic!("unknown ms model {m}")))
+        .collect();
 
     let runs: Vec<(PathBuf, Option<Layout>)> = assets
         .iter()
@@ -152,19 +159,24 @@ fn main() {
             // The lit mode twice: its light volume cached (a still frame and light), and
             // rebuilt on every render (the light moves a little: a playing flip-book).
             let variants = modes.iter().flat_map(|&m| {
-                let rebuild = if m == Mode::Lit {
-                    vec![false, true]
+                let lit: Vec<(MsModel, bool)> = if m == Mode::Lit {
+                    ms_models
+                        .iter()
+                        .flat_map(|&ms| [(ms, false), (ms, true)])
+                        .collect()
                 } else {
-                    vec![false]
+                    vec![(MsModel::Octaves, false)]
                 };
-                rebuild.into_iter().map(move |r| (m, r))
+                lit.into_iter().map(move |(ms, r)| (m, ms, r))
             });
-            for (mode, rebuild) in variants {
+            for (mode, ms_model, rebuild) in variants {
                 let (mut gpu, mut wall) = (Vec::new(), Vec::new());
                 for run in 0..=RUNS {
                     let settings = Settings {
                         mode,
                         light_dir: [0.3, 0.3, if rebuild { 1e-3 * run as f32 } else { 0.0 }],
+                        ms_model,
+                        ms_sky: ms_model.default_ms_sky(),
                         ..Default::default()
                     };
                     let start = Instant::now();
@@ -194,10 +206,15 @@ fn main() {
                 } else {
                     format!("{:.1}", median(gpu))
                 };
-                let what = if rebuild {
-                    format!("{} + light volume", mode.name())
+                let name_of = if mode == Mode::Lit {
+                    format!("{} ({})", mode.name(), ms_model.name())
                 } else {
                     mode.name().to_string()
+                };
+                let what = if rebuild {
+                    format!("{name_of} + light volume")
+                } else {
+                    name_of
                 };
                 println!(
                     "| {name} | {layout_name} | {payload_bytes} | {w}×{h} | {what} | {g} | {:.1} |",

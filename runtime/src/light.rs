@@ -15,7 +15,7 @@ use std::sync::Mutex;
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
-    light_dirs, ms_levels, Affine, DiffusionInputs, LengthUnit, LightGrid, MS_ITERATIONS,
+    light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LightGrid,
 };
 use wgpu::util::DeviceExt;
 
@@ -218,6 +218,7 @@ impl LightPass {
             "lv_sky_main",
         ]
         .map(|entry| pipeline("vdbcook light volume", entry));
+        let constants = volume.pipeline_constants();
         let ms_passes = [
             "ms_source_main",
             "ms_restrict_main",
@@ -227,13 +228,24 @@ impl LightPass {
             "ms_store_main",
         ]
         .map(|entry| {
-            volume.compute_pipeline(
-                device,
-                "vdbcook light diffusion",
-                &module,
-                entry,
-                &[&build_layout, &ms_layout],
-            )
+            // Group 0 (the volume) left out: the solve reads no voxel, and the volume's
+            // storage buffers with the solve's four would exceed WebGPU's 8 per stage.
+            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vdbcook light diffusion"),
+                bind_group_layouts: &[None, Some(&build_layout), Some(&ms_layout)],
+                immediate_size: 0,
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("vdbcook light diffusion"),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                cache: None,
+            })
         });
         let empty = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook light volume (none)"),
@@ -350,7 +362,7 @@ impl LightPass {
         if 4 * ms_floats > most {
             return Err(RuntimeError::Limits(format!(
                 "the diffusion solve needs {} bytes of scratch, the device binds at most {most} \
-                 (lower light_res)",
+                 (lower light_res, or use MsModel::Octaves)",
                 4 * ms_floats
             )));
         }
@@ -464,7 +476,6 @@ impl LightPass {
                         label: Some("vdbcook light diffusion"),
                         timestamp_writes: None,
                     });
-                    pass.set_bind_group(0, volume_group, &[]);
                     pass.set_bind_group(1, &group, &[]);
                     let mut run = |pipeline: &wgpu::ComputePipeline, k: usize, parity: usize| {
                         pass.set_pipeline(pipeline);
@@ -478,7 +489,7 @@ impl LightPass {
                     }
                     for k in (0..records.len()).rev() {
                         run(prolong, k, 0);
-                        for sweep in 0..MS_ITERATIONS {
+                        for sweep in 0..ms_sweeps(k) {
                             run(limit, k, sweep % 2);
                             run(update, k, sweep % 2);
                         }

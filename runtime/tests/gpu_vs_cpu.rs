@@ -1572,7 +1572,9 @@ fn lit_trilinear_matches_the_cpu() {
 
 /// A light volume larger than the device binds is a `RuntimeError::Limits`, not a wgpu
 /// validation panic: the blob at `light_res` 256 needs about 256³ cells × 8 bytes, over wgpu's
-/// default 128 MiB storage binding (a device that binds more renders it).
+/// default 128 MiB storage binding (a device that binds more renders it); the diffusion model's
+/// solve needs 32 bytes per cell of every level (`light_build.wgsl`'s scratch layout: eight f32
+/// per cell, levels halved, rounding up, down to 6 cells a side), refused the same way.
 #[test]
 fn a_light_volume_over_the_binding_limit_is_an_error() {
     let Some(gpu) = Gpu::new("a_light_volume_over_the_binding_limit_is_an_error") else {
@@ -1582,30 +1584,45 @@ fn a_light_volume_over_the_binding_limit_is_an_error() {
     let (_vol, r) = gpu.setup(&asset);
     let target = r.buffer_target(&gpu.device, 16, 9).unwrap();
     let cam = vdbcook_trace::Camera::framing(&asset, 0, 16.0 / 9.0).unwrap();
-    let s = RenderSettings {
+    let mut s = RenderSettings {
         light_res: vdbcook_trace::MAX_LIGHT_RES,
         width: 16,
         height: 9,
         ..small(Mode::Lit, 0)
     };
     let grid = vdbcook_trace::LightGrid::new(vdbcook_trace::content_box(&asset, 0), s.light_res);
-    let bytes = 8 * grid.cells() as u64;
     let limits = gpu.device.limits();
     let most = limits
         .max_storage_buffer_binding_size
         .min(limits.max_buffer_size);
-    match gpu.render(&r, &target, &cam, &s) {
-        Err(RuntimeError::Limits(m)) => {
-            assert!(
-                bytes > most,
-                "refused {bytes} bytes under the limit {most}: {m}"
-            )
+    let pool = 8 * grid.cells() as u64;
+    let mut scratch = 0u64;
+    let mut d = grid.dims.map(|v| v as u64);
+    loop {
+        scratch += 32 * d.iter().product::<u64>();
+        if d.iter().all(|&v| v <= 6) {
+            break;
         }
-        Ok(_) => assert!(
-            bytes <= most,
-            "{bytes} bytes over the limit {most} rendered"
-        ),
-        Err(e) => panic!("{e}"),
+        d = d.map(|v| v.div_ceil(2));
+    }
+    for (model, bytes) in [
+        (MsModel::Octaves, pool),
+        (MsModel::Diffusion, pool.max(scratch)),
+    ] {
+        s.ms_model = model;
+        match gpu.render(&r, &target, &cam, &s) {
+            Err(RuntimeError::Limits(m)) => {
+                assert!(
+                    bytes > most,
+                    "{model:?}: refused {bytes} bytes under the limit {most}: {m}"
+                )
+            }
+            Ok(_) => assert!(
+                bytes <= most,
+                "{model:?}: {bytes} bytes over the limit {most} rendered"
+            ),
+            Err(e) => panic!("{e}"),
+        }
     }
     // The renderer still works at a resolution that fits.
     let ok = RenderSettings { light_res: 24, ..s };

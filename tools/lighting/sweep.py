@@ -68,13 +68,15 @@ sys.dont_write_bytecode = True  # leave no __pycache__ in tools/mitsuba
 sys.path.insert(0, MITSUBA)
 from pfm import read_pfm  # noqa: E402
 
-LIT_DEFAULT = "light-res 64, 8 oct, ms 0.98,0.9,0.6, ms-sky 0.25, step 1"
+LIT_DEFAULT = "diffusion, light-res 64, ms-sky 0.5, step 1"
 
 # (id, mode, extra CLI args, settings shown in the table, compared with the reference?)
 LIT_METHODS = [
     ("lit", "lit", [], LIT_DEFAULT, True),
-    ("lit-ss", "lit", ["--ms-octaves", "1", "--ms-sky", "16"],
-     "--ms-octaves 1 --ms-sky 16 (about single scattering)", True),
+    ("lit-oct", "lit", ["--ms-model", "octaves"],
+     "--ms-model octaves (8 oct, ms 0.98,0.9,0.6, ms-sky 0.25)", True),
+    ("lit-ss", "lit", ["--ms-model", "octaves", "--ms-octaves", "1", "--ms-sky", "16"],
+     "--ms-model octaves --ms-octaves 1 --ms-sky 16 (about single scattering)", True),
     ("lit-lr16", "lit", ["--light-res", "16"], "--light-res 16", True),
     ("lit-lr32", "lit", ["--light-res", "32"], "--light-res 32", True),
     ("lit-lr128", "lit", ["--light-res", "128"], "--light-res 128", True),
@@ -93,7 +95,7 @@ def method_list(args):
     gpu = [] if args.no_gpu else ["gpu"]
     out = []
     for mid, mode, extra, settings, cmp in LIT_METHODS:
-        backends = ["cpu"] + (gpu if (mid == "lit" or args.gpu_variants) else [])
+        backends = ["cpu"] + (gpu if (mid in ("lit", "lit-oct") or args.gpu_variants) else [])
         out += [(mid, mode, b, extra, settings, cmp) for b in backends]
     for mid, mode, extra, settings, cmp in OTHER_METHODS:
         out += [(mid, mode, b, extra, settings, cmp) for b in ["cpu"] + gpu]

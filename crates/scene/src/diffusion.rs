@@ -4,8 +4,23 @@
 
 use crate::LightGrid;
 
-/// Jacobi sweeps per level.
+/// Jacobi sweeps on each coarse level (all but the light volume's own cells).
 pub const MS_ITERATIONS: usize = 16;
+/// Jacobi sweeps on the light volume's own cells (level 0), which start from their parent's
+/// converged light and only add the detail it lacks: 4 sweeps are a quarter of the solve's
+/// cost of 16, and as close to the reference (WDAS 0.140, stormscape 0.036, smoke 0.093 rel
+/// RMSE at 160×90, against 0.145 / 0.037 / 0.104 with 16).
+pub const MS_FINE_SWEEPS: usize = 4;
+
+/// The Jacobi sweeps of level `level` (0: the light volume's cells). Always even: the GPU's
+/// sweeps alternate between two buffers and leave the result in the first.
+pub fn ms_sweeps(level: usize) -> usize {
+    if level == 0 {
+        MS_FINE_SWEEPS
+    } else {
+        MS_ITERATIONS
+    }
+}
 /// The coarsest level has no side longer than this (cells).
 pub const MS_COARSEST: u32 = 6;
 /// Resistance of the half-face toward empty space or the grid's edge (Marshak's vacuum
@@ -65,6 +80,11 @@ impl DiffusionInputs {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sweeps_are_even() {
+        assert!((0..8).all(|l| ms_sweeps(l).is_multiple_of(2) && ms_sweeps(l) > 0));
+    }
 
     #[test]
     fn levels_halve_rounding_up_until_the_coarsest() {

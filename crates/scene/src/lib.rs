@@ -22,7 +22,9 @@ mod space;
 
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
-pub use diffusion::{ms_levels, DiffusionInputs, MS_COARSEST, MS_ITERATIONS, MS_VACUUM};
+pub use diffusion::{
+    ms_levels, ms_sweeps, DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_ITERATIONS, MS_VACUUM,
+};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};
 pub use light::{light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};

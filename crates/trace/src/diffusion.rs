@@ -20,8 +20,9 @@
 //!   vacuum boundary, resistance 2 (`J = φ/2` at the face); empty cells hold `φ = 0`.
 //! - **solver**: the grid is coarsened by 2 (means of 8 cells, missing ones empty) until no
 //!   side exceeds [`MS_COARSEST`] cells; from the coarsest (starting at 0) each level runs
-//!   [`MS_ITERATIONS`] Jacobi sweeps (the limiter from the sweep's input) and hands its `φ` to
-//!   the next finer level as its start (each cell its parent's value). Thin clouds need the
+//!   [`MS_ITERATIONS`] Jacobi sweeps ([`MS_FINE_SWEEPS`] on the light volume's own cells; the
+//!   limiter from the sweep's input) and hands its `φ` to the next finer level as its start
+//!   (each cell its parent's value). Thin clouds need the
 //!   coarse levels: a sweep moves light one cell, and 16 sweeps of a 64-cell grid alone leave
 //!   a thin stormscape frame at half its converged brightness.
 //!
@@ -31,8 +32,8 @@
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
-use vdbcook_scene::{ms_levels, LightGrid};
-pub use vdbcook_scene::{DiffusionInputs, MS_COARSEST, MS_ITERATIONS, MS_VACUUM};
+use vdbcook_scene::{ms_levels, ms_sweeps, LightGrid};
+pub use vdbcook_scene::{DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_ITERATIONS, MS_VACUUM};
 
 /// One level of the solve: per cell the extinction, the reduced extinction and the source.
 struct Level {
@@ -120,7 +121,7 @@ pub fn solve(
             None => vec![0.0; l.cells()],
             Some(parent) => prolong(l.dims, parent.dims, &phi),
         };
-        phi = relax(l, start, m.albedo);
+        phi = relax(l, start, m.albedo, ms_sweeps(li));
     }
     let norm = 1.0 / (4.0 * std::f64::consts::PI);
     phi.iter().map(|&p| (p * norm) as f32).collect()
@@ -139,8 +140,8 @@ fn prolong(dims: [usize; 3], pd: [usize; 3], parent: &[f64]) -> Vec<f64> {
     out
 }
 
-/// [`MS_ITERATIONS`] Jacobi sweeps of the balance (module docs) from `phi`.
-fn relax(l: &Level, mut phi: Vec<f64>, albedo: f64) -> Vec<f64> {
+/// `sweeps` Jacobi sweeps of the balance (module docs) from `phi`.
+fn relax(l: &Level, mut phi: Vec<f64>, albedo: f64, sweeps: usize) -> Vec<f64> {
     let [nx, ny, _] = l.dims;
     let slab = nx * ny;
     let stride = [1, nx, slab];
@@ -156,7 +157,7 @@ fn relax(l: &Level, mut phi: Vec<f64>, albedo: f64) -> Vec<f64> {
             (c[a] > 0).then(|| i - stride[a])
         }
     };
-    for _ in 0..MS_ITERATIONS {
+    for _ in 0..sweeps {
         let limit = |(z, out): (usize, &mut [[f64; 3]])| {
             for (k, r) in out.iter_mut().enumerate() {
                 let i = z * slab + k;
