@@ -80,7 +80,7 @@ struct Params {
     emit_hi: vec4<f32>,
     // The lit mode's primary levels of detail (`vdbcook_scene::level_start`): x levels read (1:
     // full resolution only), y the root-offset stride between levels (frames · root length),
-    // z the camera's pixel angle (bits of an f32).
+    // z the camera's pixel angle (bits of an f32); w 1 for the voxel march (`March::Voxels`).
     lod: vec4<u32>,
 }
 
@@ -597,22 +597,88 @@ fn lod_start(k: u32, grow: f32) -> f32 {
 // transmittance). `dw`: the unit world direction. Level k of detail (`params.lod`) is walked
 // over [t_k, t_{k+1}) in its cell space (full resolution's scaled by 2^-k, exact in binary),
 // clipped to the frame's content box widened to that level's leaves, stepping `step·2^k`.
-fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
+// One lit march's state: radiance, transmittance, whether it stopped, samples left, and the
+// sun's phase per octave at the ray's μ.
+struct LitState {
+    rad: vec3<f32>,
+    trans: f32,
+    stop: bool,
+    budget: u32,
+    ph: array<f32, 8>,
+}
+
+// `LitMarch::add`: the segment of `ray` from length `sa` over `len` through density `rho`,
+// the source read at the segment's mean scattering depth.
+fn lit_add(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, rho: f32) {
+    if ((*st).budget == 0u) {
+        (*st).stop = true;
+        return;
+    }
+    (*st).budget -= 1u;
+    let ext = params.extinction;
     let octaves = params.lv_dims.w;
-    let ms = params.ms.xyz;
+    let x = ext * rho * len;
+    let e = exp(-x);
+    let trans = (*st).trans;
+    if (TRACE_EMISSION && params.emission.w != 0.0) {
+        v_emit += trans * len * lv_phi(x, e) * emit_radiance(rho);
+    }
+    let q = ray.o + ((sa + len * lv_mean_depth(x)) / ray.per_t) * ray.d;
+    let tau = lit_lookup(q);
+    var sun = 0.0;
+    if (octaves == 0u) {
+        // The diffusion model: single scattering plus the solve's φ/4π.
+        sun = (*st).ph[0] * exp(-ext * tau.x) + lit_diffusion(q);
+    } else {
+        var ph = (*st).ph;
+        sun = lv_octaves(ext * tau.x, params.ms.xyz, octaves, &ph);
+    }
+    let sky = lv_sky_source(ext * tau.y, params.sky.w);
+    (*st).rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
+    (*st).trans = trans * e;
+    if ((*st).trans < LV_MIN_TRANS) {
+        (*st).stop = true;
+    }
+}
+
+// `VoxelMarch::span`: a constant span [ta, tb] of value `v`, cut into equal segments of at
+// most `step` (`lit::segments`).
+fn lit_span(st: ptr<function, LitState>, ray: VdbRay, ta: f32, tb: f32, v: f32, step: f32) {
+    if (!(v > 0.0)) {
+        return;
+    }
+    let all = (tb - ta) * ray.per_t;
+    let n = max(ceil(all / step - 1e-3), 1.0);
+    let len = all / n;
+    for (var j = 0u; j < MAX_MARCH_SAMPLES; j++) {
+        if (f32(j) >= n || (*st).stop) {
+            return;
+        }
+        lit_add(st, ray, ta * ray.per_t + f32(j) * len, len, v);
+    }
+}
+
+// The lit march for t in [t0, t1] (the ray's clip to the root extent): (radiance rgb,
+// transmittance). `dw`: the unit world direction. Level k of detail (`params.lod`) is walked
+// over [t_k, t_{k+1}) in its cell space (full resolution's scaled by 2^-k, exact in binary),
+// clipped to the frame's content box widened to that level's leaves, stepping `step·2^k`.
+// `params.lod.w` 1: the voxel march (`March::Voxels`: each brick's voxels by a DDA, constant
+// spans whole, `lit_span`); else samples every step, jittered.
+fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
     // The phase per octave at this ray's μ, the sky's (isotropic: 1).
     let mu = dot(dw, params.light_world.xyz);
-    var sun_ph = lv_sun_phases(params.phase.xyz, ms.z, mu);
+    var st: LitState;
+    st.ph = lv_sun_phases(params.phase.xyz, params.ms.z, mu);
+    st.rad = vec3<f32>(0.0);
+    st.trans = 1.0;
+    st.stop = false;
+    st.budget = MAX_MARCH_SAMPLES;
     let jitter = lv_jitter(params.seed, pixel);
-    let ext = params.extinction;
     let levels = max(params.lod.x, 1u);
     let grow = bitcast<f32>(params.lod.z) * length(ray.d);
-    var budget = MAX_MARCH_SAMPLES;
-    var trans = 1.0;
-    var rad = vec3<f32>(0.0);
-    var stop = false;
+    let voxels = params.lod.w != 0u;
     for (var lvl = 0u; lvl < levels; lvl++) {
-        if (stop) {
+        if (st.stop) {
             break;
         }
         let scale = 1.0 / f32(1u << lvl);
@@ -642,22 +708,32 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
         w.root = root;
         for (var g = 0; g < WALK_SPANS; g++) {
             let sp = wk_next(lray, &w, -3.0e38);
-            if (!sp.ok) {
+            if (!sp.ok || st.stop) {
                 break;
+            }
+            if (voxels) {
+                if (sp.brick == NO_BRICK) {
+                    lit_span(&st, ray, sp.ta, sp.tb, sp.m, step);
+                    continue;
+                }
+                var vd = vdb_dda_init(lray, 1.0, sp.origin, sp.origin + vec3<i32>(8), sp.ta, sp.tb);
+                for (var vi = 0; vi < VOXEL_ITERS; vi++) {
+                    let vs = vdb_dda_next(lray, &vd);
+                    if (!vs.ok || st.stop) {
+                        break;
+                    }
+                    lit_span(&st, ray, vs.ta, vs.tb, vdb_brick_voxel(sp.brick, vs.cell), step);
+                }
+                continue;
             }
             let sb = sp.tb * ray.per_t;
             var k = max(ceil(sp.ta * ray.per_t / step - jitter), 0.0);
             for (var n = 0u; n <= MAX_MARCH_SAMPLES; n++) {
                 let s = (k + jitter) * step;
-                if (!(s < sb)) {
+                if (!(s < sb) || st.stop) {
                     break;
                 }
                 k += 1.0;
-                if (budget == 0u) {
-                    stop = true;
-                    break;
-                }
-                budget -= 1u;
                 let p = lray.o + (s / ray.per_t) * lray.d;
                 var rho = 0.0;
                 if (LIT_TRILINEAR && params.ms.w != 0.0) {
@@ -668,36 +744,11 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
                 if (!(rho > 0.0)) {
                     continue;
                 }
-                let x = ext * rho * step;
-                let e = exp(-x);
-                if (TRACE_EMISSION && params.emission.w != 0.0) {
-                    v_emit += trans * step * lv_phi(x, e) * emit_radiance(rho);
-                }
-                // The source where the step's light is scattered on average (`lit::mean_depth`).
-                let m = step * lv_mean_depth(x);
-                let q = ray.o + ((s - 0.5 * step + m) / ray.per_t) * ray.d;
-                let tau = lit_lookup(q);
-                var sun = 0.0;
-                if (octaves == 0u) {
-                    // The diffusion model: single scattering plus the solve's φ/4π.
-                    sun = sun_ph[0] * exp(-ext * tau.x) + lit_diffusion(q);
-                } else {
-                    sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
-                }
-                let sky = lv_sky_source(ext * tau.y, params.sky.w);
-                rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
-                trans *= e;
-                if (trans < LV_MIN_TRANS) {
-                    stop = true;
-                    break;
-                }
-            }
-            if (stop) {
-                break;
+                lit_add(&st, ray, s - 0.5 * step, step, rho);
             }
         }
     }
-    return vec4<f32>(rad, trans);
+    return vec4<f32>(st.rad, st.trans);
 }
 
 

@@ -13,7 +13,8 @@ use std::time::Instant;
 use serde_json::json;
 use vdbcook_asset::Asset;
 use vdbcook_trace::{
-    Camera, Emission, Filter, Image, LengthUnit, Mode, MsModel, RenderSettings, Scratch, Tracer,
+    Camera, Emission, Filter, Image, LengthUnit, March, Mode, MsModel, RenderSettings, Scratch,
+    Tracer,
 };
 
 use crate::cook;
@@ -131,6 +132,12 @@ pub struct Args {
     /// sample).
     #[arg(long, default_value = "nearest", value_parser = ["nearest", "trilinear"])]
     filter: String,
+    /// Where the lit mode's nearest-voxel march samples: steps (every --step from the eye,
+    /// jittered per pixel: a --step above 1 trades accuracy for speed) or voxels (each voxel the
+    /// ray crosses integrated exactly, cut into parts of at most --step where the light is read;
+    /// no noise, closer to the reference, slower). --filter trilinear always marches in steps.
+    #[arg(long, default_value = "steps", value_parser = ["steps", "voxels"])]
+    march: String,
     /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or
     /// more, stepping 2^k voxels (mip-mapping along the ray, for far or low-resolution views).
     /// Off by default: averaging density before the exponential makes far pixels slightly
@@ -312,6 +319,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         ms_sky: a.ms_sky.unwrap_or(ms_model.default_ms_sky()),
         ms_model,
         filter: Filter::parse(&a.filter).expect("clap checked"),
+        march: March::parse(&a.march).expect("clap checked"),
         primary_lod: a.primary_lod,
     })
 }
@@ -942,6 +950,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let lit = json!({
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
             "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
+            "march": s.march.name(),
             "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {

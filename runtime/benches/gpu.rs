@@ -1,6 +1,7 @@
 //! GPU time of one render per mode (`VDBCOOK_BENCH_MODES`, default `density,scatter,lit`; any
 //! of the tracer's mode names; `lit` twice per multiple-scattering model (`VDBCOOK_BENCH_MS`,
-//! default `octaves,diffusion`): with its light volume cached, and rebuilt per render) from the
+//! default `octaves,diffusion`; the march `VDBCOOK_BENCH_MARCH`, `voxels` or `steps`, default
+//! `steps`): with its light volume cached, and rebuilt per render) from the
 //! default view at 640×360 and 1920×1080, measured with
 //! timestamp queries (`vdbcook_runtime::GpuTimer`) around the runtime's compute pass: median of
 //! RUNS (after one warm-up), plus the CPU wall time of submit-and-wait. Without
@@ -16,7 +17,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use vdbcook_runtime::{
-    Asset, Camera, GpuTimer, GpuVolume, Layout, Mode, MsModel, Renderer, Settings, UploadOptions,
+    Asset, Camera, GpuTimer, GpuVolume, Layout, March, Mode, MsModel, Renderer, Settings,
+    UploadOptions,
 };
 
 const RUNS: usize = 5;
@@ -87,6 +89,9 @@ fn main() {
         .split(',')
         .map(|m| Mode::parse(m.trim()).unwrap_or_else(|| panic!("unknown mode {m}")))
         .collect();
+    let march = std::env::var("VDBCOOK_BENCH_MARCH")
+        .map(|m| March::parse(&m).unwrap_or_else(|| panic!("unknown march {m}")))
+        .unwrap_or(March::Steps);
     let ms_models: Vec<MsModel> = std::env::var("VDBCOOK_BENCH_MS")
         .unwrap_or_else(|_| "octaves,diffusion".into())
         .split(',')
@@ -177,6 +182,7 @@ fn main() {
                         light_dir: [0.3, 0.3, if rebuild { 1e-3 * run as f32 } else { 0.0 }],
                         ms_model,
                         ms_sky: ms_model.default_ms_sky(),
+                        march,
                         ..Default::default()
                     };
                     let start = Instant::now();

@@ -473,10 +473,12 @@ impl Lighting {
     }
 
     /// The tracer settings of a lit render with this lighting and `medium` (what the CPU
-    /// tracer draws for the drawer's instances, and what is validated).
+    /// tracer draws for the drawer's instances, and what is validated). The drawer marches in
+    /// steps (`March::Steps`): it does not walk the tree, so it has no voxel spans to follow.
     pub fn settings(&self, medium: &Medium) -> vdbcook_scene::RenderSettings {
         vdbcook_scene::RenderSettings {
             mode: vdbcook_scene::Mode::Lit,
+            march: vdbcook_scene::March::Steps,
             absorb: medium.absorb,
             unit: medium.unit,
             scatter: self.scatter,

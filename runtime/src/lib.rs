@@ -70,7 +70,7 @@ pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };
 pub use vdbcook_asset::Asset;
-pub use vdbcook_scene::{Filter, MsModel};
+pub use vdbcook_scene::{Filter, March, MsModel};
 pub use wgsl::{shadow_wgsl, volume_wgsl, world_to_index};
 /// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
 /// to be sure of matching versions.

@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
     blackbody_table, depth_range, light_dirs, pixel_angle, sky_diffusion, Affine, DiffusionInputs,
-    Filter, LightGrid, Mode, MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
+    Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -79,7 +79,7 @@ struct Params {
     emit_hi: [f32; 4],
     /// The lit mode's primary levels of detail (`vdbcook_scene::level_start`): levels read (1:
     /// full resolution only), the root-offset stride between levels, the camera's pixel angle
-    /// (f32 bits), unused.
+    /// (f32 bits), 1 for the voxel march (`March::Voxels`).
     lod: [u32; 4],
 }
 
@@ -708,7 +708,8 @@ impl Renderer {
                 },
                 self.vol.lod.1 as u32,
                 (pixel_angle(camera.fov_y_deg, height) as f32).to_bits(),
-                0,
+                // 1: the voxel march (`March::Voxels`; trilinear density marches in steps).
+                (settings.march == March::Voxels && settings.filter == Filter::Nearest) as u32,
             ],
         };
         Ok((params, grid))

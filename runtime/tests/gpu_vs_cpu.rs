@@ -32,7 +32,7 @@ use vdbcook_runtime::{
     GpuTimer, GpuVolume, Layout, Readback, Renderer, RuntimeError, UploadOptions, GPU_MODES,
     OPTIONAL_FEATURES,
 };
-use vdbcook_trace::{Image, Mode, MsModel, RenderSettings};
+use vdbcook_trace::{Image, March, Mode, MsModel, RenderSettings};
 
 const W: u32 = 160;
 const H: u32 = 90;
@@ -1413,6 +1413,67 @@ fn lit_diffusion_matches_the_cpu() {
             );
         }
         last = Some(g.rgba);
+    }
+}
+
+/// Both lit marches against the CPU on random bricks and tiles (rotated) and the blob: the voxel
+/// march (`March::Voxels`) follows each brick's voxels by a DDA and cuts constant spans into
+/// equal segments; the step march (the default, which every other lit test runs) samples every
+/// step, jittered. The two draw different images (the test would not see a march ignored).
+#[test]
+fn lit_marches_match_the_cpu() {
+    let Some(gpu) = Gpu::new("lit_marches_match_the_cpu") else {
+        return;
+    };
+    let mut rng = XorShift(11);
+    let frames = [random_frame(&mut rng)];
+    let assets = [
+        (
+            "random f32, rotated",
+            build(
+                [2, 2, 1],
+                rotated(25.0, [0.5, 0.7, 1.2], [3.0, -2.0, 1.0]),
+                0.0,
+                &frames,
+                PayloadFormat::F32,
+            ),
+        ),
+        ("blob", blob_asset(PayloadFormat::F32)),
+    ];
+    for (what, asset) in &assets {
+        let (_vol, r) = gpu.setup(asset);
+        let target = r.buffer_target(&gpu.device, W, H).unwrap();
+        let cam = vdbcook_trace::Camera::framing(asset, 0, W as f64 / H as f64).unwrap();
+        let mut images = Vec::new();
+        for (march, step) in [
+            (March::Voxels, 1.0f32),
+            (March::Voxels, 0.4),
+            (March::Steps, 1.0),
+        ] {
+            let s = RenderSettings {
+                march,
+                step,
+                ..small(Mode::Lit, 0)
+            };
+            let cpu = vdbcook_trace::render(asset, &cam, &s).unwrap();
+            let g = gpu.render(&r, &target, &cam, &s).unwrap();
+            let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+            eprintln!("{what}, {march:?} step {step}: {bad} differ (max {max_diff:.2e}) {first}");
+            assert!(
+                bad * 1000 <= cpu.value.len() * 5,
+                "{what}: {bad} pixels; {first}"
+            );
+            images.push(g.rgba);
+        }
+        let changed = images[0]
+            .iter()
+            .zip(&images[2])
+            .filter(|(a, b)| (*a - *b).abs() > 1e-3)
+            .count();
+        assert!(
+            changed > 100,
+            "{what}: the marches differ in {changed} values only"
+        );
     }
 }
 

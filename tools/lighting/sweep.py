@@ -77,6 +77,7 @@ LIT_METHODS = [
      "--ms-model octaves (8 oct, ms 0.98,0.9,0.6, ms-sky 0.25)", True),
     ("lit-ss", "lit", ["--ms-model", "octaves", "--ms-octaves", "1", "--ms-sky", "16"],
      "--ms-model octaves --ms-octaves 1 --ms-sky 16 (about single scattering)", True),
+    ("lit-vox", "lit", ["--march", "voxels"], "--march voxels (each voxel exact)", True),
     ("lit-lr16", "lit", ["--light-res", "16"], "--light-res 16", True),
     ("lit-lr32", "lit", ["--light-res", "32"], "--light-res 32", True),
     ("lit-lr128", "lit", ["--light-res", "128"], "--light-res 128", True),
@@ -95,7 +96,7 @@ def method_list(args):
     gpu = [] if args.no_gpu else ["gpu"]
     out = []
     for mid, mode, extra, settings, cmp in LIT_METHODS:
-        backends = ["cpu"] + (gpu if (mid in ("lit", "lit-oct") or args.gpu_variants) else [])
+        backends = ["cpu"] + (gpu if (mid in ("lit", "lit-oct", "lit-vox") or args.gpu_variants) else [])
         out += [(mid, mode, b, extra, settings, cmp) for b in backends]
     for mid, mode, extra, settings, cmp in OTHER_METHODS:
         out += [(mid, mode, b, extra, settings, cmp) for b in ["cpu"] + gpu]

@@ -141,7 +141,7 @@ pub use walk::Holder;
 // The shared view and parameter maths (one definition for this tracer and the GPU runtime).
 pub use vdbcook_scene::{
     blackbody_rgb, blackbody_table, content_box, depth_range, stored_bbox, stored_boxes, Affine,
-    Basis, Camera, Emission, Filter, LengthUnit, LightGrid, Mode, MsModel, RenderSettings,
+    Basis, Camera, Emission, Filter, LengthUnit, LightGrid, March, Mode, MsModel, RenderSettings,
     TraceError, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE,
     MAX_SPP, MIN_STEP,
 };

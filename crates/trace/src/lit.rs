@@ -49,7 +49,7 @@ use crate::diffusion::{self, DiffusionInputs};
 use crate::dda::{ceil_f64, Flow};
 use crate::reference::phase;
 use crate::space::IndexRay;
-use crate::walk::SpanSampler;
+use crate::walk::{Holder, SpanSampler, Visitor};
 use crate::Tracer;
 
 /// Transmittance below which a `Lit` ray stops (what is left counts as opaque).
@@ -361,6 +361,48 @@ impl<'a, 't> LitMarch<'a, 't> {
     }
 }
 
+impl LitMarch<'_, '_> {
+    /// Integrates the segment of the ray from length `sa` (in the unit, from the ray's origin)
+    /// over `len` through density `rho`: with `x = σ·ρ·len`, `L += T·α·S·(1 − e^{−x})`,
+    /// `T *= e^{−x}`, the source read where the segment's light is scattered on average (its
+    /// mean depth `len·mean_depth(x)`: light is scattered at depth `m` into it with density
+    /// ∝ e^{−σs}). Stop once `T < LIT_MIN_TRANS` or the sample budget is spent.
+    fn add(&mut self, sa: f64, len: f64, rho: f64) -> Flow {
+        if self.budget == 0 {
+            return Flow::Stop;
+        }
+        self.budget -= 1;
+        let t = self.tracer;
+        let s = &t.settings;
+        let (ext, albedo) = (t.extinction, t.albedo);
+        let x = ext * rho * len;
+        let e = (-x).exp();
+        t.step_emission(&mut self.emit, self.trans, len, x, rho as f32);
+        let m = len * mean_depth(x);
+        let q = self.ray.at((sa + m) / self.ray.per_t);
+        let [ts, tk] = self.lv.lookup(q);
+        let sun = match s.ms_model {
+            MsModel::Octaves => {
+                octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize])
+            }
+            MsModel::Diffusion => self.sun_phase[0] * (-ext * ts).exp() + self.lv.ms_at(q),
+        };
+        let sky = sky_source(ext * tk, self.sky_k);
+        let w = self.trans * albedo * (1.0 - e);
+        for c in 0..3 {
+            self.rad[c] += w * (s.light_color[c] as f64 * sun + s.sky[c] as f64 * sky);
+        }
+        self.trans *= e;
+        if self.trans < LIT_MIN_TRANS {
+            Flow::Stop
+        } else {
+            Flow::Go
+        }
+    }
+}
+
+/// `March::Steps` (and any trilinear march): samples every `step` from the eye, jittered; the
+/// step's segment is centred on its sample.
 impl SpanSampler for LitMarch<'_, '_> {
     fn skip_max(&self, max: f32) -> bool {
         !(max > 0.0)
@@ -373,9 +415,7 @@ impl SpanSampler for LitMarch<'_, '_> {
         value: impl Fn([f64; 3]) -> f32,
     ) -> Flow {
         let t = self.tracer;
-        let s = &t.settings;
         let step = self.step;
-        let (ext, albedo) = (t.extinction, t.albedo);
         let ray = self.ray;
         let (sa, sb) = (ta * ray.per_t, tb * ray.per_t);
         let mut k = ceil_f64(sa / step - self.jitter).max(0.0);
@@ -385,43 +425,53 @@ impl SpanSampler for LitMarch<'_, '_> {
                 return Flow::Go;
             }
             k += 1.0;
-            if self.budget == 0 {
-                return Flow::Stop;
-            }
-            self.budget -= 1;
             // The sample in the level's cell space (the walk's and the values').
             let p = ray.at(sd / ray.per_t).map(|c| c * self.scale);
-            let rho = match s.filter {
+            let rho = match t.settings.filter {
                 Filter::Nearest => value(p) as f64,
                 Filter::Trilinear => t.trilinear_density_in(self.set, p),
             };
             if !(rho > 0.0) {
                 continue;
             }
-            let x = ext * rho * step;
-            let e = (-x).exp();
-            t.step_emission(&mut self.emit, self.trans, step, x, rho as f32);
-            // The source where the step's light is scattered on average: the step is the
-            // segment centred on the sample, light is scattered at depth `m` into it with
-            // density ∝ e^{−σs}.
-            let m = step * mean_depth(x);
-            let q = ray.at((sd - 0.5 * step + m) / ray.per_t);
-            let [ts, tk] = self.lv.lookup(q);
-            let sun = match s.ms_model {
-                MsModel::Octaves => {
-                    octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize])
-                }
-                MsModel::Diffusion => self.sun_phase[0] * (-ext * ts).exp() + self.lv.ms_at(q),
-            };
-            let sky = sky_source(ext * tk, self.sky_k);
-            let w = self.trans * albedo * (1.0 - e);
-            for c in 0..3 {
-                self.rad[c] += w * (s.light_color[c] as f64 * sun + s.sky[c] as f64 * sky);
-            }
-            self.trans *= e;
-            if self.trans < LIT_MIN_TRANS {
+            if self.add(sd - 0.5 * step, step, rho) == Flow::Stop {
                 return Flow::Stop;
             }
         }
+    }
+}
+
+/// `March::Voxels`: the march over the walk's voxel spans (a brick's voxels one by one, a
+/// constant tile as one span), each cut into `n = max(⌈len/step − 10⁻³⌉, 1)` equal segments
+/// (the 10⁻³ keeps a span of exactly `k` steps at `k` segments through the GPU's f32).
+pub(crate) struct VoxelMarch<'m, 'a, 't>(pub &'m mut LitMarch<'a, 't>);
+
+/// Segments of a span `len` long at most `step` each (`VoxelMarch`; the GPU's `lit_span`).
+pub fn segments(len: f64, step: f64) -> f64 {
+    (len / step - 1e-3).ceil().max(1.0)
+}
+
+impl Visitor for VoxelMarch<'_, '_, '_> {
+    fn skip(&self, max: f32) -> bool {
+        !(max > 0.0)
+    }
+    fn voxels(&self) -> bool {
+        true
+    }
+    fn span(&mut self, ta: f64, tb: f64, v: f32, _: Holder) -> Flow {
+        if !(v > 0.0) {
+            return Flow::Go;
+        }
+        let m = &mut *self.0;
+        let per_t = m.ray.per_t;
+        let all = (tb - ta) * per_t;
+        let n = segments(all, m.step);
+        let len = all / n;
+        for j in 0..n as u64 {
+            if m.add(ta * per_t + j as f64 * len, len, v as f64) == Flow::Stop {
+                return Flow::Stop;
+            }
+        }
+        Flow::Go
     }
 }

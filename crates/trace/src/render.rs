@@ -9,7 +9,7 @@ use crate::color::{brick_color, heat, STEPS_FULL_SCALE};
 use crate::dda::{walk_cells, Flow};
 use crate::delta::{Path, MAX_EVENTS};
 use crate::exact::{Density, FirstHit};
-use crate::lit::{LightVolume, LitMarch};
+use crate::lit::{LightVolume, LitMarch, VoxelMarch};
 use crate::rng::{Rng, Rng64};
 use crate::scatter::{Primary, MAX_MARCH_SAMPLES};
 use crate::space::IndexRay;
@@ -17,7 +17,7 @@ use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
     blackbody_table, depth_range, length, level_start, normalize, stored_bbox, Affine, Camera,
-    Emission, LengthUnit, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
+    Emission, Filter, LengthUnit, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -557,7 +557,22 @@ impl Tracer<'_> {
             v.scale = scale;
             v.step = self.settings.step as f64 / scale;
             // The level's cell space is full resolution's scaled by 2^−k.
-            if walk(grid, &ray.scaled(scale), a, b, &mut scratch.primary, &mut v) == Flow::Stop {
+            let lray = ray.scaled(scale);
+            let flow = if self.settings.march == March::Voxels
+                && self.settings.filter == Filter::Nearest
+            {
+                walk(
+                    grid,
+                    &lray,
+                    a,
+                    b,
+                    &mut scratch.primary,
+                    &mut VoxelMarch(&mut v),
+                )
+            } else {
+                walk(grid, &lray, a, b, &mut scratch.primary, &mut v)
+            };
+            if flow == Flow::Stop {
                 break;
             }
         }
