@@ -46,7 +46,8 @@ struct DrawView {
     // Octaves of the sun's multiple scattering; 0: the diffusion model.
     ms_octaves: u32,
     seed: u32,
-    _pad0: u32,
+    // Light-volume cells of the near field toward the sun (`Lighting::sun_near`; 0: none).
+    sun_near: f32,
     _pad1: u32,
     // Emission of lit instances (`vdbcook_scene::Emission`): x, y the range in Kelvin, z the
     // intensity, w 1 when on; the blackbody colours over the range.
@@ -83,6 +84,9 @@ struct DrawInstance {
     lv_dims0: vec4<u32>,
     lv_lo1: vec4<f32>,
     lv_dims1: vec4<u32>,
+    // xyz: length per cell-space unit along each axis (the diffusion's metric); w: the phase's
+    // mean cosine.
+    lv_axis: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> draw_view: DrawView;
@@ -90,13 +94,15 @@ struct DrawInstance {
 @group(1) @binding(2) var draw_depth: texture_depth_2d;
 @group(1) @binding(3) var draw_out: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(0) var<storage, read> draw_lv: array<vec2<f32>>;
-// The diffusion model's (ρ·φ/4π, ρ) per cell, laid out as `draw_lv` (`light_build.wgsl`).
-@group(2) @binding(1) var<storage, read> draw_lv_ms: array<vec2<f32>>;
+// The diffusion model's three vec4 per cell of `draw_lv` (`light_build.wgsl`'s `ms_store_main`).
+@group(2) @binding(1) var<storage, read> draw_lv_ms: array<vec4<f32>>;
 
 // Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
 const DRAW_LIT: bool = {{DRAW_LIT}};
 // Whether the lit march reads trilinear density (a third pipeline, made on first use).
 const DRAW_TRILINEAR: bool = {{DRAW_TRILINEAR}};
+// Whether the lit march can walk the near field toward the sun (`Lighting::sun_near` > 0).
+const DRAW_NEAR: bool = {{DRAW_NEAR}};
 // Most samples of one lit instance march (`vdbcook_trace::MAX_MARCH_SAMPLES`).
 const DRAW_MAX_SAMPLES: u32 = 1048576u;
 
@@ -110,15 +116,50 @@ fn draw_lv_lookup(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> ve
     return out;
 }
 
-// The diffusion model's φ/4π of the light volume at `base` at `p`: trilinear weighted by the
-// cells' densities, 0 where all eight are empty (the tracer's `lit_diffusion`).
-fn draw_ms_lookup(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> f32 {
+// The diffusion model's (sun, sky) light of the light volume at `base` at `p` toward `eye`
+// (the tracer's `lit_diffuse`).
+fn draw_diffuse(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, eye: vec4<f32>) -> vec2<f32> {
     let t = lv_taps(p, lo.xyz, lo.w, dims.xyz);
-    var acc = vec2<f32>(0.0);
+    var acc: LvDiffuse;
     for (var k = 0u; k < 8u; k++) {
-        acc += t.w[k] * draw_lv_ms[base + t.idx[k]];
+        let i = 3u * (base + t.idx[k]);
+        lv_diffuse_add(&acc, t.w[k], draw_lv_ms[i], draw_lv_ms[i + 1u], draw_lv_ms[i + 2u]);
     }
-    return select(0.0, acc.x / acc.y, acc.y > 0.0);
+    return lv_diffuse_read(acc, eye.xyz, eye.w);
+}
+
+// The sun's depth at `q` (density `rho`) of one frame of a lit instance (root `root`, its light
+// volume at `base` over `lo`, `dims`), the tracer's `lit_sun_depth` in the instance's cell
+// space: the first `sun_near` cells toward the sun (`l`: the cell-space image of the unit
+// world direction) walked exactly where a cell is optically thick, the light volume beyond.
+fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, rho: f32, l: vec3<f32>) -> f32 {
+    let cell = lo.w;
+    let near = select(0.0, draw_view.sun_near * cell, cell > 1.0);
+    let axis = inst.lv_axis.xyz;
+    let cell_len = cell * min(axis.x, min(axis.y, axis.z));
+    if (!DRAW_NEAR || !(near > 0.0) || !(inst.extinction * rho * cell_len >= LV_NEAR_DEPTH)) {
+        return draw_lv_lookup(base, lo, dims, q).x;
+    }
+    var ray: VdbRay;
+    ray.o = q;
+    ray.d = l;
+    ray.per_t = select(1.0, length(l), draw_view.voxel_units != 0u);
+    let c = vdb_clip(ray, vec3<f32>(vdb_info.root_dims * 128u));
+    if (!(c.y > c.x)) {
+        return 0.0;
+    }
+    let t_near = near / length(l);
+    let tau = vdb_optical_depth_near(root, ray, c.x, min(c.y, t_near), inst.extinction);
+    if (t_near >= c.y || inst.extinction * tau >= VDB_OPAQUE_DEPTH) {
+        return tau;
+    }
+    let p = q + t_near * l;
+    let u = normalize(l);
+    let te = lv_box_entry(lo, dims.xyz, p, u);
+    if (te < 0.0) {
+        return tau;
+    }
+    return tau + draw_lv_lookup(base, lo, dims, p + te * u).x;
 }
 
 // The lit march's density of one frame at cell-space point `p`: the nearest voxel (≥ 0), or
@@ -144,6 +185,12 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
     let jitter = lv_jitter(draw_view.seed, pixel);
     let ext = inst.extinction;
     let a = inst.box_lo.w;
+    // Toward the eye in the diffusion's metric, and the phase's mean cosine.
+    let eye = vec4<f32>(lv_eye_dir(ray.d, inst.lv_axis.xyz), inst.lv_axis.w);
+    // The cell-space image of the unit world direction toward the sun.
+    let lw = draw_view.light_dir.xyz;
+    let l = vec3<f32>(dot(inst.cell_from_world0.xyz, lw), dot(inst.cell_from_world1.xyz, lw),
+                      dot(inst.cell_from_world2.xyz, lw));
     let sb = t1 * ray.per_t;
     var k = max(ceil(t0 * ray.per_t / step - jitter), 0.0);
     var trans = 1.0;
@@ -172,22 +219,29 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             rad += trans * step * lv_phi(x, e) * w.z * (c0 + w.y * (draw_view.emit_table[i + 1u].xyz - c0));
         }
         let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
-        var tau = draw_lv_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q);
+        var tau_sun = draw_sun_depth(inst, inst.frame_root0, inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q, rho, l);
         if (a > 0.0) {
-            tau = mix(tau, draw_lv_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q), a);
+            let tau1 = draw_sun_depth(inst, inst.frame_root1, inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q, rho, l);
+            tau_sun = mix(tau_sun, tau1, a);
         }
         var sun = 0.0;
+        var sky = 0.0;
         if (octaves == 0u) {
-            // The diffusion model: single scattering plus the solve's φ/4π.
-            var diffuse = draw_ms_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q);
+            // The diffusion model: single scattering plus the solve's sun; the solve's sky.
+            var diffuse = draw_diffuse(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q, eye);
             if (a > 0.0) {
-                diffuse = mix(diffuse, draw_ms_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q), a);
+                diffuse = mix(diffuse, draw_diffuse(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q, eye), a);
             }
-            sun = sun_ph[0] * exp(-ext * tau.x) + diffuse;
+            sun = sun_ph[0] * exp(-ext * tau_sun) + diffuse.x;
+            sky = diffuse.y;
         } else {
-            sun = lv_octaves(ext * tau.x, ms, octaves, &sun_ph);
+            var tau_sky = draw_lv_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q).y;
+            if (a > 0.0) {
+                tau_sky = mix(tau_sky, draw_lv_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q).y, a);
+            }
+            sun = lv_octaves(ext * tau_sun, ms, octaves, &sun_ph);
+            sky = lv_sky_source(ext * tau_sky, inst.sky_k);
         }
-        let sky = lv_sky_source(ext * tau.y, inst.sky_k);
         rad += trans * inst.albedo * (1.0 - e) * (draw_view.light_color.xyz * sun + draw_view.sky.xyz * sky);
         trans *= e;
         if (trans < LV_MIN_TRANS) {

@@ -77,6 +77,68 @@ fn lv_sky_source(y: f32, k: f32) -> f32 {
     return direct + (1.0 - direct) * exp(-k * y);
 }
 
+// The diffusion model's light (`vdbcook_trace::LightVolume::diffuse_at`), summed over the
+// eight taps of a light volume's cells (three vec4 per cell: `light_build.wgsl`'s
+// `ms_store_main`, density-premultiplied) by `lv_diffuse_add`, then read toward the eye by
+// `lv_diffuse_read`.
+struct LvDiffuse {
+    // Σ w·(ρ·φ_sun/4π, ρ·φ_sky/4π, ρ).
+    phi: vec3<f32>,
+    // Σ w·ρ·J/4π of the sun's field and of the sky's.
+    j_sun: vec3<f32>,
+    j_sky: vec3<f32>,
+}
+
+fn lv_diffuse_add(acc: ptr<function, LvDiffuse>, w: f32, c0: vec4<f32>, c1: vec4<f32>, c2: vec4<f32>) {
+    (*acc).phi += w * c0.xyz;
+    (*acc).j_sun += w * c1.xyz;
+    (*acc).j_sky += w * c2.xyz;
+}
+
+// (sun, sky): each `φ/4π + 3ḡ·J·ω/4π` (at least 0), `eye` the unit direction toward the eye in
+// the solve's metric (`lv_eye_dir`); the light outside the medium, (0, 1), where all eight
+// cells are empty.
+fn lv_diffuse_read(acc: LvDiffuse, eye: vec3<f32>, mean_cos: f32) -> vec2<f32> {
+    let den = acc.phi.z;
+    if (!(den > 0.0)) {
+        return vec2<f32>(0.0, 1.0);
+    }
+    let jw = vec2<f32>(dot(acc.j_sun, eye), dot(acc.j_sky, eye));
+    return max((acc.phi.xy + 3.0 * mean_cos * jw) / den, vec2<f32>(0.0));
+}
+
+// `vdbcook_trace::LightVolume::eye_dir`: the unit direction toward the eye of a ray along
+// cell-space `d`, in length units per axis (`axis_len`).
+fn lv_eye_dir(d: vec3<f32>, axis_len: vec3<f32>) -> vec3<f32> {
+    return normalize(-d * axis_len);
+}
+
+// Where the ray from cell-space point `p` along `l` enters the light volume's box (corner
+// `lo.xyz`, cell edge `lo.w`, `dims` cells): its parameter (0 when `p` is inside), or −1 when
+// it misses (`vdbcook_trace::LightVolume::sun_depth_at`).
+fn lv_box_entry(lo: vec4<f32>, dims: vec3<u32>, p: vec3<f32>, l: vec3<f32>) -> f32 {
+    let hi = lo.xyz + vec3<f32>(dims) * lo.w;
+    var t0 = 0.0;
+    var t1 = 3.0e38;
+    for (var a = 0; a < 3; a++) {
+        if (l[a] == 0.0) {
+            if (!(p[a] >= lo[a] && p[a] <= hi[a])) {
+                return -1.0;
+            }
+        } else {
+            let u = (lo[a] - p[a]) / l[a];
+            let v = (hi[a] - p[a]) / l[a];
+            t0 = max(t0, min(u, v));
+            t1 = min(t1, max(u, v));
+        }
+    }
+    return select(-1.0, t0, t1 >= t0);
+}
+
+// Optical depth of one light-volume cell below which a lit march reads the sun's depth from the
+// light volume alone (`vdbcook_trace::LIT_NEAR_DEPTH`).
+const LV_NEAR_DEPTH: f32 = 0.25;
+
 // Transmittance below which a lit march stops (`vdbcook_trace::LIT_MIN_TRANS`).
 const LV_MIN_TRANS: f32 = 1e-4;
 

@@ -204,13 +204,17 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // ---- The diffusion model of multiple scattering (`vdbcook_trace::diffusion`) ---------------
-// Run after the passes above for the same volume (they leave its cell densities in
-// `lv_density` and τ_sun in `lv_tau`): `ms_source_main` fills level 0, `ms_restrict_main`
-// each coarser level from the finer one, then from the coarsest level down
-// `ms_prolong_main` starts a level from its parent (0 at the coarsest) and `ms_sweeps(level)`
-// Jacobi sweeps of `ms_limit_main` + `ms_update_main` run there (an even number: the result
-// ends in φ A); `ms_store_main` writes
-// (ρ·φ/4π, ρ) per cell of level 0 into `lv_ms_out`, which the tracer reads density-weighted.
+// Two fields per cell: the sun's scattered light (source: the beam's first scattering, nothing
+// comes in from outside) and the sky's light (no source, a uniform radiance of 1 comes in
+// through the boundary: φ = 4π outside the medium). Run after the passes above for the same
+// volume (they leave its cell densities in `lv_density` and τ_sun in `lv_tau`):
+// `ms_source_main` fills level 0, `ms_restrict_main` each coarser level from the finer one,
+// then from the coarsest level down `ms_prolong_main` starts a level from its parent (the
+// boundary's φ at the coarsest) and `ms_sweeps(level)` Jacobi sweeps of `ms_limit_main` +
+// `ms_update_main` run there (an even number: the result ends in φ A); one more
+// `ms_limit_main` on level 0's result, then `ms_store_main` writes per cell of level 0 into
+// `lv_ms_out` (three vec4: (ρ·φ_sun/4π, ρ·φ_sky/4π, ρ, 0), (ρ·J_sun/4π, 0), (ρ·J_sky/4π, 0)),
+// which the tracer and the drawer read density-weighted (`lv_diffuse_*` in `light.wgsl`).
 // One `MsParams` record per level and sweep parity (bound with a dynamic offset).
 
 struct MsParams {
@@ -229,17 +233,25 @@ struct MsParams {
     medium: vec4<f32>,
 }
 
-// Per level at `off.x` over n cells: st [0, n), sr [n, 2n), q [2n, 3n), φ A [3n, 4n),
-// φ B [4n, 5n), the half-cell resistances [5n, 8n) (three per cell, x y z).
+// Per level at `off.x` over n cells: st [0, n), sr [n, 2n), q [2n, 3n), φ A [3n, 5n) and
+// φ B [5n, 7n) (two per cell: sun, sky), the half-cell resistances [7n, 13n) (six per cell:
+// x y z of the sun's field, then of the sky's).
 @group(2) @binding(0) var<storage, read_write> lv_ms: array<f32>;
 @group(2) @binding(1) var<uniform> mp: MsParams;
-@group(2) @binding(2) var<storage, read_write> lv_ms_out: array<vec2<f32>>;
+@group(2) @binding(2) var<storage, read_write> lv_ms_out: array<vec4<f32>>;
 
 // `vdbcook_trace::diffusion::MS_VACUUM`.
 const MS_VACUUM: f32 = 2.0;
+// 4π: the sky field's φ outside the medium (`vdbcook_trace::diffusion`'s boundary).
+const MS_FOUR_PI: f32 = 12.566370614359172;
 
 fn ms_cells(d: vec3<u32>) -> u32 {
     return d.x * d.y * d.z;
+}
+
+// Field `f`'s φ outside the medium (0: the sun's, 1: the sky's).
+fn ms_boundary(f: u32) -> f32 {
+    return select(0.0, MS_FOUR_PI, f == 1u);
 }
 
 @compute @workgroup_size(4, 4, 4)
@@ -288,7 +300,8 @@ fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_ms[o + 2u * n + i] = acc.z;
 }
 
-// φ A of a level from its parent's φ A (each cell its parent's value), 0 at the coarsest.
+// φ A of a level from its parent's φ A (each cell its parent's value), the boundary's at the
+// coarsest.
 @compute @workgroup_size(4, 4, 4)
 fn ms_prolong_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = mp.dims.xyz;
@@ -296,25 +309,28 @@ fn ms_prolong_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let n = ms_cells(dims);
-    var v = 0.0;
+    var v = vec2<f32>(ms_boundary(0u), ms_boundary(1u));
     if (mp.off.w != 0u) {
         let pd = mp.parent.xyz;
-        v = lv_ms[mp.off.z + 3u * ms_cells(pd) + lv_index(gid / 2u, pd)];
+        let j = mp.off.z + 3u * ms_cells(pd) + 2u * lv_index(gid / 2u, pd);
+        v = vec2<f32>(lv_ms[j], lv_ms[j + 1u]);
     }
-    lv_ms[mp.off.x + 3u * n + lv_index(gid, dims)] = v;
+    let i = mp.off.x + 3u * n + 2u * lv_index(gid, dims);
+    lv_ms[i] = v.x;
+    lv_ms[i + 1u] = v.y;
 }
 
-// The sweep's input φ of cell `c` (0 outside the level).
-fn ms_phi(c: vec3<i32>) -> f32 {
+// The sweep's input φ of field `f` of cell `c` (the boundary's outside the level).
+fn ms_phi(c: vec3<i32>, f: u32) -> f32 {
     let dims = mp.dims.xyz;
     if (any(c < vec3<i32>(0)) || any(vec3<u32>(c) >= dims)) {
-        return 0.0;
+        return ms_boundary(f);
     }
     let n = ms_cells(dims);
-    return lv_ms[mp.off.x + (3u + mp.dims.w) * n + lv_index(vec3<u32>(c), dims)];
+    return lv_ms[mp.off.x + (3u + 2u * mp.dims.w) * n + 2u * lv_index(vec3<u32>(c), dims) + f];
 }
 
-// The half-cell resistances of a cell: ½h·(3·sr + |∇φ|/φ) (Wilson's flux limiter).
+// The half-cell resistances of a cell per field: ½h·(3·sr + |∇φ|/φ) (Wilson's flux limiter).
 @compute @workgroup_size(4, 4, 4)
 fn ms_limit_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = mp.dims.xyz;
@@ -328,25 +344,50 @@ fn ms_limit_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let c = vec3<i32>(gid);
-    var g2 = 0.0;
-    for (var a = 0u; a < 3u; a++) {
-        var e = vec3<i32>(0);
-        e[a] = 1;
-        let d = (ms_phi(c + e) - ms_phi(c - e)) / (2.0 * mp.h[a]);
-        g2 += d * d;
-    }
-    let phi = ms_phi(c);
-    var lim = 0.0;
-    if (phi > 0.0) {
-        lim = sqrt(g2) / phi;
-    }
     let sr = lv_ms[o + n + i];
-    for (var a = 0u; a < 3u; a++) {
-        lv_ms[o + 5u * n + 3u * i + a] = 0.5 * mp.h[a] * (3.0 * sr + lim);
+    for (var f = 0u; f < 2u; f++) {
+        var g2 = 0.0;
+        for (var a = 0u; a < 3u; a++) {
+            var e = vec3<i32>(0);
+            e[a] = 1;
+            let d = (ms_phi(c + e, f) - ms_phi(c - e, f)) / (2.0 * mp.h[a]);
+            g2 += d * d;
+        }
+        let phi = ms_phi(c, f);
+        var lim = 0.0;
+        if (phi > 0.0) {
+            lim = sqrt(g2) / phi;
+        }
+        for (var a = 0u; a < 3u; a++) {
+            lv_ms[o + 7u * n + 6u * i + 3u * f + a] = 0.5 * mp.h[a] * (3.0 * sr + lim);
+        }
     }
 }
 
-// One Jacobi sweep of the balance: φ ← (q + Σ φ_j/(h·R)) / (σ(1 − α) + Σ 1/(h·R)).
+// Cell `i`'s (at `c`) neighbour along axis `a` on side `s` (1: +1) for field `f`: the face's
+// conductance 1/(h·R) and the neighbour's φ (the vacuum boundary toward an empty cell or the
+// level's edge).
+fn ms_face(i: u32, c: vec3<i32>, a: u32, s: u32, f: u32) -> vec2<f32> {
+    let dims = mp.dims.xyz;
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    var e = vec3<i32>(0);
+    e[a] = select(-1, 1, s == 1u);
+    let cj = c + e;
+    let hi = lv_ms[o + 7u * n + 6u * i + 3u * f + a];
+    var r = hi + MS_VACUUM;
+    var pj = ms_boundary(f);
+    if (all(cj >= vec3<i32>(0)) && all(vec3<u32>(cj) < dims)) {
+        let j = lv_index(vec3<u32>(cj), dims);
+        if (lv_ms[o + j] > 0.0) {
+            r = hi + lv_ms[o + 7u * n + 6u * j + 3u * f + a];
+            pj = ms_phi(cj, f);
+        }
+    }
+    return vec2<f32>(1.0 / (mp.h[a] * r), pj);
+}
+
+// One Jacobi sweep of the balance per field: φ ← (q + Σ φ_j/(h·R)) / (σ(1 − α) + Σ 1/(h·R)).
 @compute @workgroup_size(4, 4, 4)
 fn ms_update_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = mp.dims.xyz;
@@ -356,39 +397,32 @@ fn ms_update_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = lv_index(gid, dims);
     let n = ms_cells(dims);
     let o = mp.off.x;
-    let out = o + (4u - mp.dims.w) * n + i;
+    let out = o + (5u - 2u * mp.dims.w) * n + 2u * i;
     let st = lv_ms[o + i];
     if (!(st > 0.0)) {
-        lv_ms[out] = 0.0;
+        lv_ms[out] = ms_boundary(0u);
+        lv_ms[out + 1u] = ms_boundary(1u);
         return;
     }
     let c = vec3<i32>(gid);
-    var diag = st * (1.0 - mp.h.w);
-    var off = 0.0;
-    for (var a = 0u; a < 3u; a++) {
-        let hi = lv_ms[o + 5u * n + 3u * i + a];
-        for (var s = 0u; s < 2u; s++) {
-            var e = vec3<i32>(0);
-            e[a] = select(-1, 1, s == 1u);
-            let cj = c + e;
-            var r = hi + MS_VACUUM;
-            var pj = 0.0;
-            if (all(cj >= vec3<i32>(0)) && all(vec3<u32>(cj) < dims)) {
-                let j = lv_index(vec3<u32>(cj), dims);
-                if (lv_ms[o + j] > 0.0) {
-                    r = hi + lv_ms[o + 5u * n + 3u * j + a];
-                    pj = ms_phi(cj);
-                }
+    for (var f = 0u; f < 2u; f++) {
+        var diag = st * (1.0 - mp.h.w);
+        var off = 0.0;
+        for (var a = 0u; a < 3u; a++) {
+            for (var s = 0u; s < 2u; s++) {
+                let g = ms_face(i, c, a, s, f);
+                diag += g.x;
+                off += g.x * g.y;
             }
-            let g = 1.0 / (mp.h[a] * r);
-            diag += g;
-            off += g * pj;
         }
+        let q = select(0.0, lv_ms[o + 2u * n + i], f == 0u);
+        lv_ms[out + f] = (q + off) / diag;
     }
-    lv_ms[out] = (lv_ms[o + 2u * n + i] + off) / diag;
 }
 
-// Level 0's result for the tracer: (ρ·φ/4π, ρ) per cell.
+// Level 0's result for the tracer and the drawer, per cell (φ A, after `ms_limit_main` on
+// it): (ρ·φ_sun/4π, ρ·φ_sky/4π, ρ, 0), then ρ·J/4π of each field, J per axis the mean of
+// the cell's two faces' fluxes (φᵢ − φⱼ)/(h·R) along it.
 @compute @workgroup_size(4, 4, 4)
 fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = mp.dims.xyz;
@@ -396,8 +430,23 @@ fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let i = lv_index(gid, dims);
-    let n = ms_cells(dims);
     let rho = lv_density[i];
-    let phi = lv_ms[mp.off.x + 3u * n + i] / 12.566370614359172;
-    lv_ms_out[lp.base + i] = vec2<f32>(rho * phi, rho);
+    let out = 3u * (lp.base + i);
+    var j = array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
+    let c = vec3<i32>(gid);
+    let filled = lv_ms[mp.off.x + i] > 0.0;
+    if (filled) {
+        for (var f = 0u; f < 2u; f++) {
+            let phi = ms_phi(c, f);
+            for (var a = 0u; a < 3u; a++) {
+                let lo = ms_face(i, c, a, 0u, f);
+                let up = ms_face(i, c, a, 1u, f);
+                j[f][a] = 0.5 * ((lo.y - phi) * lo.x + (phi - up.y) * up.x);
+            }
+        }
+    }
+    let w = rho / MS_FOUR_PI;
+    lv_ms_out[out] = vec4<f32>(w * ms_phi(c, 0u), w * ms_phi(c, 1u), rho, 0.0);
+    lv_ms_out[out + 1u] = vec4<f32>(w * j[0], 0.0);
+    lv_ms_out[out + 2u] = vec4<f32>(w * j[1], 0.0);
 }

@@ -32,22 +32,8 @@ struct VdbShadowInstance {
 
 // The sun's optical depth of one light volume at cell-space point `p` (`l`: toward the sun).
 fn vdb_shadow_depth(lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, l: vec3<f32>) -> f32 {
-    let hi = lo.xyz + vec3<f32>(dims.xyz) * lo.w;
-    var t0 = 0.0;
-    var t1 = 3.0e38;
-    for (var a = 0; a < 3; a++) {
-        if (l[a] == 0.0) {
-            if (!(p[a] >= lo[a] && p[a] <= hi[a])) {
-                return 0.0;
-            }
-        } else {
-            let u = (lo[a] - p[a]) / l[a];
-            let v = (hi[a] - p[a]) / l[a];
-            t0 = max(t0, min(u, v));
-            t1 = min(t1, max(u, v));
-        }
-    }
-    if (!(t1 >= t0)) {
+    let t0 = lv_box_entry(lo, dims.xyz, p, l);
+    if (t0 < 0.0) {
         return 0.0;
     }
     let t = lv_taps(p + t0 * l, lo.xyz, lo.w, dims.xyz);

@@ -82,21 +82,30 @@ struct Params {
     // full resolution only), y the root-offset stride between levels (frames · root length),
     // z the camera's pixel angle (bits of an f32); w 1 for the voxel march (`March::Voxels`).
     lod: vec4<u32>,
+    // The lit mode: x the near field toward the sun in voxels (`RenderSettings::sun_near` cells;
+    // 0: none), y a light-volume cell's edge in the length unit (the shortest), z the phase's
+    // mean cosine; `lv_axis` xyz: length per cell-space unit along each axis.
+    lit: vec4<f32>,
+    lv_axis: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> params: Params;
 @group(2) @binding(0) var out_texture: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(2) @binding(1) var<storage, read_write> out_buffer: array<f32>;
 // Group 3: the lit mode's light volume, (τ_sun, τ_sky) per cell, and the diffusion model's
-// (ρ·φ/4π, ρ) per cell (`light_build.wgsl`; written only for that model).
+// three vec4 per cell (`light_build.wgsl`'s `ms_store_main`; written only for that model).
 @group(3) @binding(0) var<storage, read> lv_tau: array<vec2<f32>>;
-@group(3) @binding(1) var<storage, read> lv_diffusion: array<vec2<f32>>;
+@group(3) @binding(1) var<storage, read> lv_diffusion: array<vec4<f32>>;
 
 // Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
 const TRACE_EMISSION: bool = {{EMISSION}};
 // Whether this pipeline reads trilinear density in the lit mode (a variant the renderer makes on
 // the first render that asks; the nearest-voxel march does not carry its code).
 const LIT_TRILINEAR: bool = {{TRILINEAR}};
+// Whether the lit march can walk the near field toward the sun, and march voxels
+// (`runtime/src/render.rs`'s `LitVariant`: lavapipe pays for code that is present).
+const LIT_NEAR: bool = {{LIT_NEAR}};
+const LIT_VOXELS: bool = {{LIT_VOXELS}};
 
 const MODE_DENSITY: u32 = 0u;
 const MODE_DEPTH: u32 = 1u;
@@ -548,15 +557,44 @@ fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
     return out;
 }
 
-// The diffusion model's φ/4π at `p`: trilinear weighted by the cells' densities
-// (`LightVolume::ms_at`), 0 where all eight cells are empty.
-fn lit_diffusion(p: vec3<f32>) -> f32 {
+// The diffusion model's (sun, sky) light scattered at `p` toward `eye`
+// (`LightVolume::diffuse_at`).
+fn lit_diffuse(p: vec3<f32>, eye: vec3<f32>) -> vec2<f32> {
     let t = lv_taps(p, params.lv_lo.xyz, params.lv_lo.w, params.lv_dims.xyz);
-    var acc = vec2<f32>(0.0);
+    var acc: LvDiffuse;
     for (var k = 0u; k < 8u; k++) {
-        acc += t.w[k] * lv_diffusion[t.idx[k]];
+        let i = 3u * t.idx[k];
+        lv_diffuse_add(&acc, t.w[k], lv_diffusion[i], lv_diffusion[i + 1u], lv_diffusion[i + 2u]);
     }
-    return select(0.0, acc.x / acc.y, acc.y > 0.0);
+    return lv_diffuse_read(acc, eye, params.lit.z);
+}
+
+// `Tracer::sun_depth`: the sun's optical depth at `q` (density `rho`), the first
+// `params.lit.x` voxels toward the sun walked exactly where one light-volume cell is optically
+// thick, the light volume's depth where that walk ends beyond.
+fn lit_sun_depth(q: vec3<f32>, rho: f32) -> f32 {
+    let near = params.lit.x;
+    if (!LIT_NEAR || !(near > 0.0) || !(params.extinction * rho * params.lit.y >= LV_NEAR_DEPTH)) {
+        return lit_lookup(q).x;
+    }
+    let ray = light_ray(q);
+    let c = vdb_clip(ray, params.extent.xyz);
+    if (!(c.y > c.x)) {
+        return 0.0;
+    }
+    let t_near = near / length(ray.d);
+    let t_end = min(c.y, t_near);
+    let tau = vdb_optical_depth_near(params.frame_root, ray, c.x, t_end, params.extinction);
+    if (t_near >= c.y || params.extinction * tau >= OPAQUE_DEPTH) {
+        return tau;
+    }
+    let p = ray.o + t_near * ray.d;
+    let l = normalize(ray.d);
+    let te = lv_box_entry(params.lv_lo, params.lv_dims.xyz, p, l);
+    if (te < 0.0) {
+        return tau;
+    }
+    return tau + lit_lookup(p + te * l).x;
 }
 
 // `vdb_trilinear` at `p` inside span `sp`: when the eight taps lie in the span's brick (about
@@ -593,23 +631,21 @@ fn lod_start(k: u32, grow: f32) -> f32 {
     return VDB_BIG;
 }
 
-// The lit march for t in [t0, t1] (the ray's clip to the root extent): (radiance rgb,
-// transmittance). `dw`: the unit world direction. Level k of detail (`params.lod`) is walked
-// over [t_k, t_{k+1}) in its cell space (full resolution's scaled by 2^-k, exact in binary),
-// clipped to the frame's content box widened to that level's leaves, stepping `step·2^k`.
-// One lit march's state: radiance, transmittance, whether it stopped, samples left, and the
-// sun's phase per octave at the ray's μ.
+// One lit march's state: radiance, transmittance, whether it stopped, samples left, the
+// sun's phase per octave at the ray's μ, the direction toward the eye in the diffusion's
+// metric.
 struct LitState {
     rad: vec3<f32>,
     trans: f32,
     stop: bool,
     budget: u32,
     ph: array<f32, 8>,
+    eye: vec3<f32>,
 }
 
-// `LitMarch::add`: the segment of `ray` from length `sa` over `len` through density `rho`,
-// the source read at the segment's mean scattering depth.
-fn lit_add(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, rho: f32) {
+// `LitMarch::light`: the segment of `ray` from length `sa` over `len` of optical depth `x`
+// (mean density `rho`), the source read at its mean scattering depth.
+fn lit_light(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, x: f32, rho: f32) {
     if ((*st).budget == 0u) {
         (*st).stop = true;
         return;
@@ -617,28 +653,36 @@ fn lit_add(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, rho: f32
     (*st).budget -= 1u;
     let ext = params.extinction;
     let octaves = params.lv_dims.w;
-    let x = ext * rho * len;
     let e = exp(-x);
     let trans = (*st).trans;
-    if (TRACE_EMISSION && params.emission.w != 0.0) {
-        v_emit += trans * len * lv_phi(x, e) * emit_radiance(rho);
-    }
     let q = ray.o + ((sa + len * lv_mean_depth(x)) / ray.per_t) * ray.d;
-    let tau = lit_lookup(q);
+    let tau_sun = lit_sun_depth(q, rho);
     var sun = 0.0;
+    var sky = 0.0;
     if (octaves == 0u) {
-        // The diffusion model: single scattering plus the solve's φ/4π.
-        sun = (*st).ph[0] * exp(-ext * tau.x) + lit_diffusion(q);
+        // The diffusion model: single scattering plus the solve's sun; the solve's sky.
+        let diffuse = lit_diffuse(q, (*st).eye);
+        sun = (*st).ph[0] * exp(-ext * tau_sun) + diffuse.x;
+        sky = diffuse.y;
     } else {
         var ph = (*st).ph;
-        sun = lv_octaves(ext * tau.x, params.ms.xyz, octaves, &ph);
+        sun = lv_octaves(ext * tau_sun, params.ms.xyz, octaves, &ph);
+        sky = lv_sky_source(ext * lit_lookup(q).y, params.sky.w);
     }
-    let sky = lv_sky_source(ext * tau.y, params.sky.w);
     (*st).rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
     (*st).trans = trans * e;
     if ((*st).trans < LV_MIN_TRANS) {
         (*st).stop = true;
     }
+}
+
+// `LitMarch::add`: the segment's emission (at transmittance `trans`), then its light.
+fn lit_add(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, rho: f32) {
+    let x = params.extinction * rho * len;
+    if (TRACE_EMISSION && params.emission.w != 0.0) {
+        v_emit += (*st).trans * len * lv_phi(x, exp(-x)) * emit_radiance(rho);
+    }
+    lit_light(st, ray, sa, len, x, rho);
 }
 
 // `VoxelMarch::span`: a constant span [ta, tb] of value `v`, cut into equal segments of at
@@ -673,10 +717,11 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     st.trans = 1.0;
     st.stop = false;
     st.budget = MAX_MARCH_SAMPLES;
+    st.eye = lv_eye_dir(ray.d, params.lv_axis.xyz);
     let jitter = lv_jitter(params.seed, pixel);
     let levels = max(params.lod.x, 1u);
     let grow = bitcast<f32>(params.lod.z) * length(ray.d);
-    let voxels = params.lod.w != 0u;
+    let voxels = LIT_VOXELS && params.lod.w != 0u;
     for (var lvl = 0u; lvl < levels; lvl++) {
         if (st.stop) {
             break;

@@ -116,15 +116,17 @@ pub struct Args {
     /// scattering, up to 8).
     #[arg(long, default_value_t = 8)]
     ms_octaves: u32,
-    /// Diffusion scale of the lit mode's multiply scattered sky light: 0 keeps all the sky
-    /// light the medium scatters, 1 attenuates it as diffusion theory does (default fitted to
-    /// the reference: 0.25 with --ms-model octaves, 0.5 with diffusion).
+    /// With --ms-model octaves, the diffusion scale of the lit mode's multiply scattered sky
+    /// light: 0 keeps all the sky light the medium scatters, 1 attenuates it as diffusion
+    /// theory does (default 0.25, fitted to the reference). The diffusion model solves the
+    /// sky's light instead and refuses this option.
     #[arg(long)]
     ms_sky: Option<f32>,
-    /// Multiple scattering of the lit mode's sun: diffusion (a flux-limited diffusion solve
-    /// over the light volume: light spreads sideways, leaks out of thin edges; closer to the
-    /// reference) or octaves (closed forms of the depth toward the sun, --ms and --ms-octaves;
-    /// a cheaper light-volume build). docs/rendering.md has the figures.
+    /// Multiple scattering of the lit mode's sun and sky: diffusion (a flux-limited diffusion
+    /// solve over the light volume: the sun's scattered light spreads sideways and leaks out
+    /// of thin edges, the sky's enters through every surface; closer to the reference) or
+    /// octaves (closed forms of the depths toward the sun and the sky, --ms, --ms-octaves and
+    /// --ms-sky; a cheaper light-volume build). docs/rendering.md has the figures.
     #[arg(long, default_value = "diffusion", value_parser = ["diffusion", "octaves"])]
     ms_model: String,
     /// How the lit mode reads the density: nearest (the voxel holding the sample, the medium the
@@ -138,6 +140,12 @@ pub struct Args {
     /// no noise, closer to the reference, slower). --filter trilinear always marches in steps.
     #[arg(long, default_value = "steps", value_parser = ["steps", "voxels"])]
     march: String,
+    /// Lit mode: light-volume cells toward the sun whose voxels are walked exactly from each
+    /// sample before the light volume's depth takes over, where a cell is optically thick
+    /// (0 = the light volume alone: cheaper, but a dense cloud's sunlit skin, thinner than
+    /// the light volume's cells, comes out too dark).
+    #[arg(long, default_value_t = vdbcook_trace::DEFAULT_SUN_NEAR, value_name = "CELLS")]
+    sun_near: f32,
     /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or
     /// more, stepping 2^k voxels (mip-mapping along the ray, for far or low-resolution views).
     /// Off by default: averaging density before the exponential makes far pixels slightly
@@ -273,6 +281,13 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         },
     };
     let ms_model = MsModel::parse(&a.ms_model).expect("clap checked");
+    if a.ms_sky.is_some() && ms_model == MsModel::Diffusion {
+        return Err(CliError::Usage(
+            "--ms-sky sets the octaves model's sky (--ms-model octaves); the diffusion model \
+             solves the sky's light"
+                .into(),
+        ));
+    }
     let ms = match numbers("ms", &a.ms)?[..] {
         [x, y, z] => [x as f32, y as f32, z as f32],
         ref v => return Err(other(format!("--ms takes A,B,C, got {} numbers", v.len()))),
@@ -320,6 +335,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         ms_model,
         filter: Filter::parse(&a.filter).expect("clap checked"),
         march: March::parse(&a.march).expect("clap checked"),
+        sun_near: a.sun_near,
         primary_lod: a.primary_lod,
     })
 }
@@ -950,7 +966,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let lit = json!({
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
             "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
-            "march": s.march.name(),
+            "march": s.march.name(), "sun_near": short(s.sun_near),
             "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {

@@ -127,6 +127,7 @@ fn render_json_reports_settings_camera_and_timing() {
         "ms_octaves",
         "ms",
         "filter",
+        "sun_near",
         "primary_lod",
     ] {
         assert!(!doc["settings"][k].is_null(), "missing settings.{k}");
@@ -139,7 +140,7 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let out = dir.path().join("x.png").display().to_string();
-    let cases: [(&[&str], &str); 11] = [
+    let cases: [(&[&str], &str); 12] = [
         (&["--frame", "5"], "frame 5"),
         (&["--camera", "1,2,3"], "--camera takes 7 numbers"),
         (&["--step", "0"], "step"),
@@ -154,6 +155,7 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         (&["--mode", "lit", "--light-res", "1"], "light-res"),
         (&["--mode", "lit", "--ms-octaves", "9"], "ms-octaves"),
         (&["--mode", "lit", "--ms", "0.5,0.5"], "--ms takes A,B,C"),
+        (&["--mode", "lit", "--sun-near", "1000"], "sun-near"),
     ];
     for (extra, want) in cases {
         let mut args = vec!["render", asset.as_str(), "-o", out.as_str()];
@@ -190,6 +192,12 @@ fn render_refusals_exit_non_zero_with_a_reason() {
     ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--depth with --emission"), "{err}");
+    // The diffusion model solves the sky's light: the octaves' sky knob is refused with it.
+    let (code, _, err) = vdbcook(&[
+        "render", &asset, "-o", &out, "--mode", "lit", "--ms-sky", "0.5",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--ms-model octaves"), "{err}");
     // The reference is CPU only: asking the GPU for it is a usage error, before any work.
     let (code, _, err) = vdbcook(&[
         "render",

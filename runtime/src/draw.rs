@@ -437,6 +437,10 @@ pub struct Lighting {
     pub ms_sky: f32,
     /// Nearest voxel or trilinear density (smooth up close; eight reads per sample).
     pub filter: vdbcook_scene::Filter,
+    /// Light-volume cells toward the sun walked exactly from each sample before the light
+    /// volume's depth takes over, where a cell is optically thick (`Settings::sun_near`; 0: the
+    /// light volume alone, cheaper, a dense cloud's sunlit skin too dark).
+    pub sun_near: f32,
     /// Blackbody emission of the density grid's values read as Kelvin (the tracer's
     /// `--emission`), added by the lit march and absorbed like the rest of its light; a pure
     /// glow with `scatter` 0, a black `light_color` and `sky`, and the medium's `absorb` small.
@@ -468,6 +472,7 @@ impl Lighting {
             ms_sky: s.ms_sky,
             seed: s.seed,
             filter: s.filter,
+            sun_near: s.sun_near,
             emission: s.emission,
         }
     }
@@ -479,6 +484,7 @@ impl Lighting {
         vdbcook_scene::RenderSettings {
             mode: vdbcook_scene::Mode::Lit,
             march: vdbcook_scene::March::Steps,
+            sun_near: self.sun_near,
             absorb: medium.absorb,
             unit: medium.unit,
             scatter: self.scatter,
@@ -514,13 +520,14 @@ pub struct DrawTarget<'a> {
 
 /// The drawer's WGSL: the volume, the light-volume helpers, the drawer with the lit march and
 /// its trilinear density compiled in or out.
-fn draw_source(lit: bool, trilinear: bool) -> String {
+fn draw_source(lit: bool, trilinear: bool, near: bool) -> String {
     let flag = |on: bool| if on { "true" } else { "false" };
     format!(
         "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
         DRAW_WGSL
             .replace("{{DRAW_LIT}}", flag(lit))
             .replace("{{DRAW_TRILINEAR}}", flag(trilinear))
+            .replace("{{DRAW_NEAR}}", flag(near))
     )
 }
 
@@ -546,7 +553,8 @@ struct DrawView {
     ms: [f32; 4],
     ms_octaves: u32,
     seed: u32,
-    _pad0: u32,
+    /// Light-volume cells of the near field toward the sun (`Lighting::sun_near`).
+    sun_near: f32,
     _pad1: u32,
     /// Emission of lit instances: range, intensity, on; its blackbody table.
     emission: [f32; 4],
@@ -576,6 +584,9 @@ struct DrawInstance {
     lv_dims0: [u32; 4],
     lv_lo1: [f32; 4],
     lv_dims1: [u32; 4],
+    /// Length per cell-space unit along each axis (the diffusion's metric); the phase's mean
+    /// cosine.
+    lv_axis: [f32; 4],
 }
 
 /// One element of `vdb_shadow_instances` (`shaders/shadow.wgsl`): a lit instance's world → cell
@@ -611,11 +622,12 @@ struct LtTexture {
 /// Draws instances of one uploaded volume into an engine's frame (one colour format). Create it
 /// once; [`VolumeDrawer::record`] each frame (any number of times per encoder).
 pub struct VolumeDrawer {
-    /// The flat pipeline (the lit march compiled out) and the one with it.
+    /// The flat pipeline (the lit march compiled out).
     draw_pipeline: wgpu::ComputePipeline,
-    lit_pipeline: wgpu::ComputePipeline,
-    /// The lit pipeline with trilinear density, made on the first draw that asks for it.
-    trilinear_pipeline: Option<wgpu::ComputePipeline>,
+    /// The lit pipelines, made on the first draw that asks for each: index 1 for trilinear
+    /// density, 2 for the near field toward the sun (code a draw cannot reach is left out:
+    /// software Vulkan pays for it).
+    lit_pipelines: [Option<wgpu::ComputePipeline>; 4],
     /// The lit instances' light volumes.
     light: LightPass,
     /// The layout of `SunShadows::bind_group`.
@@ -647,7 +659,7 @@ impl VolumeDrawer {
         let module = |lit: bool| {
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("vdbcook draw"),
-                source: wgpu::ShaderSource::Wgsl(draw_source(lit, false).into()),
+                source: wgpu::ShaderSource::Wgsl(draw_source(lit, false, false).into()),
             })
         };
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
@@ -706,10 +718,14 @@ impl VolumeDrawer {
             "draw_main",
             &layouts,
         );
+        // The default lighting's lit pipeline (nearest density, the near field), made now.
         let lit_pipeline = volume.compute_pipeline(
             device,
             "vdbcook draw (lit)",
-            &module(true),
+            &device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("vdbcook draw"),
+                source: wgpu::ShaderSource::Wgsl(draw_source(true, false, true).into()),
+            }),
             "draw_main",
             &layouts,
         );
@@ -805,8 +821,7 @@ impl VolumeDrawer {
         });
         Ok(VolumeDrawer {
             draw_pipeline,
-            lit_pipeline,
-            trilinear_pipeline: None,
+            lit_pipelines: [None, None, Some(lit_pipeline), None],
             shadow_layout,
             light,
             draw_layout,
@@ -1085,6 +1100,7 @@ impl VolumeDrawer {
                 lv_dims0: [1; 4],
                 lv_lo1: [0.0; 4],
                 lv_dims1: [1; 4],
+                lv_axis: [1.0, 1.0, 1.0, 0.0],
             };
             if let Some(l) = &medium.lighting {
                 // As `vdbcook_trace::Tracer::new`: in f64, then f32.
@@ -1096,6 +1112,10 @@ impl VolumeDrawer {
                 d.sky_k =
                     vdbcook_scene::sky_diffusion(albedo, l.phase_g, l.phase_w, l.ms_sky) as f32;
                 d.extinction = extinction as f32;
+                let (_, axis_len) = light_dirs(&xf, l.light_dir, medium.unit);
+                let w = l.phase_w as f64;
+                let mean_cos = w * l.phase_g[0] as f64 + (1.0 - w) * l.phase_g[1] as f64;
+                d.lv_axis = [axis_len[0], axis_len[1], axis_len[2], mean_cos].map(|v| v as f32);
                 // A light volume per frame of the crossfade, in the instance's cell space;
                 // `lv_base*` hold their indices in `volumes` until `record` places them.
                 for (n, f) in [f0, f1].into_iter().enumerate() {
@@ -1228,7 +1248,7 @@ impl VolumeDrawer {
                 vdbcook_scene::MsModel::Diffusion => 0,
             },
             seed: lighting.seed,
-            _pad0: 0,
+            sun_near: lighting.sun_near,
             _pad1: 0,
             emission: lighting
                 .emission
@@ -1281,22 +1301,28 @@ impl VolumeDrawer {
             });
             pass.set_pipeline(match &medium.lighting {
                 None => &self.draw_pipeline,
-                Some(l) if l.filter == vdbcook_scene::Filter::Trilinear => {
-                    self.trilinear_pipeline.get_or_insert_with(|| {
-                        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                            label: Some("vdbcook draw (trilinear)"),
-                            source: wgpu::ShaderSource::Wgsl(draw_source(true, true).into()),
-                        });
-                        self.vol.compute_pipeline(
-                            device,
-                            "vdbcook draw (lit, trilinear)",
-                            &module,
-                            "draw_main",
-                            &[&self.draw_layout, &self.light.read_layout],
-                        )
-                    })
+                Some(l) => {
+                    let trilinear = l.filter == vdbcook_scene::Filter::Trilinear;
+                    let near = l.sun_near > 0.0;
+                    let (vol, layouts) = (&self.vol, [&self.draw_layout, &self.light.read_layout]);
+                    self.lit_pipelines[trilinear as usize | (near as usize) << 1]
+                        .get_or_insert_with(|| {
+                            let module =
+                                device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                                    label: Some("vdbcook draw (lit variant)"),
+                                    source: wgpu::ShaderSource::Wgsl(
+                                        draw_source(true, trilinear, near).into(),
+                                    ),
+                                });
+                            vol.compute_pipeline(
+                                device,
+                                "vdbcook draw (lit variant)",
+                                &module,
+                                "draw_main",
+                                &layouts,
+                            )
+                        })
                 }
-                Some(_) => &self.lit_pipeline,
             });
             pass.set_bind_group(0, &self.vol.group, &[]);
             pass.set_bind_group(1, &group, &[]);
@@ -1335,7 +1361,7 @@ mod tests {
     #[test]
     fn draw_structs_mirror_the_wgsl() {
         use crate::layout_check::{assert_mirrors, rust_layout};
-        let source = draw_source(true, true);
+        let source = draw_source(true, true, true);
         assert_mirrors(
             &source,
             "DrawView",
@@ -1356,7 +1382,7 @@ mod tests {
                 ms,
                 ms_octaves,
                 seed,
-                _pad0,
+                sun_near,
                 _pad1,
                 emission,
                 emit_table,
@@ -1382,6 +1408,7 @@ mod tests {
                 lv_dims0,
                 lv_lo1,
                 lv_dims1,
+                lv_axis,
             }),
         );
     }

@@ -8,8 +8,10 @@
 //!
 //! A volume built for `MsModel::Diffusion` also runs the diffusion solve (`ms_*` passes, six
 //! more pipelines over a scratch of every level, one `MsParams` record per level and sweep
-//! parity bound with a dynamic offset) and stores `(ρ·φ/4π, ρ)` per cell in a second buffer laid
-//! out as the first (binding 1 of the read group; the drawer does not read it).
+//! parity bound with a dynamic offset) and stores three `vec4<f32>` per cell in a second buffer
+//! (cell `i` of the volume at base `b` at elements `3(b + i)..`): `(ρ·φ_sun/4π, ρ·φ_sky/4π, ρ,
+//! 0)` and `ρ·J/4π` of each field (binding 1 of the read group; `lv_diffuse_*` in
+//! `light.wgsl` reads it).
 
 use std::sync::Mutex;
 
@@ -103,7 +105,7 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
     let mut total = 0usize;
     for &d in &levels {
         offs.push(total as u32);
-        total += 8 * cells(d);
+        total += MS_FLOATS_PER_CELL * cells(d);
     }
     let records = (0..levels.len())
         .map(|k| {
@@ -129,12 +131,19 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
     (records, total)
 }
 
+/// f32s of the diffusion solve's scratch per cell of a level (`light_build.wgsl`: st, sr, q,
+/// two fields in φ A and φ B, six resistances).
+const MS_FLOATS_PER_CELL: usize = 13;
+/// Bytes of the diffusion model's output per cell (three `vec4<f32>`).
+const MS_OUT_BYTES: usize = 48;
+
 /// What was built last: the buffers and the uniforms of the volumes in them.
 #[derive(Default)]
 struct State {
-    /// The shared buffers (`vec2<f32>` per cell: `(τ_sun, τ_sky)`, and the diffusion model's
-    /// `(ρ·φ/4π, ρ)`), their capacity in cells, their read bind group.
-    pool: Option<(wgpu::Buffer, wgpu::Buffer, usize, wgpu::BindGroup)>,
+    /// The shared buffers (`(τ_sun, τ_sky)` per cell, and the diffusion model's three
+    /// `vec4<f32>` per cell), their capacity in cells, their read bind group.
+    /// The capacities: cells, and cells of the diffusion output.
+    pool: Option<(wgpu::Buffer, wgpu::Buffer, usize, usize, wgpu::BindGroup)>,
     /// The density scratch and its capacity in cells.
     scratch: Option<(wgpu::Buffer, usize)>,
     /// The diffusion solve's scratch (every level of one volume) and its capacity in f32s.
@@ -249,7 +258,7 @@ impl LightPass {
         });
         let empty = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vdbcook light volume (none)"),
-            size: 8,
+            size: MS_OUT_BYTES as u64,
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
@@ -310,12 +319,18 @@ impl LightPass {
         let most = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size.min(u32::MAX as u64)) as usize;
-        if 8 * total > most {
+        // The diffusion output, when any volume solves it, is the largest binding.
+        let per_cell = if diffusion.iter().any(Option::is_some) {
+            MS_OUT_BYTES
+        } else {
+            8
+        };
+        if per_cell * total > most {
             return Err(RuntimeError::Limits(format!(
                 "{} light volumes of {total} cells in all need {} bytes, the device binds at most \
                  {most} (lower light_res, or draw fewer distinct lit instances at once)",
                 placed.len(),
-                8 * total
+                per_cell * total
             )));
         }
         let bases = placed.iter().map(|lp| lp.base).collect();
@@ -329,9 +344,19 @@ impl LightPass {
                 mapped_at_creation: false,
             })
         };
-        if state.pool.as_ref().is_none_or(|p| p.2 < total) {
+        // Cells the diffusion output must hold: all of them when any volume solves it.
+        let ms_total = if per_cell == MS_OUT_BYTES { total } else { 0 };
+        if state
+            .pool
+            .as_ref()
+            .is_none_or(|p| p.2 < total || p.3 < ms_total)
+        {
+            let ms_cap = state.pool.as_ref().map_or(0, |p| p.3).max(ms_total);
             let pool = buffer("vdbcook light volumes", 8 * total);
-            let ms_pool = buffer("vdbcook light diffusion", 8 * total);
+            let ms_pool = buffer(
+                "vdbcook light diffusion",
+                (MS_OUT_BYTES * ms_cap).max(MS_OUT_BYTES),
+            );
             let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("vdbcook light read"),
                 layout: &self.read_layout,
@@ -346,7 +371,7 @@ impl LightPass {
                     },
                 ],
             });
-            state.pool = Some((pool, ms_pool, total, read));
+            state.pool = Some((pool, ms_pool, total, ms_cap, read));
             state.built = None;
         }
         if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
@@ -372,7 +397,7 @@ impl LightPass {
                 ms_floats,
             ));
         }
-        let (pool, ms_pool, _, read) = state.pool.as_ref().expect("just made");
+        let (pool, ms_pool, _, _, read) = state.pool.as_ref().expect("just made");
         let (scratch, _) = state.scratch.as_ref().expect("just made");
         let key = (placed.clone(), diffusion.clone());
         if state.built.as_ref() != Some(&key) {
@@ -494,6 +519,8 @@ impl LightPass {
                             run(update, k, sweep % 2);
                         }
                     }
+                    // The resistances of the result (in φ A), for the flux.
+                    run(limit, 0, 0);
                     run(store, 0, 0);
                 }
             }

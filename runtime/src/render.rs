@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
     blackbody_table, depth_range, light_dirs, pixel_angle, sky_diffusion, Affine, DiffusionInputs,
-    Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
+    Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, LIT_NEAR_DEPTH, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -81,6 +81,11 @@ struct Params {
     /// full resolution only), the root-offset stride between levels, the camera's pixel angle
     /// (f32 bits), 1 for the voxel march (`March::Voxels`).
     lod: [u32; 4],
+    /// The lit mode: the near field toward the sun in voxels (`sun_near` cells), a light-volume
+    /// cell's shortest edge in the length unit, the phase's mean cosine, 0.
+    lit: [f32; 4],
+    /// Length per cell-space unit along each axis (`vdbcook_scene::light_dirs`), 0.
+    lv_axis: [f32; 4],
 }
 
 const WORKGROUP: u32 = 8;
@@ -161,18 +166,40 @@ pub struct Renderer {
     /// render first needs them).
     light: LightPass,
     device: wgpu::Device,
-    /// Groups 1–3 of the pipelines, and the lit mode's trilinear variant (made on first use).
+    /// Groups 1–3 of the pipelines, and the lit mode's variants (made on first use), indexed by
+    /// [`LitVariant::index`] (index 0 is `pipeline`).
     layouts: [wgpu::BindGroupLayout; 3],
-    trilinear: std::sync::OnceLock<wgpu::ComputePipeline>,
+    lit_variants: [std::sync::OnceLock<wgpu::ComputePipeline>; 8],
 }
 
-/// The tracer's shader for a target format, with emission and trilinear density compiled in or
-/// out.
+/// The parts of the lit march compiled into a pipeline (`trace.wgsl`'s `LIT_*` constants):
+/// code that is present costs lavapipe (software Vulkan) time even where it never runs (the
+/// near field doubled the lit march there on a frame that never walked it), so each render
+/// uses the pipeline with only what it can reach.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct LitVariant {
+    /// `Filter::Trilinear`.
+    trilinear: bool,
+    /// The near field toward the sun (`sun_near` > 0 on a frame dense enough for some sample to
+    /// walk it: `LIT_NEAR_DEPTH`).
+    near: bool,
+    /// `March::Voxels`.
+    voxels: bool,
+}
+
+impl LitVariant {
+    fn index(self) -> usize {
+        self.trilinear as usize | (self.near as usize) << 1 | (self.voxels as usize) << 2
+    }
+}
+
+/// The tracer's shader for a target format, with emission and the lit march's parts compiled in
+/// or out.
 fn trace_module(
     device: &wgpu::Device,
     format: &str,
     emission: bool,
-    trilinear: bool,
+    lit: LitVariant,
 ) -> wgpu::ShaderModule {
     let flag = |on: bool| if on { "true" } else { "false" };
     let source = format!(
@@ -180,7 +207,9 @@ fn trace_module(
         TRACE_WGSL
             .replace("{{TARGET_FORMAT}}", format)
             .replace("{{EMISSION}}", flag(emission))
-            .replace("{{TRILINEAR}}", flag(trilinear))
+            .replace("{{TRILINEAR}}", flag(lit.trilinear))
+            .replace("{{LIT_NEAR}}", flag(lit.near))
+            .replace("{{LIT_VOXELS}}", flag(lit.voxels))
     );
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("vdbcook trace"),
@@ -233,7 +262,7 @@ impl Renderer {
             )));
         };
         let xf = Affine::cells(volume.index_to_world())?;
-        let module = trace_module(device, fmt, emission, false);
+        let module = trace_module(device, fmt, emission, LitVariant::default());
         let params_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook params"),
             entries: &[buffer_entry(0, wgpu::BufferBindingType::Uniform)],
@@ -316,7 +345,7 @@ impl Renderer {
             light,
             device: device.clone(),
             layouts,
-            trilinear: std::sync::OnceLock::new(),
+            lit_variants: Default::default(),
         })
     }
 
@@ -540,22 +569,34 @@ impl Renderer {
             label: Some("vdbcook trace"),
             timestamp_writes: None,
         });
-        let trilinear = settings.mode == Mode::Lit && settings.filter == Filter::Trilinear;
-        pass.set_pipeline(if trilinear {
-            self.trilinear.get_or_init(|| {
+        let variant = if settings.mode == Mode::Lit {
+            let trilinear = settings.filter == Filter::Trilinear;
+            LitVariant {
+                trilinear,
+                // As the march's per-sample test, at the frame's largest value (a margin for
+                // f32 rounding: a variant with the near field draws the same without it).
+                near: params.lit[0] > 0.0
+                    && params.extinction * params.value_max * params.lit[1]
+                        >= LIT_NEAR_DEPTH as f32 * (1.0 - 1e-4),
+                voxels: settings.march == March::Voxels && !trilinear,
+            }
+        } else {
+            LitVariant::default()
+        };
+        pass.set_pipeline(match variant.index() {
+            0 => &self.pipeline,
+            i => self.lit_variants[i].get_or_init(|| {
                 let fmt = wgsl_format(self.format).expect("checked at construction");
-                let module = trace_module(&self.device, fmt, self.emission, true);
+                let module = trace_module(&self.device, fmt, self.emission, variant);
                 let [a, b, c] = &self.layouts;
                 self.vol.compute_pipeline(
                     &self.device,
-                    "vdbcook trace (trilinear)",
+                    "vdbcook trace (lit variant)",
                     &module,
                     "trace_main",
                     &[a, b, c],
                 )
-            })
-        } else {
-            &self.pipeline
+            }),
         });
         pass.set_bind_group(0, &self.vol.group, &[]);
         pass.set_bind_group(1, &self.params_group, &[]);
@@ -627,6 +668,7 @@ impl Renderer {
             _ => 0,
         };
         let lw = l.map(|c| (c / ln) as f32);
+        let (_, axis_len) = light_dirs(&self.xf, settings.light_dir, settings.unit);
         let params = Params {
             eye_index: v4(eye),
             forward: v4(basis.forward),
@@ -711,6 +753,21 @@ impl Renderer {
                 // 1: the voxel march (`March::Voxels`; trilinear density marches in steps).
                 (settings.march == March::Voxels && settings.filter == Filter::Nearest) as u32,
             ],
+            lit: [
+                // `LightVolume::near_voxels`: none where cells are no wider than a voxel.
+                if grid.cell > 1.0 {
+                    (settings.sun_near as f64 * grid.cell) as f32
+                } else {
+                    0.0
+                },
+                (axis_len.into_iter().fold(f64::INFINITY, f64::min) * grid.cell) as f32,
+                {
+                    let w = settings.phase_w as f64;
+                    (w * settings.phase_g[0] as f64 + (1.0 - w) * settings.phase_g[1] as f64) as f32
+                },
+                0.0,
+            ],
+            lv_axis: [axis_len[0], axis_len[1], axis_len[2], 0.0].map(|v| v as f32),
         };
         Ok((params, grid))
     }
@@ -730,6 +787,8 @@ mod tests {
                     .replace("{{TARGET_FORMAT}}", "rgba8unorm")
                     .replace("{{EMISSION}}", "true")
                     .replace("{{TRILINEAR}}", "true")
+                    .replace("{{LIT_NEAR}}", "true")
+                    .replace("{{LIT_VOXELS}}", "true")
             ),
             "Params",
             rust_layout!(Params {
@@ -776,6 +835,8 @@ mod tests {
                 emit_lo,
                 emit_hi,
                 lod,
+                lit,
+                lv_axis,
             }),
         );
     }

@@ -114,7 +114,11 @@ fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
         "{cloud_over_ground:?}"
     );
     assert!(cloud_over_box[1] > 20, "{cloud_over_box:?}");
-    // Smoke is lighter than the ground and the box under it (white and warm tints).
+    // Smoke is mostly lighter than the ground and the box under it (white and warm tints). Not
+    // everywhere: this blob is dense (optical depth ~50 through it), and since the sky's light
+    // is solved by diffusion (not a closed form that returned 1.3× too much of it on the WDAS
+    // cloud) its shaded side comes out darker than the sunlit ground in about a pixel in nine
+    // (measured 3,765 of 4,245 lighter).
     let brighter = (0..(w * h) as usize)
         .filter(|&i| {
             let s: u32 = img.scene[4 * i..4 * i + 3].iter().map(|&v| v as u32).sum();
@@ -128,7 +132,7 @@ fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
     let changed = (0..(w * h) as usize)
         .filter(|&i| img.scene[4 * i..4 * i + 4] != img.composite[4 * i..4 * i + 4])
         .count();
-    assert!(brighter * 10 >= changed * 9, "{brighter} of {changed}");
+    assert!(brighter * 5 >= changed * 4, "{brighter} of {changed}");
     // The smoke's shadow on the ground (the scene shader reads `vdb_sun_transmittance`): ground
     // points whose ray toward the sun crosses a cloud's core are darker than every ground point
     // whose ray toward the sun meets no cloud at all (the ground's Lambert term is constant, so

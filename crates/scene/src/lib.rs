@@ -27,9 +27,12 @@ pub use diffusion::{
 };
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};
-pub use light::{light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, MAX_SUB};
+pub use light::{
+    light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, LIT_NEAR_DEPTH, MAX_SUB,
+};
 pub use settings::{
-    Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, MAX_BOUNCES,
-    MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_SUN_NEAR,
+    MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
+    MAX_SUN_NEAR, MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

@@ -33,6 +33,11 @@ pub fn light_dirs(
     (sun, axis)
 }
 
+/// Optical depth of one light-volume cell below which `Lit` reads the sun's depth from the
+/// light volume alone (`RenderSettings::sun_near`; `vdbcook_trace::Tracer::sun_depth`, the
+/// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell.
+pub const LIT_NEAR_DEPTH: f64 = 0.25;
+
 /// Where a light volume's cells lie (cell space: voxel `i` is `[i, i + 1)`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightGrid {

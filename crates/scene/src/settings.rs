@@ -228,6 +228,12 @@ pub struct RenderSettings {
     pub filter: Filter,
     /// Where `Lit`'s nearest-voxel march takes its samples.
     pub march: March,
+    /// `Lit`'s near field toward the sun, in light-volume cells: from each sample the voxels
+    /// of the first `sun_near` cells toward the sun are walked exactly (a voxel DDA through
+    /// the tree), and only the depth beyond is looked up in the light volume, whose cells blur
+    /// a dense cloud's lit skin (`docs/rendering.md`); where one cell is optically thin the
+    /// light volume alone. 0: the light volume alone (the engine drawer's march).
+    pub sun_near: f32,
     /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
     /// `--lod`) where a pixel spans more voxels (`crate::level_start`): level `k` where it
     /// spans `2^k` or more, with the step `2^k` times longer. No effect on an asset without
@@ -270,6 +276,7 @@ impl Default for RenderSettings {
             ms_model: MsModel::Diffusion,
             filter: Filter::Nearest,
             march: March::Steps,
+            sun_near: DEFAULT_SUN_NEAR,
             primary_lod: false,
         }
     }
@@ -285,6 +292,12 @@ pub const MAX_SPP: u32 = 1 << 16;
 pub const MAX_PHASE_G: f32 = 0.99;
 /// Largest light-volume resolution accepted (cells along the longest side).
 pub const MAX_LIGHT_RES: u32 = 256;
+/// `Lit`'s default near field toward the sun, in light-volume cells
+/// (`RenderSettings::sun_near`).
+pub const DEFAULT_SUN_NEAR: f32 = 3.0;
+/// Longest near field toward the sun accepted, in light-volume cells (more than the longest
+/// side of any light volume).
+pub const MAX_SUN_NEAR: f32 = 512.0;
 /// Largest `ms_sky` accepted.
 pub const MAX_MS_SKY: f32 = 16.0;
 /// Most multiple-scattering octaves accepted.
@@ -399,6 +412,12 @@ impl RenderSettings {
         }
         if !(0.0..=MAX_MS_SKY).contains(&self.ms_sky) {
             return bad(format!("ms-sky = {} (0..={MAX_MS_SKY})", self.ms_sky));
+        }
+        if !(0.0..=MAX_SUN_NEAR).contains(&self.sun_near) {
+            return bad(format!(
+                "sun-near = {} (0..={MAX_SUN_NEAR} light-volume cells)",
+                self.sun_near
+            ));
         }
         if let Some(e) = self.emission {
             if !matches!(

@@ -39,17 +39,18 @@
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
+pub use vdbcook_scene::LIT_NEAR_DEPTH;
 use vdbcook_scene::{
     content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
     LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
 };
 
-use crate::diffusion::{self, DiffusionInputs};
+use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
 use crate::dda::{ceil_f64, Flow};
 use crate::reference::phase;
 use crate::space::IndexRay;
-use crate::walk::{Holder, SpanSampler, Visitor};
+use crate::walk::{BrickCache, Holder, SpanSampler, Visitor};
 use crate::Tracer;
 
 /// Transmittance below which a `Lit` ray stops (what is left counts as opaque).
@@ -61,9 +62,18 @@ pub struct LightVolume {
     pub grid: LightGrid,
     pub density: Vec<f32>,
     pub tau: Vec<[f32; 2]>,
-    /// `MsModel::Diffusion`: per cell the multiply scattered sun light `φ/4π` per unit sun
-    /// irradiance (`crate::diffusion::solve`); empty for the octaves model.
-    pub ms: Vec<f32>,
+    /// `MsModel::Diffusion`: per cell the sun's scattered light and the sky's light, `φ/4π`
+    /// and the flux `J/4π` (`crate::diffusion::solve`); empty for the octaves model.
+    pub diffusion: Diffusion,
+    /// Length (in the settings' unit) per cell-space unit along each axis (`light_dirs`): the
+    /// metric the flux is in.
+    pub axis_len: [f64; 3],
+    /// The phase's mean cosine `ḡ` (the first-order read of the diffuse light).
+    pub mean_cos: f64,
+    /// The unit cell-space direction toward the sun.
+    pub sun: [f64; 3],
+    /// A cell's edge in the settings' length unit (the shortest, where voxels are not cubes).
+    pub cell_len: f64,
 }
 
 impl LightVolume {
@@ -161,46 +171,67 @@ impl LightVolume {
         for (i, t) in tau.iter_mut().enumerate() {
             t[1] = sky_depth(t_mean[i], tau_mean[i], extinction) as f32;
         }
-        let ms = match s.ms_model {
-            MsModel::Octaves => Vec::new(),
-            MsModel::Diffusion => {
-                let inputs = DiffusionInputs::new(
-                    &grid,
-                    ((l, sun_len), axis_len),
-                    extinction,
-                    if extinction > 0.0 {
-                        s.scatter as f64 / extinction
-                    } else {
-                        0.0
-                    },
-                    (s.phase_g, s.phase_w),
-                );
-                diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs)
-            }
+        let inputs = DiffusionInputs::new(
+            &grid,
+            ((l, sun_len), axis_len),
+            extinction,
+            if extinction > 0.0 {
+                s.scatter as f64 / extinction
+            } else {
+                0.0
+            },
+            (s.phase_g, s.phase_w),
+        );
+        let diffusion = match s.ms_model {
+            MsModel::Octaves => Diffusion::default(),
+            MsModel::Diffusion => diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs),
         };
         LightVolume {
             grid,
             density,
             tau,
-            ms,
+            diffusion,
+            axis_len,
+            mean_cos: inputs.mean_cos,
+            sun: l,
+            cell_len: inputs.h.into_iter().fold(f64::INFINITY, f64::min),
         }
     }
 
-    /// `MsModel::Diffusion`'s `φ/4π` at cell-space point `p`: trilinear weighted by the cells'
-    /// densities (empty cells hold 0 and would darken the medium's edge), 0 where all eight are
-    /// empty.
-    pub fn ms_at(&self, p: [f64; 3]) -> f64 {
-        let (mut num, mut den) = (0.0f64, 0.0f64);
+    /// `MsModel::Diffusion`'s diffuse light scattered at cell-space point `p` toward `eye`
+    /// (the unit direction from `p` to the eye, in length units per axis: [`Self::eye_dir`]),
+    /// per unit sun irradiance and unit sky radiance: `[sun, sky]`, each `φ/4π + 3ḡ·J·ω/4π`
+    /// (at least 0) with `φ` and `J` trilinear weighted by the cells' densities (empty cells
+    /// hold the boundary's light and would bleed into the medium's edge); the boundary's
+    /// `[0, 1]` where all eight are empty.
+    pub fn diffuse_at(&self, p: [f64; 3], eye: [f64; 3]) -> [f64; 2] {
+        let d = &self.diffusion;
+        let (mut phi, mut flux, mut den) = ([0.0f64; 2], [[0.0f64; 3]; 2], 0.0f64);
         for (i, w) in self.grid.taps(p) {
-            let d = w * self.density[i] as f64;
-            num += d * self.ms[i] as f64;
-            den += d;
+            let wd = w * self.density[i] as f64;
+            for f in 0..2 {
+                phi[f] += wd * d.phi[i][f] as f64;
+                for (sum, &j) in flux[f].iter_mut().zip(&d.flux[i][f]) {
+                    *sum += wd * j as f64;
+                }
+            }
+            den += wd;
         }
-        if den > 0.0 {
-            num / den
-        } else {
-            0.0
+        if !(den > 0.0) {
+            // No medium around `p` (a segment's read point past the medium's edge): the light
+            // outside it, none of the sun's scattered light and the sky itself.
+            return [0.0, 1.0];
         }
+        [0, 1].map(|f| {
+            let jw: f64 = (0..3).map(|a| flux[f][a] * eye[a]).sum();
+            ((phi[f] + 3.0 * self.mean_cos * jw) / den).max(0.0)
+        })
+    }
+
+    /// The unit direction toward the eye of a ray along cell-space `dir`, in length units per
+    /// axis (the metric of the diffusion's flux).
+    pub fn eye_dir(&self, dir: [f64; 3]) -> [f64; 3] {
+        normalize([0, 1, 2].map(|a| -dir[a] * self.axis_len[a]))
     }
 
     /// The sun's optical depth (length units) at cell-space point `p`, anywhere: inside the
@@ -227,6 +258,16 @@ impl LightVolume {
             return 0.0;
         }
         self.lookup([0, 1, 2].map(|a| p[a] + t0 * l[a]))[0]
+    }
+
+    /// The near field toward the sun in voxels for `sun_near` cells (`Tracer::sun_depth`): 0
+    /// where the cells are no wider than a voxel (the light volume then resolves every voxel).
+    pub fn near_voxels(&self, sun_near: f32) -> f64 {
+        if self.grid.cell > 1.0 {
+            sun_near as f64 * self.grid.cell
+        } else {
+            0.0
+        }
     }
 
     /// `(τ_sun, τ_sky)` at cell-space point `p` (trilinear).
@@ -278,6 +319,42 @@ impl Tracer<'_> {
         self.trilinear_density_in(self.grid.frame, p)
     }
 
+    /// The sun's optical depth (length units, before the extinction) at cell-space point `q`
+    /// of density `rho`: the first `settings.sun_near` light-volume cells toward the sun walked
+    /// exactly (the density mode's voxel sum), the light volume's depth where that walk ends
+    /// beyond (`sun_depth_at`: 0 once the ray has left the grid). The light volume's lookup at
+    /// `q` alone where there is no near field (`LightVolume::near_voxels`), or where one
+    /// cell's optical depth at density `rho` is below [`LIT_NEAR_DEPTH`] (a medium the cells
+    /// resolve: its depth changes little across one).
+    pub(crate) fn sun_depth(
+        &self,
+        lv: &LightVolume,
+        q: [f64; 3],
+        rho: f64,
+        cache: &mut BrickCache,
+    ) -> f64 {
+        let near = lv.near_voxels(self.settings.sun_near);
+        let cell_depth = self.extinction * rho * lv.cell_len;
+        if !(near > 0.0) || !(cell_depth >= LIT_NEAR_DEPTH) {
+            return lv.lookup(q)[0];
+        }
+        let ray = self.light_ray(q);
+        let Some((t0, t1)) = ray.clip(self.extent) else {
+            return 0.0;
+        };
+        // World distance of `near` voxels along the light.
+        let t_near = near / vdbcook_scene::length(ray.d);
+        let tau = if t1.min(t_near) > t0 {
+            self.depth_along(&ray, t0, t1.min(t_near), self.extinction, cache)
+        } else {
+            0.0
+        };
+        if t_near >= t1 || self.extinction * tau >= crate::exact::OPAQUE_DEPTH {
+            return tau;
+        }
+        tau + lv.sun_depth_at(ray.at(t_near), lv.sun)
+    }
+
     /// [`Tracer::trilinear_density`] in root set `set` (a level of detail: `p` in its cell
     /// space).
     pub(crate) fn trilinear_density_in(&self, set: usize, p: [f64; 3]) -> f64 {
@@ -306,6 +383,10 @@ impl Tracer<'_> {
 pub(crate) struct LitMarch<'a, 't> {
     pub tracer: &'t Tracer<'a>,
     pub lv: &'t LightVolume,
+    /// Bricks read by the near field's walks toward the sun (`Tracer::sun_depth`).
+    pub shadow: &'t mut BrickCache,
+    /// The unit direction toward the eye in the diffusion's metric (`LightVolume::eye_dir`).
+    pub eye: [f64; 3],
     /// The ray in full-resolution cell space (the light volume's lookups, the sample grid).
     pub ray: IndexRay,
     /// The level of detail being walked (`Tracer::lit`): its root set, `2^−level` (full
@@ -328,6 +409,7 @@ impl<'a, 't> LitMarch<'a, 't> {
     pub fn new(
         tracer: &'t Tracer<'a>,
         lv: &'t LightVolume,
+        shadow: &'t mut BrickCache,
         ray: IndexRay,
         dir: [f64; 3],
         pixel: u32,
@@ -346,6 +428,8 @@ impl<'a, 't> LitMarch<'a, 't> {
         LitMarch {
             tracer,
             lv,
+            shadow,
+            eye: lv.eye_dir(ray.d),
             ray,
             set: tracer.grid.frame,
             scale: 1.0,
@@ -363,11 +447,21 @@ impl<'a, 't> LitMarch<'a, 't> {
 
 impl LitMarch<'_, '_> {
     /// Integrates the segment of the ray from length `sa` (in the unit, from the ray's origin)
-    /// over `len` through density `rho`: with `x = σ·ρ·len`, `L += T·α·S·(1 − e^{−x})`,
-    /// `T *= e^{−x}`, the source read where the segment's light is scattered on average (its
-    /// mean depth `len·mean_depth(x)`: light is scattered at depth `m` into it with density
-    /// ∝ e^{−σs}). Stop once `T < LIT_MIN_TRANS` or the sample budget is spent.
+    /// over `len` through density `rho`: its emission, then [`LitMarch::light`].
     fn add(&mut self, sa: f64, len: f64, rho: f64) -> Flow {
+        let t = self.tracer;
+        let x = t.extinction * rho * len;
+        t.step_emission(&mut self.emit, self.trans, len, x, rho as f32);
+        self.light(sa, len, x, rho)
+    }
+
+    /// The scattered light of the segment from length `sa` over `len` of optical depth `x`
+    /// (mean density `rho`):
+    /// `L += T·α·S·(1 − e^{−x})`, `T *= e^{−x}`, the source read where the segment's light is
+    /// scattered on average (its mean depth `len·mean_depth(x)`: light is scattered at depth
+    /// `m` into it with density ∝ e^{−σs}). Stop once `T < LIT_MIN_TRANS` or the sample
+    /// budget is spent.
+    fn light(&mut self, sa: f64, len: f64, x: f64, rho: f64) -> Flow {
         if self.budget == 0 {
             return Flow::Stop;
         }
@@ -375,19 +469,23 @@ impl LitMarch<'_, '_> {
         let t = self.tracer;
         let s = &t.settings;
         let (ext, albedo) = (t.extinction, t.albedo);
-        let x = ext * rho * len;
         let e = (-x).exp();
-        t.step_emission(&mut self.emit, self.trans, len, x, rho as f32);
         let m = len * mean_depth(x);
         let q = self.ray.at((sa + m) / self.ray.per_t);
-        let [ts, tk] = self.lv.lookup(q);
-        let sun = match s.ms_model {
-            MsModel::Octaves => {
-                octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize])
+        let ts = t.sun_depth(self.lv, q, rho, self.shadow);
+        let (sun, sky) = match s.ms_model {
+            MsModel::Octaves => (
+                octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]),
+                sky_source(ext * self.lv.lookup(q)[1], self.sky_k),
+            ),
+            MsModel::Diffusion => {
+                let [diffuse_sun, diffuse_sky] = self.lv.diffuse_at(q, self.eye);
+                (
+                    self.sun_phase[0] * (-ext * ts).exp() + diffuse_sun,
+                    diffuse_sky,
+                )
             }
-            MsModel::Diffusion => self.sun_phase[0] * (-ext * ts).exp() + self.lv.ms_at(q),
         };
-        let sky = sky_source(ext * tk, self.sky_k);
         let w = self.trans * albedo * (1.0 - e);
         for c in 0..3 {
             self.rad[c] += w * (s.light_color[c] as f64 * sun + s.sky[c] as f64 * sky);

@@ -230,7 +230,7 @@ impl<'a> Tracer<'a> {
         match ray.clip(self.extent) {
             Some((t0, t1)) if t1.min(t_max) > t0 => {
                 let absorb = self.settings.absorb as f64;
-                self.depth_along(&ray, t0, t1.min(t_max), absorb, scratch)
+                self.depth_along(&ray, t0, t1.min(t_max), absorb, &mut scratch.primary)
             }
             _ => 0.0,
         }
@@ -248,13 +248,13 @@ impl<'a> Tracer<'a> {
 
     /// The `Density` walk's optical depth `τ` of channel 0 along `ray` for `t ∈ [t0, t1]`,
     /// stopping once `absorb·τ ≥ OPAQUE_DEPTH`.
-    fn depth_along(
+    pub(crate) fn depth_along(
         &self,
         ray: &IndexRay,
         t0: f64,
         t1: f64,
         absorb: f64,
-        scratch: &mut Scratch,
+        cache: &mut BrickCache,
     ) -> f64 {
         let mut v = Density {
             per_t: ray.per_t,
@@ -264,7 +264,7 @@ impl<'a> Tracer<'a> {
             emission: None,
             light: [0.0; 3],
         };
-        walk(&self.grid, ray, t0, t1, &mut scratch.primary, &mut v);
+        walk(&self.grid, ray, t0, t1, cache, &mut v);
         v.tau
     }
 
@@ -312,7 +312,7 @@ impl<'a> Tracer<'a> {
         }
         // Channel 0's optical depth from the extent's entry to the box's.
         let tau = if a > t0 && ext > 0.0 {
-            self.depth_along(ray, t0, a, ext, scratch)
+            self.depth_along(ray, t0, a, ext, &mut scratch.primary)
         } else {
             0.0
         };
@@ -535,7 +535,8 @@ impl Tracer<'_> {
                 steps: 0,
             };
         };
-        let mut v = LitMarch::new(self, lv, ray, dir, pixel);
+        let Scratch { primary, shadow } = scratch;
+        let mut v = LitMarch::new(self, lv, shadow, ray, dir, pixel);
         let t1 = t1.min(t_max);
         // Level k over [t_k, t_{k+1}) (`vdbcook_scene::level_start`; one level without levels).
         let grow = length(ray.d);
@@ -561,16 +562,9 @@ impl Tracer<'_> {
             let flow = if self.settings.march == March::Voxels
                 && self.settings.filter == Filter::Nearest
             {
-                walk(
-                    grid,
-                    &lray,
-                    a,
-                    b,
-                    &mut scratch.primary,
-                    &mut VoxelMarch(&mut v),
-                )
+                walk(grid, &lray, a, b, primary, &mut VoxelMarch(&mut v))
             } else {
-                walk(grid, &lray, a, b, &mut scratch.primary, &mut v)
+                walk(grid, &lray, a, b, primary, &mut v)
             };
             if flow == Flow::Stop {
                 break;
