@@ -10,7 +10,8 @@
 //! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`.
 //! `VDBCOOK_BENCH_SIZES=small`: 640×360 only. `VDBCOOK_BENCH_LIGHTING=lit`: the instances drawn
 //! lit (`Medium::lighting` with the tracer's defaults; the translated copies share one light
-//! volume, built in the warm-up run), instead of flat.
+//! volume, built in the warm-up run), instead of flat; `VDBCOOK_BENCH_SUN_NEAR=CELLS` sets their
+//! near field toward the sun (`Lighting::sun_near`; 0: none).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -111,9 +112,20 @@ fn main() {
             wgpu::TextureFormat::Depth32Float,
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
         );
+        // `VDBCOOK_BENCH_SUN_NEAR=CELLS`: the lit march's near field (default: the tracer's).
+        let sun_near = std::env::var("VDBCOOK_BENCH_SUN_NEAR")
+            .ok()
+            .and_then(|v| v.parse().ok());
         let medium = Medium {
-            lighting: (std::env::var("VDBCOOK_BENCH_LIGHTING").as_deref() == Ok("lit"))
-                .then(Lighting::default),
+            lighting: (std::env::var("VDBCOOK_BENCH_LIGHTING").as_deref() == Ok("lit")).then(
+                || {
+                    let l = Lighting::default();
+                    Lighting {
+                        sun_near: sun_near.unwrap_or(l.sun_near),
+                        ..l
+                    }
+                },
+            ),
             ..Default::default()
         };
         for n in COUNTS {
