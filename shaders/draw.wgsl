@@ -131,13 +131,15 @@ fn draw_diffuse(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, eye: ve
 // The sun's depth at `q` (density `rho`) of one frame of a lit instance (root `root`, its light
 // volume at `base` over `lo`, `dims`), the tracer's `lit_sun_depth` in the instance's cell
 // space: the first `sun_near` cells toward the sun (`l`: the cell-space image of the unit
-// world direction) walked exactly where a cell is optically thick, the light volume beyond.
-fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, rho: f32, l: vec3<f32>) -> f32 {
+// world direction) walked exactly where a cell is optically thick and the ray's transmittance
+// `trans` is above `LV_NEAR_TRANS`, the light volume beyond.
+fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, rho: f32, trans: f32, l: vec3<f32>) -> f32 {
     let cell = lo.w;
     let near = select(0.0, draw_view.sun_near * cell, cell > 1.0);
     let axis = inst.lv_axis.xyz;
     let cell_len = cell * min(axis.x, min(axis.y, axis.z));
-    if (!DRAW_NEAR || !(near > 0.0) || !(inst.extinction * rho * cell_len >= LV_NEAR_DEPTH)) {
+    if (!DRAW_NEAR || !(near > 0.0) || !(inst.extinction * rho * cell_len >= LV_NEAR_DEPTH)
+        || !(trans >= LV_NEAR_TRANS)) {
         return draw_lv_lookup(base, lo, dims, q).x;
     }
     var ray: VdbRay;
@@ -202,9 +204,13 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         }
         k += 1.0;
         let p = ray.o + (s / ray.per_t) * ray.d;
-        var rho = draw_density(inst.frame_root0, p);
+        var r2 = vec2<f32>(0.0);
+        for (var f = 0u; f < select(1u, 2u, a > 0.0); f++) {
+            r2[f] = draw_density(select(inst.frame_root0, inst.frame_root1, f == 1u), p);
+        }
+        var rho = r2.x;
         if (a > 0.0) {
-            rho = mix(rho, draw_density(inst.frame_root1, p), a);
+            rho = mix(r2.x, r2.y, a);
         }
         if (!(rho > 0.0)) {
             continue;
@@ -219,18 +225,32 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             rad += trans * step * lv_phi(x, e) * w.z * (c0 + w.y * (draw_view.emit_table[i + 1u].xyz - c0));
         }
         let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
-        var tau_sun = draw_sun_depth(inst, inst.frame_root0, inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q, rho, l);
+        // Each frame of the crossfade (one call site: lavapipe inlines each one).
+        var tau_f = vec2<f32>(0.0);
+        for (var f = 0u; f < select(1u, 2u, a > 0.0); f++) {
+            let one = f == 1u;
+            tau_f[f] = draw_sun_depth(inst, select(inst.frame_root0, inst.frame_root1, one),
+                select(inst.lv_base0, inst.lv_base1, one), select(inst.lv_lo0, inst.lv_lo1, one),
+                select(inst.lv_dims0, inst.lv_dims1, one), q, rho, trans, l);
+        }
+        var tau_sun = tau_f.x;
         if (a > 0.0) {
-            let tau1 = draw_sun_depth(inst, inst.frame_root1, inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q, rho, l);
-            tau_sun = mix(tau_sun, tau1, a);
+            tau_sun = mix(tau_f.x, tau_f.y, a);
         }
         var sun = 0.0;
         var sky = 0.0;
         if (octaves == 0u) {
             // The diffusion model: single scattering plus the solve's sun; the solve's sky.
-            var diffuse = draw_diffuse(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q, eye);
+            var d = array<vec2<f32>, 2>(vec2<f32>(0.0), vec2<f32>(0.0));
+            for (var f = 0u; f < select(1u, 2u, a > 0.0); f++) {
+                let one = f == 1u;
+                d[f] = draw_diffuse(select(inst.lv_base0, inst.lv_base1, one),
+                    select(inst.lv_lo0, inst.lv_lo1, one), select(inst.lv_dims0, inst.lv_dims1, one),
+                    q, eye);
+            }
+            var diffuse = d[0];
             if (a > 0.0) {
-                diffuse = mix(diffuse, draw_diffuse(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q, eye), a);
+                diffuse = mix(d[0], d[1], a);
             }
             sun = sun_ph[0] * exp(-ext * tau_sun) + diffuse.x;
             sky = diffuse.y;

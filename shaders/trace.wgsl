@@ -569,12 +569,14 @@ fn lit_diffuse(p: vec3<f32>, eye: vec3<f32>) -> vec2<f32> {
     return lv_diffuse_read(acc, eye, params.lit.z);
 }
 
-// `Tracer::sun_depth`: the sun's optical depth at `q` (density `rho`), the first
-// `params.lit.x` voxels toward the sun walked exactly where one light-volume cell is optically
-// thick, the light volume's depth where that walk ends beyond.
-fn lit_sun_depth(q: vec3<f32>, rho: f32) -> f32 {
+// `Tracer::sun_depth`: the sun's optical depth at `q` (density `rho`, the primary ray's
+// transmittance `trans`), the first `params.lit.x` voxels toward the sun walked exactly where
+// one light-volume cell is optically thick and the ray still bright, the light volume's depth
+// where that walk ends beyond.
+fn lit_sun_depth(q: vec3<f32>, rho: f32, trans: f32) -> f32 {
     let near = params.lit.x;
-    if (!LIT_NEAR || !(near > 0.0) || !(params.extinction * rho * params.lit.y >= LV_NEAR_DEPTH)) {
+    if (!LIT_NEAR || !(near > 0.0) || !(params.extinction * rho * params.lit.y >= LV_NEAR_DEPTH)
+        || !(trans >= LV_NEAR_TRANS)) {
         return lit_lookup(q).x;
     }
     let ray = light_ray(q);
@@ -656,7 +658,7 @@ fn lit_light(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, x: f32
     let e = exp(-x);
     let trans = (*st).trans;
     let q = ray.o + ((sa + len * lv_mean_depth(x)) / ray.per_t) * ray.d;
-    let tau_sun = lit_sun_depth(q, rho);
+    let tau_sun = lit_sun_depth(q, rho, trans);
     var sun = 0.0;
     var sky = 0.0;
     if (octaves == 0u) {
@@ -721,7 +723,8 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     let jitter = lv_jitter(params.seed, pixel);
     let levels = max(params.lod.x, 1u);
     let grow = bitcast<f32>(params.lod.z) * length(ray.d);
-    let voxels = LIT_VOXELS && params.lod.w != 0u;
+    // The pipeline variant decides (`params.lod.w` says the same): the other march compiles out.
+    let voxels = LIT_VOXELS;
     for (var lvl = 0u; lvl < levels; lvl++) {
         if (st.stop) {
             break;
@@ -757,17 +760,32 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
                 break;
             }
             if (voxels) {
-                if (sp.brick == NO_BRICK) {
-                    lit_span(&st, ray, sp.ta, sp.tb, sp.m, step);
-                    continue;
+                // A constant span whole, or a brick's voxels by a DDA: one `lit_span` call site
+                // (lavapipe inlines each one, and the lit march's light is large).
+                let in_brick = sp.brick != NO_BRICK;
+                var vd: VdbDda;
+                if (in_brick) {
+                    vd = vdb_dda_init(lray, 1.0, sp.origin, sp.origin + vec3<i32>(8), sp.ta, sp.tb);
                 }
-                var vd = vdb_dda_init(lray, 1.0, sp.origin, sp.origin + vec3<i32>(8), sp.ta, sp.tb);
-                for (var vi = 0; vi < VOXEL_ITERS; vi++) {
-                    let vs = vdb_dda_next(lray, &vd);
-                    if (!vs.ok || st.stop) {
+                for (var vi = 0; vi <= VOXEL_ITERS; vi++) {
+                    var ta = sp.ta;
+                    var tb = sp.tb;
+                    var v = sp.m;
+                    if (in_brick) {
+                        let vs = vdb_dda_next(lray, &vd);
+                        if (!vs.ok) {
+                            break;
+                        }
+                        ta = vs.ta;
+                        tb = vs.tb;
+                        v = vdb_brick_voxel(sp.brick, vs.cell);
+                    } else if (vi > 0) {
                         break;
                     }
-                    lit_span(&st, ray, vs.ta, vs.tb, vdb_brick_voxel(sp.brick, vs.cell), step);
+                    if (st.stop) {
+                        break;
+                    }
+                    lit_span(&st, ray, ta, tb, v, step);
                 }
                 continue;
             }

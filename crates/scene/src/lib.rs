@@ -28,7 +28,8 @@ pub use diffusion::{
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
-    light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, LIT_NEAR_DEPTH, MAX_SUB,
+    light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, LIT_NEAR_DEPTH,
+    LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
     Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_SUN_NEAR,

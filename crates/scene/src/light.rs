@@ -38,6 +38,13 @@ pub fn light_dirs(
 /// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell.
 pub const LIT_NEAR_DEPTH: f64 = 0.25;
 
+/// The primary ray's transmittance below which `Lit` reads the sun's depth from the light volume
+/// alone (`RenderSettings::sun_near`): what lies deeper adds at most this share of the pixel's
+/// light (measured: no change to the lit images' error against the reference at 0.05, +0.001 on
+/// the WDAS cloud at 0.1), and a dense cloud's rays walk toward the sun from a few samples
+/// instead of every one.
+pub const LIT_NEAR_TRANS: f64 = 0.05;
+
 /// Where a light volume's cells lie (cell space: voxel `i` is `[i, i + 1)`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightGrid {

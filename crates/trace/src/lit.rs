@@ -39,11 +39,11 @@
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
-pub use vdbcook_scene::LIT_NEAR_DEPTH;
 use vdbcook_scene::{
     content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
     LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
 };
+pub use vdbcook_scene::{LIT_NEAR_DEPTH, LIT_NEAR_TRANS};
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
@@ -323,19 +323,21 @@ impl Tracer<'_> {
     /// of density `rho`: the first `settings.sun_near` light-volume cells toward the sun walked
     /// exactly (the density mode's voxel sum), the light volume's depth where that walk ends
     /// beyond (`sun_depth_at`: 0 once the ray has left the grid). The light volume's lookup at
-    /// `q` alone where there is no near field (`LightVolume::near_voxels`), or where one
-    /// cell's optical depth at density `rho` is below [`LIT_NEAR_DEPTH`] (a medium the cells
-    /// resolve: its depth changes little across one).
+    /// `q` alone where there is no near field (`LightVolume::near_voxels`), where one cell's
+    /// optical depth at density `rho` is below [`LIT_NEAR_DEPTH`] (a medium the cells resolve:
+    /// its depth changes little across one), or where the primary ray's transmittance `trans`
+    /// is below [`LIT_NEAR_TRANS`].
     pub(crate) fn sun_depth(
         &self,
         lv: &LightVolume,
         q: [f64; 3],
         rho: f64,
+        trans: f64,
         cache: &mut BrickCache,
     ) -> f64 {
         let near = lv.near_voxels(self.settings.sun_near);
         let cell_depth = self.extinction * rho * lv.cell_len;
-        if !(near > 0.0) || !(cell_depth >= LIT_NEAR_DEPTH) {
+        if !(near > 0.0) || !(cell_depth >= LIT_NEAR_DEPTH) || !(trans >= LIT_NEAR_TRANS) {
             return lv.lookup(q)[0];
         }
         let ray = self.light_ray(q);
@@ -472,7 +474,7 @@ impl LitMarch<'_, '_> {
         let e = (-x).exp();
         let m = len * mean_depth(x);
         let q = self.ray.at((sa + m) / self.ray.per_t);
-        let ts = t.sun_depth(self.lv, q, rho, self.shadow);
+        let ts = t.sun_depth(self.lv, q, rho, self.trans, self.shadow);
         let (sun, sky) = match s.ms_model {
             MsModel::Octaves => (
                 octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]),
