@@ -135,10 +135,12 @@ pub struct Args {
     #[arg(long, default_value = "nearest", value_parser = ["nearest", "trilinear"])]
     filter: String,
     /// Where the lit mode's nearest-voxel march samples: steps (every --step from the eye,
-    /// jittered per pixel: a --step above 1 trades accuracy for speed) or voxels (each voxel the
+    /// jittered per pixel: a --step above 1 trades accuracy for speed), voxels (each voxel the
     /// ray crosses integrated exactly, cut into parts of at most --step where the light is read;
-    /// no noise, closer to the reference, slower). --filter trilinear always marches in steps.
-    #[arg(long, default_value = "steps", value_parser = ["steps", "voxels"])]
+    /// no noise, closer to the reference, slower), or auto: voxels on a frame where one step
+    /// through its densest voxel is optically thick (≥ 1), else steps. --filter trilinear always
+    /// marches in steps.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "steps", "voxels"])]
     march: String,
     /// Lit mode: light-volume cells toward the sun whose voxels are walked exactly from each
     /// sample before the light volume's depth takes over, where a cell is optically thick
@@ -821,6 +823,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     if let Some(e) = &mut s.emission {
         e.channel = emission_channel(&asset, a.emission_grid.as_deref()).map_err(|e| at(&e))?;
     }
+    // Over a scene (a plate or a depth) the lit mode draws as the engine drawer does, which
+    // steps (it does not walk the tree): `--march auto` steps there on both backends, so that
+    // the two draw the same picture.
+    if s.mode == Mode::Lit
+        && s.march == March::Auto
+        && (a.background.is_some() || a.depth.is_some())
+    {
+        s.march = March::Steps;
+    }
     let s = s;
     let camera = camera(
         a.camera.as_deref(),
@@ -962,11 +973,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 })),
             },
         });
+        // The march the lit mode took (`March::resolve`; the engine drawer, which composites lit
+        // over a plate on the GPU, always steps).
+        let march_used = (s.mode == Mode::Lit).then(|| {
+            if composited {
+                "steps"
+            } else {
+                vdbcook_trace::March::resolve(&s, asset.frame_range(s.frame, 0)[1]).name()
+            }
+        });
         // The lit mode's keys (one json! per object keeps the macro's recursion shallow).
         let lit = json!({
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
             "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
-            "march": s.march.name(), "sun_near": short(s.sun_near),
+            "march": s.march.name(), "march_used": march_used, "sun_near": short(s.sun_near),
             "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {

@@ -578,7 +578,7 @@ impl Renderer {
                 near: params.lit[0] > 0.0
                     && params.extinction * params.value_max * params.lit[1]
                         >= LIT_NEAR_DEPTH as f32 * (1.0 - 1e-4),
-                voxels: settings.march == March::Voxels && !trilinear,
+                voxels: March::resolve(settings, self.vol.frame_max[frame]) == March::Voxels,
             }
         } else {
             LitVariant::default()
@@ -750,8 +750,8 @@ impl Renderer {
                 },
                 self.vol.lod.1 as u32,
                 (pixel_angle(camera.fov_y_deg, height) as f32).to_bits(),
-                // 1: the voxel march (`March::Voxels`; trilinear density marches in steps).
-                (settings.march == March::Voxels && settings.filter == Filter::Nearest) as u32,
+                // 1: the voxel march (`March::resolve`; trilinear density marches in steps).
+                (March::resolve(settings, vmax) == March::Voxels) as u32,
             ],
             lit: [
                 // `LightVolume::near_voxels`: none where cells are no wider than a voxel.

@@ -33,7 +33,7 @@ pub use light::{
 };
 pub use settings::{
     Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_SUN_NEAR,
-    MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
-    MAX_SUN_NEAR, MIN_STEP,
+    LIT_VOXEL_DEPTH, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE,
+    MAX_SPP, MAX_SUN_NEAR, MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

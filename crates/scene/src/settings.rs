@@ -129,10 +129,14 @@ impl MsModel {
 /// Where `Lit`'s nearest-voxel march takes its samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum March {
+    /// `Voxels` on a frame where one step through its densest voxel is optically thick (depth ≥
+    /// [`LIT_VOXEL_DEPTH`]: a step's light would come mostly from its first part, which one
+    /// sample misplaces), else `Steps` ([`March::resolve`]).
+    #[default]
+    Auto,
     /// Every `step` from the eye, offset per pixel by a jitter (a game's TAA averages the
     /// noise): `step` above a voxel trades accuracy for speed. Trilinear filtering always
     /// marches in steps (its density has no voxel faces to break at).
-    #[default]
     Steps,
     /// Along the voxels the ray crosses: each voxel's segment (a constant tile's span) is
     /// integrated exactly for its density, cut into equal parts of at most `step` where the
@@ -144,16 +148,46 @@ pub enum March {
 impl March {
     pub fn name(self) -> &'static str {
         match self {
+            March::Auto => "auto",
             March::Voxels => "voxels",
             March::Steps => "steps",
         }
     }
     pub fn parse(s: &str) -> Option<March> {
-        [March::Voxels, March::Steps]
+        [March::Auto, March::Voxels, March::Steps]
             .into_iter()
             .find(|m| m.name() == s)
     }
+
+    /// The march a render of `s` takes on a frame whose largest value is `frame_max`
+    /// (`Steps` or `Voxels`; trilinear density always steps). The CPU tracer and the GPU
+    /// renderer decide alike, in f64 from the same f32 settings and frame range.
+    pub fn resolve(s: &RenderSettings, frame_max: f32) -> March {
+        if s.filter == Filter::Trilinear {
+            return March::Steps;
+        }
+        match s.march {
+            March::Auto => {
+                let step_depth = (s.absorb as f64 + s.scatter as f64)
+                    * frame_max.max(0.0) as f64
+                    * s.step as f64;
+                if step_depth >= LIT_VOXEL_DEPTH {
+                    March::Voxels
+                } else {
+                    March::Steps
+                }
+            }
+            m => m,
+        }
+    }
 }
+
+/// Optical depth of one `step` through a frame's densest voxel from which `March::Auto` follows
+/// voxels: the step march reads each step's light at one point, and where a step is this thick
+/// most of its light comes from its first part (measured against the reference: the WDAS cloud
+/// 0.132 → 0.103, the smoke fixture 0.092 → 0.050 relative RMSE; the thin stormscape frame, 0.05
+/// a step, 0.043 either way).
+pub const LIT_VOXEL_DEPTH: f64 = 1.0;
 
 /// The length that `absorb`, `scatter`, `step`, `shadow_step` and `gain` are measured in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -275,7 +309,7 @@ impl Default for RenderSettings {
             ms_sky: MsModel::Diffusion.default_ms_sky(),
             ms_model: MsModel::Diffusion,
             filter: Filter::Nearest,
-            march: March::Steps,
+            march: March::Auto,
             sun_near: DEFAULT_SUN_NEAR,
             primary_lod: false,
         }

@@ -17,7 +17,7 @@ use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
     blackbody_table, depth_range, length, level_start, normalize, stored_bbox, Affine, Camera,
-    Emission, Filter, LengthUnit, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
+    Emission, LengthUnit, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -42,6 +42,8 @@ pub struct Scratch {
 pub struct Tracer<'a> {
     /// The frame to walk, with its per-block maxima.
     pub(crate) grid: Grid<'a>,
+    /// `Mode::Lit`'s march on this frame (`March::resolve`: `Steps` or `Voxels`).
+    pub(crate) march: March,
     pub(crate) settings: RenderSettings,
     pub(crate) xf: Affine,
     pub(crate) extent: [f64; 3],
@@ -149,6 +151,7 @@ impl<'a> Tracer<'a> {
             Vec::new()
         };
         Ok(Tracer {
+            march: March::resolve(settings, value_max),
             grid: Grid::new(asset, settings.frame),
             levels,
             pixel_angle: vdbcook_scene::pixel_angle(camera.fov_y_deg, settings.height),
@@ -559,9 +562,7 @@ impl Tracer<'_> {
             v.step = self.settings.step as f64 / scale;
             // The level's cell space is full resolution's scaled by 2^−k.
             let lray = ray.scaled(scale);
-            let flow = if self.settings.march == March::Voxels
-                && self.settings.filter == Filter::Nearest
-            {
+            let flow = if self.march == March::Voxels {
                 walk(grid, &lray, a, b, primary, &mut VoxelMarch(&mut v))
             } else {
                 walk(grid, &lray, a, b, primary, &mut v)
