@@ -986,7 +986,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let lit = json!({
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
             "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
-            "march": s.march.name(), "march_used": march_used, "sun_near": short(s.sun_near),
+            "march": a.march, "march_used": march_used, "sun_near": short(s.sun_near),
             "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {

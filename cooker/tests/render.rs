@@ -340,3 +340,54 @@ fn cpu_renders_are_byte_identical_at_any_thread_count() {
         assert!(outs[0] == outs[1], "{mode}: 1 and 3 threads differ");
     }
 }
+
+/// `--march auto` (the default) follows voxels on a dense frame and steps on a thin one, and
+/// steps over a scene (the engine drawer's march); `--json` names the march that ran. The
+/// smoke fixture's densest voxel is 0.9: one 1-voxel step through it has optical depth 1.45 in
+/// the default medium, 0.1 in a thin one.
+#[test]
+fn lit_json_names_the_march_it_took() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let out = dir.path().join("lit.png").display().to_string();
+    let plate = dir.path().join("plate.png");
+    std::fs::write(
+        &plate,
+        vdbcook::render::encode_png(32, 18, &[128u8; 32 * 18 * 4]).unwrap(),
+    )
+    .unwrap();
+    let plate = plate.display().to_string();
+    for (extra, want) in [
+        (&[][..], "voxels"),
+        (&["--absorb", "0.01", "--scatter", "0.1"][..], "steps"),
+        (&["--march", "steps"][..], "steps"),
+        (&["--background", plate.as_str()][..], "steps"),
+    ] {
+        let mut args = vec![
+            "render",
+            &asset,
+            "-o",
+            &out,
+            "--mode",
+            "lit",
+            "--width",
+            "32",
+            "--height",
+            "18",
+            "--backend",
+            "cpu",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let (code, stdout, err) = vdbcook(&args);
+        assert_eq!(code, 0, "{extra:?}: {err}");
+        let doc: Value = serde_json::from_str(&stdout).unwrap();
+        assert_eq!(doc["settings"]["march_used"], want, "{extra:?}");
+        let asked = if extra.contains(&"--march") {
+            "steps"
+        } else {
+            "auto"
+        };
+        assert_eq!(doc["settings"]["march"], asked, "{extra:?}");
+    }
+}

@@ -486,3 +486,40 @@ impl RenderSettings {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `March::Auto` follows voxels where one step through the frame's densest voxel is
+    /// optically thick (≥ `LIT_VOXEL_DEPTH`), steps where it is thin; an explicit march stays,
+    /// and trilinear density always steps.
+    #[test]
+    fn auto_march_follows_voxels_where_a_step_is_thick() {
+        let s = RenderSettings::default(); // absorb 0.1 + scatter 1.5, step 1
+        assert_eq!(March::resolve(&s, 1.0), March::Voxels); // depth 1.6
+        assert_eq!(March::resolve(&s, 0.625), March::Voxels); // depth 1.0
+        assert_eq!(March::resolve(&s, 0.6), March::Steps); // depth 0.96
+        assert_eq!(March::resolve(&s, -3.0), March::Steps);
+        let half = RenderSettings {
+            step: 0.5,
+            ..s.clone()
+        };
+        assert_eq!(March::resolve(&half, 1.0), March::Steps); // depth 0.8
+        let voxels = RenderSettings {
+            march: March::Voxels,
+            ..s.clone()
+        };
+        assert_eq!(March::resolve(&voxels, 0.0), March::Voxels);
+        let steps = RenderSettings {
+            march: March::Steps,
+            ..s.clone()
+        };
+        assert_eq!(March::resolve(&steps, 1.0), March::Steps);
+        let trilinear = RenderSettings {
+            filter: Filter::Trilinear,
+            ..voxels
+        };
+        assert_eq!(March::resolve(&trilinear, 1.0), March::Steps);
+    }
+}
