@@ -545,19 +545,8 @@ impl Renderer {
                 params.frame_root,
                 self.vol.lod,
             );
-            let diffusion = (settings.ms_model == MsModel::Diffusion).then(|| {
-                DiffusionInputs::new(
-                    &grid,
-                    light_dirs(&self.xf, settings.light_dir, settings.unit),
-                    extinction,
-                    if extinction > 0.0 {
-                        settings.scatter as f64 / extinction
-                    } else {
-                        0.0
-                    },
-                    (settings.phase_g, settings.phase_w),
-                )
-            });
+            let diffusion = (settings.ms_model == MsModel::Diffusion)
+                .then(|| DiffusionInputs::of_settings(&grid, &self.xf, settings));
             self.light
                 .record(&self.device, encoder, &self.vol.group, &[lp], &[diffusion])?
                 .0
@@ -761,10 +750,7 @@ impl Renderer {
                     0.0
                 },
                 (axis_len.into_iter().fold(f64::INFINITY, f64::min) * grid.cell) as f32,
-                {
-                    let w = settings.phase_w as f64;
-                    (w * settings.phase_g[0] as f64 + (1.0 - w) * settings.phase_g[1] as f64) as f32
-                },
+                DiffusionInputs::of_settings(&grid, &self.xf, settings).mean_cos as f32,
                 0.0,
             ],
             lv_axis: [axis_len[0], axis_len[1], axis_len[2], 0.0].map(|v| v as f32),

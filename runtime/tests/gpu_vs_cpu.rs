@@ -1455,26 +1455,45 @@ fn lit_marches_match_the_cpu() {
                 step,
                 ..small(Mode::Lit, 0)
             };
-            let cpu = vdbcook_trace::render(asset, &cam, &s).unwrap();
-            let g = gpu.render(&r, &target, &cam, &s).unwrap();
-            let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
-            eprintln!("{what}, {march:?} step {step}: {bad} differ (max {max_diff:.2e}) {first}");
-            assert!(
-                bad * 1000 <= cpu.value.len() * 5,
-                "{what}: {bad} pixels; {first}"
-            );
-            images.push(g.rgba);
+            let label = format!("{what}, {march:?} step {step}");
+            images.push(lit_matches_cpu(&gpu, &r, &target, asset, &cam, &s, &label));
         }
-        let changed = images[0]
-            .iter()
-            .zip(&images[2])
-            .filter(|(a, b)| (*a - *b).abs() > 1e-3)
-            .count();
+        let changed = values_changed(&images[0], &images[2]);
         assert!(
             changed > 100,
             "{what}: the marches differ in {changed} values only"
         );
     }
+}
+
+/// Renders `s` (a lit mode) on the CPU and the GPU and asserts they differ in at most 0.5% of
+/// the pixels beyond the lit mode's tolerance; the GPU's rgba.
+fn lit_matches_cpu(
+    gpu: &Gpu,
+    r: &Renderer,
+    target: &vdbcook_runtime::BufferTarget,
+    asset: &Asset,
+    cam: &vdbcook_trace::Camera,
+    s: &RenderSettings,
+    label: &str,
+) -> Vec<f32> {
+    let cpu = vdbcook_trace::render(asset, cam, s).unwrap();
+    let g = gpu.render(r, target, cam, s).unwrap();
+    let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+    eprintln!("{label}: {bad} differ (max {max_diff:.2e}) {first}");
+    assert!(
+        bad * 1000 <= cpu.value.len() * 5,
+        "{label}: {bad} pixels; {first}"
+    );
+    g.rgba
+}
+
+/// How many values of two images differ by more than 10⁻³.
+fn values_changed(a: &[f32], b: &[f32]) -> usize {
+    a.iter()
+        .zip(b)
+        .filter(|(x, y)| (*x - *y).abs() > 1e-3)
+        .count()
 }
 
 /// The near field toward the sun (`sun_near`): from each sample of a dense medium the first
@@ -1499,21 +1518,10 @@ fn lit_near_field_matches_the_cpu() {
                 sun_near,
                 ..small(Mode::Lit, 0)
             };
-            let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
-            let g = gpu.render(&r, &target, &cam, &s).unwrap();
-            let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
-            eprintln!("{march:?} sun_near {sun_near}: {bad} differ (max {max_diff:.2e}) {first}");
-            assert!(
-                bad * 1000 <= cpu.value.len() * 5,
-                "{march:?} sun_near {sun_near}: {bad} pixels; {first}"
-            );
-            images.push(g.rgba);
+            let label = format!("{march:?} sun_near {sun_near}");
+            images.push(lit_matches_cpu(&gpu, &r, &target, &asset, &cam, &s, &label));
         }
-        let changed = images[0]
-            .iter()
-            .zip(&images[1])
-            .filter(|(a, b)| (*a - *b).abs() > 1e-3)
-            .count();
+        let changed = values_changed(&images[0], &images[1]);
         assert!(
             changed > 100,
             "{march:?}: the near field changed {changed} values only"

@@ -2,7 +2,7 @@
 //! (`MsModel::Diffusion`), defined once for the CPU solver (`vdbcook_trace::diffusion`, whose
 //! module docs state the method) and the GPU passes (`shaders/light_build.wgsl`'s `ms_*`).
 
-use crate::LightGrid;
+use crate::{light_dirs, Affine, LightGrid, RenderSettings};
 
 /// Jacobi sweeps on each coarse level (all but the light volume's own cells).
 pub const MS_ITERATIONS: usize = 16;
@@ -53,6 +53,25 @@ pub struct DiffusionInputs {
 }
 
 impl DiffusionInputs {
+    /// The inputs over `grid` for a render of `s` in the cell space of `xf` (extinction
+    /// `absorb + scatter`, albedo `scatter / extinction`, 0 without extinction): what the CPU
+    /// tracer and the GPU renderer solve alike.
+    pub fn of_settings(grid: &LightGrid, xf: &Affine, s: &RenderSettings) -> DiffusionInputs {
+        let extinction = s.absorb as f64 + s.scatter as f64;
+        let albedo = if extinction > 0.0 {
+            s.scatter as f64 / extinction
+        } else {
+            0.0
+        };
+        DiffusionInputs::new(
+            grid,
+            light_dirs(xf, s.light_dir, s.unit),
+            extinction,
+            albedo,
+            (s.phase_g, s.phase_w),
+        )
+    }
+
     /// The inputs over `grid` for the sun `(l, len)` and axis lengths of
     /// [`crate::light_dirs`], `extinction` per unit density per length, `albedo` and the
     /// dual-lobe phase `(g, w)`.

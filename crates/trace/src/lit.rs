@@ -171,17 +171,7 @@ impl LightVolume {
         for (i, t) in tau.iter_mut().enumerate() {
             t[1] = sky_depth(t_mean[i], tau_mean[i], extinction) as f32;
         }
-        let inputs = DiffusionInputs::new(
-            &grid,
-            ((l, sun_len), axis_len),
-            extinction,
-            if extinction > 0.0 {
-                s.scatter as f64 / extinction
-            } else {
-                0.0
-            },
-            (s.phase_g, s.phase_w),
-        );
+        let inputs = DiffusionInputs::of_settings(&grid, xf, s);
         let diffusion = match s.ms_model {
             MsModel::Octaves => Diffusion::default(),
             MsModel::Diffusion => diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs),
