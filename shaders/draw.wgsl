@@ -11,12 +11,15 @@
 //   second pipeline) each lit instance is marched as the tracer's lit mode (`lit_primary` in
 //   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest or
 //   trilinear lookup (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
-//   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths).
+//   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths and light), the
+//   near field toward the sun walked per frame of a crossfade (`DRAW_NEAR`; both frames gated on
+//   the lerped density and the one transmittance: the CPU draws single frames only).
 // The composite that blends (L, T) over the engine's colour target is `composite.wgsl`.
 //
 // Concatenated after `volume.wgsl` and `light.wgsl` (group 0: the volume). Group 1: the view
 // (uniform), the instances (storage), the scene depth, the (L, T) output. Group 2: the light
-// volumes, (τ_sun, τ_sky) per cell, each instance's at its own base elements. The structs mirror `runtime/src/
+// volumes, (τ_sun, τ_sky) per cell, each instance's at its own base elements, and (binding 1)
+// the diffusion model's light, three vec4 per cell at 3·(base + cell). The structs mirror `runtime/src/
 // draw.rs` (`DrawView`, `DrawInstance`; sizes checked by its unit tests and by the bindings'
 // minimum sizes).
 
@@ -135,7 +138,7 @@ fn draw_diffuse(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, eye: ve
 // `trans` is above `LV_NEAR_TRANS`, the light volume beyond.
 fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, rho: f32, trans: f32, l: vec3<f32>) -> f32 {
     let cell = lo.w;
-    let near = select(0.0, draw_view.sun_near * cell, cell > 1.0);
+    let near = select(0.0, min(draw_view.sun_near * cell, LV_NEAR_MAX_VOXELS), cell > 1.0);
     let axis = inst.lv_axis.xyz;
     let cell_len = cell * min(axis.x, min(axis.y, axis.z));
     if (!DRAW_NEAR || !(near > 0.0) || !(inst.extinction * rho * cell_len >= LV_NEAR_DEPTH)
@@ -151,8 +154,9 @@ fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims:
         return 0.0;
     }
     let t_near = near / length(l);
-    let tau = vdb_optical_depth_near(root, ray, c.x, min(c.y, t_near), inst.extinction);
-    if (t_near >= c.y || inst.extinction * tau >= VDB_OPAQUE_DEPTH) {
+    // The whole near field (no opaque stop: the octaves read e^{-b^i·σ·τ}).
+    let tau = vdb_optical_depth_near(root, ray, c.x, min(c.y, t_near), 0.0);
+    if (t_near >= c.y) {
         return tau;
     }
     let p = q + t_near * l;

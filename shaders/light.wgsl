@@ -140,6 +140,8 @@ fn lv_box_entry(lo: vec4<f32>, dims: vec3<u32>, p: vec3<f32>, l: vec3<f32>) -> f
 const LV_NEAR_DEPTH: f32 = 0.25;
 // The primary ray's transmittance below which it does not walk (`vdbcook_trace::LIT_NEAR_TRANS`).
 const LV_NEAR_TRANS: f32 = 0.05;
+// Longest near field, in voxels (`vdbcook_trace::LIT_NEAR_MAX_VOXELS`).
+const LV_NEAR_MAX_VOXELS: f32 = 1024.0;
 
 // Transmittance below which a lit march stops (`vdbcook_trace::LIT_MIN_TRANS`).
 const LV_MIN_TRANS: f32 = 1e-4;

@@ -80,7 +80,8 @@ struct Params {
     emit_hi: vec4<f32>,
     // The lit mode's primary levels of detail (`vdbcook_scene::level_start`): x levels read (1:
     // full resolution only), y the root-offset stride between levels (frames · root length),
-    // z the camera's pixel angle (bits of an f32); w 1 for the voxel march (`March::Voxels`).
+    // z the camera's pixel angle (bits of an f32); w 1 for the voxel march (`March::resolve`;
+    // `LIT_VOXELS`, the pipeline variant, decides).
     lod: vec4<u32>,
     // The lit mode: x the near field toward the sun in voxels (`RenderSettings::sun_near` cells;
     // 0: none), y a light-volume cell's edge in the length unit (the shortest), z the phase's
@@ -586,8 +587,9 @@ fn lit_sun_depth(q: vec3<f32>, rho: f32, trans: f32) -> f32 {
     }
     let t_near = near / length(ray.d);
     let t_end = min(c.y, t_near);
-    let tau = vdb_optical_depth_near(params.frame_root, ray, c.x, t_end, params.extinction);
-    if (t_near >= c.y || params.extinction * tau >= OPAQUE_DEPTH) {
+    // The whole near field (no opaque stop: the octaves read e^{-b^i·σ·τ}).
+    let tau = vdb_optical_depth_near(params.frame_root, ray, c.x, t_end, 0.0);
+    if (t_near >= c.y) {
         return tau;
     }
     let p = ray.o + t_near * ray.d;
@@ -708,7 +710,7 @@ fn lit_span(st: ptr<function, LitState>, ray: VdbRay, ta: f32, tb: f32, v: f32, 
 // transmittance). `dw`: the unit world direction. Level k of detail (`params.lod`) is walked
 // over [t_k, t_{k+1}) in its cell space (full resolution's scaled by 2^-k, exact in binary),
 // clipped to the frame's content box widened to that level's leaves, stepping `step·2^k`.
-// `params.lod.w` 1: the voxel march (`March::Voxels`: each brick's voxels by a DDA, constant
+// `LIT_VOXELS` (the pipeline variant): the voxel march (`March::Voxels`: each brick's voxels by a DDA, constant
 // spans whole, `lit_span`); else samples every step, jittered.
 fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
     // The phase per octave at this ray's μ, the sky's (isotropic: 1).

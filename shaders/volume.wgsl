@@ -495,7 +495,8 @@ fn vdb_dda_next(ray: VdbRay, s: ptr<function, VdbDda>) -> VdbSeg {
 // Optical depth beyond which `vdb_optical_depth` stops (`vdbcook_trace::OPAQUE_DEPTH`).
 const VDB_OPAQUE_DEPTH: f32 = 20.0;
 
-// `vdb_optical_depth` for a short stretch of `ray` (a few voxels): one flat voxel DDA over the
+// `vdb_optical_depth` for a short stretch of `ray` (a few voxels, at most 1024; `absorb` 0: no
+// opaque stop): one flat voxel DDA over the
 // box the stretch [t0, t1] crosses, the tree descended once per 8³ leaf entered (`vdb_holder`)
 // and each voxel read from it: the same voxels and sum as the hierarchical walk in less code
 // (which software Vulkan runs faster).
@@ -512,6 +513,7 @@ fn vdb_optical_depth_near(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb
     var d = vdb_dda_init(ray, 1.0, lo, hi, t0, t1);
     var leaf = vec3<i32>(-1);
     var r = VDB_EMPTY;
+    // 4096 steps: more than a path of `LIT_NEAR_MAX_VOXELS` (1024) voxels crosses.
     for (var i = 0; i < 4096; i++) {
         let s = vdb_dda_next(ray, &d);
         if (!s.ok) {

@@ -479,7 +479,8 @@ impl Lighting {
 
     /// The tracer settings of a lit render with this lighting and `medium` (what the CPU
     /// tracer draws for the drawer's instances, and what is validated). The drawer marches in
-    /// steps (`March::Steps`): it does not walk the tree, so it has no voxel spans to follow.
+    /// steps (`March::Steps`): it reads the density by point lookups and has no voxel spans to
+    /// follow (only its near field toward the sun walks voxels).
     pub fn settings(&self, medium: &Medium) -> vdbcook_scene::RenderSettings {
         vdbcook_scene::RenderSettings {
             mode: vdbcook_scene::Mode::Lit,

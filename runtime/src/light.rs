@@ -1,6 +1,6 @@
 //! The lit mode's light volumes on the GPU (`shaders/light_build.wgsl`): its six pipelines, one
-//! buffer that holds every light volume a draw needs (grown on demand up to the device's binding
-//! limit, never shrunk), the density scratch they are built through (one at a time), and the
+//! buffer that holds every light volume a draw needs (made anew, larger, when a draw needs more
+//! cells than it holds, up to the device's binding limit), the density scratch they are built through (one at a time), and the
 //! cache that skips the passes while the frames, the lights and the media stay the same (one
 //! entry: the last list built). The renderer and the drawer record the passes into the caller's
 //! encoder ahead of their own dispatch and read the volumes through one bind group (the

@@ -8,7 +8,8 @@ use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
     blackbody_table, depth_range, light_dirs, pixel_angle, sky_diffusion, Affine, DiffusionInputs,
-    Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, LIT_NEAR_DEPTH, MAX_SIDE,
+    Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, LIT_NEAR_DEPTH,
+    LIT_NEAR_MAX_VOXELS, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -79,7 +80,8 @@ struct Params {
     emit_hi: [f32; 4],
     /// The lit mode's primary levels of detail (`vdbcook_scene::level_start`): levels read (1:
     /// full resolution only), the root-offset stride between levels, the camera's pixel angle
-    /// (f32 bits), 1 for the voxel march (`March::Voxels`).
+    /// (f32 bits), 1 for the voxel march (`March::resolve`; the pipeline variant, `LIT_VOXELS`,
+    /// decides which march runs).
     lod: [u32; 4],
     /// The lit mode: the near field toward the sun in voxels (`sun_near` cells), a light-volume
     /// cell's shortest edge in the length unit, the phase's mean cosine, 0.
@@ -745,7 +747,7 @@ impl Renderer {
             lit: [
                 // `LightVolume::near_voxels`: none where cells are no wider than a voxel.
                 if grid.cell > 1.0 {
-                    (settings.sun_near as f64 * grid.cell) as f32
+                    (settings.sun_near as f64 * grid.cell).min(LIT_NEAR_MAX_VOXELS) as f32
                 } else {
                     0.0
                 },

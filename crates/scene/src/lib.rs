@@ -29,7 +29,7 @@ pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLAC
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
     light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, LIT_NEAR_DEPTH,
-    LIT_NEAR_TRANS, MAX_SUB,
+    LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
     Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_SUN_NEAR,

@@ -45,6 +45,11 @@ pub const LIT_NEAR_DEPTH: f64 = 0.25;
 /// instead of every one.
 pub const LIT_NEAR_TRANS: f64 = 0.05;
 
+/// Longest near field toward the sun, in voxels (`RenderSettings::sun_near` cells are cut to
+/// it): the GPU's walk is one bounded loop (`vdb_optical_depth_near`, 4096 voxel steps, more
+/// than any path this long crosses).
+pub const LIT_NEAR_MAX_VOXELS: f64 = 1024.0;
+
 /// Where a light volume's cells lie (cell space: voxel `i` is `[i, i + 1)`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightGrid {

@@ -251,7 +251,8 @@ pub struct RenderSettings {
     /// Octave `i` of `Lit`'s sun scales the scattering by `a^i`, the extinction toward the sun
     /// by `b^i` and the phase asymmetry by `c^i`: `[a, b, c]`, each in `[0, 1]`.
     pub ms: [f32; 3],
-    /// Scale of the diffusion attenuation of `Lit`'s multiply scattered sky light
+    /// `MsModel::Octaves` only (the diffusion model solves the sky's light): scale of the
+    /// diffusion attenuation of `Lit`'s multiply scattered sky light
     /// (`vdbcook_scene::sky_source`), in `[0, MAX_MS_SKY]`: 0 keeps all the sky light the medium
     /// scatters, 1 is diffusion theory's `√(3(1 − α)(1 − ḡα))`.
     pub ms_sky: f32,
@@ -265,8 +266,9 @@ pub struct RenderSettings {
     /// `Lit`'s near field toward the sun, in light-volume cells: from each sample the voxels
     /// of the first `sun_near` cells toward the sun are walked exactly (a voxel DDA through
     /// the tree), and only the depth beyond is looked up in the light volume, whose cells blur
-    /// a dense cloud's lit skin (`docs/rendering.md`); where one cell is optically thin the
-    /// light volume alone. 0: the light volume alone (the engine drawer's march).
+    /// a dense cloud's lit skin (`docs/rendering.md`); where one cell is optically thin, the
+    /// cells are no wider than a voxel or the ray's transmittance is below `LIT_NEAR_TRANS`
+    /// the light volume alone. 0: the light volume alone everywhere (cheaper).
     pub sun_near: f32,
     /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
     /// `--lod`) where a pixel spans more voxels (`crate::level_start`): level `k` where it

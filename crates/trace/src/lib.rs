@@ -94,9 +94,10 @@
 //!   span can emit). Unbiased except: at most `bounces` scattering events and
 //!   2¹⁶ tentative collisions per flight (then absorbed), shadow weights below 1e-6 end as 0.
 //! - **Lit** (module `lit`, the game-speed approximation of Reference: same medium, sun, sky,
-//!   phase): a light volume of optical depths toward the sun and the sky, then a jittered
-//!   fixed-step march with per-step energy-conserving integration and octaves of multiple
-//!   scattering; the `lit` module docs define it exactly. rgb = `L` (premultiplied), alpha
+//!   phase): a light volume of optical depths toward the sun and the sky and a diffusion solve
+//!   of their scattered light (or octaves of it), then a march by steps or by voxels with
+//!   energy-conserving integration, the depth toward the sun walked exactly near each sample;
+//!   the `lit` module docs define it exactly. rgb = `L` (premultiplied), alpha
 //!   `1 − T`, value `T`.
 //!
 //! `step`, `shadow_step`, `cutoff` and `gain` follow `vdb_render`'s `-step`, `-shadowstep`,

@@ -19,20 +19,34 @@
 //!      transmittance is their mean: `e^{−σ·τ_sky} = ⅙ Σ e^{−σ·τ_axis}` (σ the extinction).
 //!
 //!    Depths are in the settings' length unit, before the extinction; stored as f32.
-//! 2. **Primary march**: samples at `s = (k + j)·step` from the eye (`j ∈ [0, 1)` a per-pixel
-//!    jitter from `pcg_hash`, which turns banding at large steps into noise), `ρ` the nearest
-//!    voxel or (`Filter::Trilinear`) the trilinear density (`Tracer::trilinear_density`; the
-//!    walk still passes over spans whose max is ≤ 0, so the half-voxel fringe the filter puts
-//!    outside stored content is not sampled), per-step energy-conserving integration: with `x = σ·ρ·step`, `L += T·α·S·(1 − e^{−x})`,
-//!    `T *= e^{−x}` (exact for a constant source over the step, so the image does not drift
-//!    with the step size); stops once `T < LIT_MIN_TRANS`.
-//! 3. **Source** `S = sun·Σᵢ … + sky·…` with the light volume's depths at the sample
-//!    (trilinear): the sun's by `vdbcook_scene::octave_source`, octave `i` with the dual-lobe
-//!    phase's `g` scaled by `c^i` at `μ = d·l` (`MsModel::Octaves`), or single scattering
-//!    `p(μ)·e^{−σ·τ_sun}` plus the diffusion solve's `φ/4π` (`MsModel::Diffusion`: the
-//!    light volume's third field, `crate::diffusion`); the sky's (a uniform sky, isotropic) by
-//!    `vdbcook_scene::sky_source`, which returns what the medium takes out of the sky's beam
-//!    attenuated as diffusion would (exactly the sky at albedo 1: the white furnace holds).
+//! 2. **Primary march** (`March::resolve`: `March::Auto`, the default, takes the voxel march on
+//!    a frame where one step through its densest voxel has optical depth ≥
+//!    `LIT_VOXEL_DEPTH`, else steps):
+//!    - steps (`March::Steps`, and any trilinear march): samples at `s = (k + j)·step` from the
+//!      eye (`j ∈ [0, 1)` a per-pixel jitter from `pcg_hash`, which turns banding at large steps
+//!      into noise), `ρ` the nearest voxel or (`Filter::Trilinear`) the trilinear density
+//!      (`Tracer::trilinear_density`; the walk still passes over spans whose max is ≤ 0, so the
+//!      half-voxel fringe the filter puts outside stored content is not sampled), each sample's
+//!      density standing for a step centred on it;
+//!    - voxels (`March::Voxels`, [`VoxelMarch`]): the voxels the walk crosses, each cut into
+//!      equal segments of at most `step`, each of its own voxel's density;
+//!
+//!    per segment of optical depth `x = σ·ρ·len`, energy-conserving: `L += T·α·S·(1 − e^{−x})`,
+//!    `T *= e^{−x}` (exact for a constant source over the segment, so the image does not drift
+//!    with the step size), `S` read where the segment's light is scattered on average
+//!    ([`mean_depth`]); stops once `T < LIT_MIN_TRANS`.
+//! 3. **Source** `S = sun·… + sky·…` at that point: the sun's depth `τ_sun` from the light
+//!    volume (trilinear), or, within `sun_near` cells where one cell is optically thick
+//!    (`LIT_NEAR_DEPTH`), wider than a voxel and the ray's `T ≥ LIT_NEAR_TRANS`, walked voxel
+//!    by voxel and the light volume's only beyond (`Tracer::sun_depth`: the near field); then
+//!    `MsModel::Diffusion` (default): single scattering `p(μ)·e^{−σ·τ_sun}` plus the diffusion
+//!    solve's sun light, and its sky light as the sky's whole source, both read to first order
+//!    `φ/4π + 3ḡ·J·ω/4π` (`LightVolume::diffuse_at`, `crate::diffusion`; exactly the sky at
+//!    albedo 1: the white furnace holds); or `MsModel::Octaves`: the sun's by
+//!    `vdbcook_scene::octave_source`, octave `i` with the dual-lobe phase's `g` scaled by `c^i`
+//!    at `μ = d·l`, and the sky's (a uniform sky, isotropic) by `vdbcook_scene::sky_source` of
+//!    the light volume's `τ_sky`, what the medium takes out of the sky's beam attenuated as
+//!    diffusion would (also exactly the sky at albedo 1).
 //!
 //! rgba = `(L + emission, 1 − T)`, value = `T`, like the other shaded modes.
 
@@ -43,7 +57,7 @@ use vdbcook_scene::{
     content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
     LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
 };
-pub use vdbcook_scene::{LIT_NEAR_DEPTH, LIT_NEAR_TRANS};
+pub use vdbcook_scene::{LIT_NEAR_DEPTH, LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS};
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
@@ -251,10 +265,11 @@ impl LightVolume {
     }
 
     /// The near field toward the sun in voxels for `sun_near` cells (`Tracer::sun_depth`): 0
-    /// where the cells are no wider than a voxel (the light volume then resolves every voxel).
+    /// where the cells are no wider than a voxel (the light volume then resolves every voxel),
+    /// at most [`LIT_NEAR_MAX_VOXELS`].
     pub fn near_voxels(&self, sun_near: f32) -> f64 {
         if self.grid.cell > 1.0 {
-            sun_near as f64 * self.grid.cell
+            (sun_near as f64 * self.grid.cell).min(LIT_NEAR_MAX_VOXELS)
         } else {
             0.0
         }
@@ -336,12 +351,14 @@ impl Tracer<'_> {
         };
         // World distance of `near` voxels along the light.
         let t_near = near / vdbcook_scene::length(ray.d);
+        // The whole near field, without the density walk's opaque stop: the octaves read
+        // `e^{−bⁱ·σ·τ}` with `bⁱ` down to 0, where a depth cut at the stop would shine through.
         let tau = if t1.min(t_near) > t0 {
-            self.depth_along(&ray, t0, t1.min(t_near), self.extinction, cache)
+            self.depth_along(&ray, t0, t1.min(t_near), 0.0, cache)
         } else {
             0.0
         };
-        if t_near >= t1 || self.extinction * tau >= crate::exact::OPAQUE_DEPTH {
+        if t_near >= t1 {
             return tau;
         }
         tau + lv.sun_depth_at(ray.at(t_near), lv.sun)
