@@ -64,6 +64,8 @@ pub struct CookReport {
 pub struct LodReport {
     /// Coarser levels stored (level k: 2^k voxels per axis in one).
     pub levels: u32,
+    /// The first of them (`--lod-from`; 1 by default): levels `first..first + levels`.
+    pub first: u32,
     /// L2 nodes and bricks only the coarser levels use.
     pub l2_nodes: u64,
     pub bricks: u64,

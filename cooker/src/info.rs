@@ -133,7 +133,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .iter()
         .enumerate()
         .map(|(k, l)| {
-            json!({"level": k, "voxel_span": 1u64 << k, "bricks": l.bricks,
+            json!({"level": k, "voxel_span": 1u64 << asset.level_shift(k), "bricks": l.bricks,
                    "new_bricks": l.new_bricks, "new_atlas_bytes": l.new_atlas_bytes})
         })
         .collect();
@@ -173,6 +173,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "frames": frames,
         "channels": channels,
         "lod_levels": h.lod_levels,
+        "lod_first": h.lod_first,
         "levels": levels,
     });
     if a.json {
@@ -242,8 +243,13 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     );
     println!("  topology {:.3} bit per active voxel; each extra frame of a static volume costs {per_frame_bytes} bytes", bpv(topology));
     if h.lod_levels > 0 {
+        let from = if h.lod_first > 1 {
+            format!(", from level {} (--lod-from)", h.lod_first)
+        } else {
+            String::new()
+        };
         println!(
-            "  levels of detail ({} coarser; bricks over all frames, new = used by no finer level):",
+            "  levels of detail ({} coarser{from}; bricks over all frames, new = used by no finer level):",
             h.lod_levels
         );
         for l in &levels {

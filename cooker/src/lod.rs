@@ -75,6 +75,16 @@ impl Leaf<'_> {
     }
 }
 
+/// Parses `--lod-from`: the first coarser level stored, 1 to 12.
+pub fn parse_first(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(n) if (1..=MAX_LOD_LEVELS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "'{s}' is not a level: give 1 to {MAX_LOD_LEVELS} (level K's voxels are 2^K wide)"
+        )),
+    }
+}
+
 /// Every stored leaf of pool frame `pf` by asset-index origin (8-aligned), a tiled region
 /// expanded into its 4096 leaves.
 fn leaves_of<'a>(pool: &'a Pool, pf: usize, offset: [i32; 3]) -> Vec<([i32; 3], Leaf<'a>)> {
@@ -120,12 +130,40 @@ fn leaves_of<'a>(pool: &'a Pool, pf: usize, offset: [i32; 3]) -> Vec<([i32; 3], 
     out
 }
 
-/// The 2× reduction of pool frame `pf` (asset-index space from `offset`), as a frame in the
-/// pool's source coordinates. `bg` is the value of every voxel not stored.
-pub fn reduce(pool: &Pool, pf: usize, offset: [i32; 3], bg: f32) -> BuiltFrame {
+/// Every leaf of a frame built by [`reduce`] and not added to the pool (a level `--lod-from`
+/// skips), as [`leaves_of`] gives a pool frame's.
+fn leaves_of_built(frame: &BuiltFrame, offset: [i32; 3]) -> Vec<([i32; 3], Leaf<'_>)> {
+    let mut out = Vec::new();
+    for (origin, region) in &frame.regions {
+        let r = [0, 1, 2].map(|a| origin[a] - offset[a]);
+        let at = |s: usize| {
+            let l = [s % 16, (s / 16) % 16, s / 256];
+            [0, 1, 2].map(|a| r[a] + 8 * l[a] as i32)
+        };
+        match region {
+            Region::Tile(v) => out.extend((0..L2_WORDS * 64).map(|s| (at(s), Leaf::Tile(*v)))),
+            Region::Leaves(leaves) => out.extend(leaves.iter().map(|l| {
+                let leaf = match l.content {
+                    LeafContent::Tile(v) => Leaf::Tile(v),
+                    LeafContent::Brick { index, .. } => {
+                        let b = index as usize * BRICK_VOXELS;
+                        Leaf::Brick(&frame.bricks[b..b + BRICK_VOXELS])
+                    }
+                };
+                (at(l.slot as usize), leaf)
+            })),
+        }
+    }
+    out
+}
+
+/// The 2× reduction of a frame's `leaves` (asset-index space from `offset`; [`leaves_of`],
+/// [`leaves_of_built`]), as a frame in the pool's source coordinates. `bg` is the value of
+/// every voxel not stored.
+fn reduce(leaves: Vec<([i32; 3], Leaf<'_>)>, offset: [i32; 3], bg: f32) -> BuiltFrame {
     // Child leaf origin → its eight parent leaves (octant x + 2y + 4z), `None` = background.
     let mut groups: BTreeMap<[i32; 3], [Option<Leaf<'_>>; 8]> = BTreeMap::new();
-    for (p, leaf) in leaves_of(pool, pf, offset) {
+    for (p, leaf) in leaves {
         let child = p.map(|v| (v >> 4) << 3);
         let oct = [0, 1, 2]
             .iter()
@@ -191,15 +229,39 @@ pub fn reduce(pool: &Pool, pf: usize, offset: [i32; 3], bg: f32) -> BuiltFrame {
     }
 }
 
-/// Adds `levels` coarser levels of the pool's `frames` full-resolution frames, level by level
-/// (each from the one before), without recording brick uses (the error figures of the cook
-/// report are over the source's active voxels; the levels share the encoder's budget).
-pub fn add_levels(pool: &mut Pool, frames: usize, levels: u32, offset: [i32; 3], bg: f32) {
+/// Adds levels `first..=last` of the pool's `frames` full-resolution frames, level by level
+/// (each from the one before; levels below `first` are built in memory and not added), without
+/// recording brick uses (the error figures of the cook report are over the source's active
+/// voxels; the levels share the encoder's budget). The pool then holds stored level `i ≥ 1` of
+/// frame `f` as pool frame `f + i·frames`.
+pub fn add_levels(
+    pool: &mut Pool,
+    frames: usize,
+    (first, last): (u32, u32),
+    offset: [i32; 3],
+    bg: f32,
+) {
     let track = std::mem::replace(&mut pool.track_uses, false);
-    for k in 1..=levels as usize {
-        for f in 0..frames {
-            let coarse = reduce(pool, (k - 1) * frames + f, offset, bg);
-            pool.add_frame(coarse);
+    // Per frame, the level below in memory (`None`: it is in the pool).
+    let mut below: Vec<Option<BuiltFrame>> = (0..frames).map(|_| None).collect();
+    for k in 1..=last {
+        for (f, held) in below.iter_mut().enumerate() {
+            let leaves = match held {
+                Some(frame) => leaves_of_built(frame, offset),
+                // Level k − 1 is full resolution or a stored level: pool frame f + i·frames.
+                None => leaves_of(
+                    pool,
+                    (k.saturating_sub(first) as usize) * frames + f,
+                    offset,
+                ),
+            };
+            let coarse = reduce(leaves, offset, bg);
+            if k >= first {
+                pool.add_frame(coarse);
+                *held = None;
+            } else {
+                *held = Some(coarse);
+            }
         }
     }
     pool.track_uses = track;

@@ -615,6 +615,7 @@ pub fn cook_channels(a: &Args, frames: Vec<Frame>) -> Result<Cooked, CliError> {
             content_hash: 0,
             channels,
             lod_levels: 0,
+            lod_first: 1,
         },
         roots,
         frame_ranges: rg.frames,

@@ -151,7 +151,8 @@ pub struct Args {
     /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or
     /// more, stepping 2^k voxels (mip-mapping along the ray, for far or low-resolution views).
     /// Off by default: averaging density before the exponential makes far pixels slightly
-    /// more opaque than the pixel-area mean (docs/rendering.md has the figures).
+    /// more opaque than the pixel-area mean (docs/rendering.md has the figures). An asset cooked
+    /// with --lod-from K > 1 skips level 1, so its primary rays read full resolution only.
     #[arg(long)]
     primary_lod: bool,
     /// Octave falloff of --ms-model octaves A,B,C: octave i scales the

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 
 use common::{sample, vdbcook as run};
 use vdbcook::cook::{self, Args};
-use vdbcook_asset::{Asset, LeafRef, FORMAT_VERSION, FORMAT_VERSION_SINGLE};
+use vdbcook_asset::{Asset, LeafRef, FORMAT_VERSION, FORMAT_VERSION_LOD, FORMAT_VERSION_SINGLE};
 use vdbcook_vdb::VdbFile;
 
 fn smoke5() -> String {
@@ -20,10 +20,22 @@ fn smoke5() -> String {
 }
 
 fn cook_with(input: &str, format: &str, max_error: Option<f32>, lod: Option<&str>) -> cook::Cooked {
+    cook_from(input, format, max_error, lod, None)
+}
+
+/// [`cook_with`] with `--lod-from`.
+fn cook_from(
+    input: &str,
+    format: &str,
+    max_error: Option<f32>,
+    lod: Option<&str>,
+    from: Option<u32>,
+) -> cook::Cooked {
     let mut a = Args::defaults(vec![input.to_string()], PathBuf::from("unused.vdbc"));
     a.format = Some(format.into());
     a.max_error = max_error;
     a.lod = lod.map(|l| vdbcook::lod::parse_levels(l).unwrap());
+    a.lod_from = from;
     cook::cook(&a).unwrap()
 }
 
@@ -53,10 +65,11 @@ fn dense_source(asset: &Asset, path: &std::path::Path) -> (Vec<f64>, [usize; 3])
     (out, dims)
 }
 
-/// Largest |asset level `k` − box mean of the source| over every voxel of the level, and the
-/// largest |value| (for a relative tolerance); also checks the level's root-set range bounds it.
+/// Largest |asset's stored level `k` − box mean of the source| over every voxel of the level
+/// (`2^shift` source voxels wide, `Asset::level_shift`); also checks the level's root-set range
+/// bounds it.
 fn level_error(asset: &Asset, frame: usize, k: usize, src: &[f64], dims: [usize; 3]) -> f64 {
-    let s = 1usize << k;
+    let s = 1usize << asset.level_shift(k);
     let d = dims.map(|n| n / s);
     let set = asset.lod_set(frame, k);
     let range = asset.frame_range(set, 0);
@@ -95,7 +108,7 @@ fn lossless_levels_are_the_box_means_of_the_source() {
     let lod = cook_with(&smoke5(), "f32", None, Some("all"));
     let (a, p) = (&lod.asset, &plain.asset);
     assert_eq!(p.header.format_version(), FORMAT_VERSION_SINGLE);
-    assert_eq!(a.header.format_version(), FORMAT_VERSION);
+    assert_eq!(a.header.format_version(), FORMAT_VERSION_LOD);
     // Down to one brick: the extent's longest side over 2^levels is 8 voxels.
     let side = a.header.root_dims.iter().max().copied().unwrap() as usize * 128;
     let levels = a.header.lod_levels as usize;
@@ -160,30 +173,122 @@ fn lossy_levels_stay_within_the_cooks_error_budget() {
     }
 }
 
+/// `--lod-from K`: levels K and up only (format version 5), each still the box mean of the
+/// `8^shift` source voxels it covers (the skipped levels are built in memory on the way), and
+/// the same values a full chain stores at those levels; the stored chain ends at one brick.
+#[test]
+fn levels_from_k_are_the_box_means_of_the_source() {
+    let full = cook_with(&smoke5(), "f32", None, Some("all")).asset;
+    for (lod, from) in [(Some("all"), 2u32), (None, 3), (Some("3"), 3)] {
+        let c = cook_from(&smoke5(), "f32", None, lod, Some(from));
+        let a = &c.asset;
+        assert_eq!(
+            a.header.format_version(),
+            FORMAT_VERSION,
+            "{lod:?} from {from}"
+        );
+        let last = if lod == Some("3") {
+            3
+        } else {
+            full.header.lod_levels
+        };
+        assert_eq!(a.header.lod_first, from);
+        assert_eq!(a.header.lod_levels, last + 1 - from);
+        let r = c.report.lod.as_ref().unwrap();
+        assert_eq!((r.first, r.levels, r.max_abs), (from, last + 1 - from, 0.0));
+        let loaded = Asset::from_bytes(&c.bytes).unwrap();
+        assert_eq!(loaded.header.lod_first, from);
+        assert!(loaded.roots == a.roots);
+        for f in [1, 3] {
+            let (src, dims) = dense_source(a, &frame_path(f));
+            let peak = src.iter().fold(0f64, |m, v| m.max(v.abs()));
+            assert_eq!(level_error(a, f, 0, &src, dims), 0.0);
+            for k in 1..a.level_count() {
+                let shift = a.level_shift(k);
+                assert_eq!(shift, from + k as u32 - 1);
+                let tol = shift as f64 * peak * f32::EPSILON as f64;
+                let e = level_error(a, f, k, &src, dims);
+                assert!(e <= tol, "from {from}, frame {f}, stored level {k}: {e:e}");
+                // Bit for bit what the full chain stores at that level.
+                let d = dims.map(|n| (n >> shift) as i64);
+                for z in 0..d[2] {
+                    for y in 0..d[1] {
+                        for x in 0..d[0] {
+                            let p = [x, y, z];
+                            assert_eq!(
+                                a.value(a.lod_set(f, k), p).to_bits(),
+                                full.value(full.lod_set(f, shift as usize), p).to_bits()
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `--lod-from` past the chain or past `--lod`, or out of range, is refused before anything is
+/// written.
+#[test]
+fn lod_from_refuses_levels_the_extent_does_not_have() {
+    let d = tempfile::tempdir().unwrap();
+    let o = d.path().join("x.vdbc");
+    let out = o.to_str().unwrap();
+    let (code, _, err) = run(&[
+        "cook",
+        "fixtures/seq/smoke5",
+        "-o",
+        out,
+        "--lod",
+        "2",
+        "--lod-from",
+        "3",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--lod-from 3") && err.contains("--lod 2"),
+        "{err}"
+    );
+    for k in ["0", "13", "two"] {
+        let (code, _, err) = run(&["cook", "fixtures/seq/smoke5", "-o", out, "--lod-from", k]);
+        assert_eq!(code, 2, "{k}: {err}");
+        assert!(err.contains("1 to 12"), "{k}: {err}");
+    }
+    // smoke5's extent (one 128³ region) has levels 1 to 4.
+    let (code, _, err) = run(&["cook", "fixtures/seq/smoke5", "-o", out, "--lod-from", "5"]);
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("levels 1 to 4"), "{err}");
+    assert!(!o.exists());
+}
+
 #[test]
 fn lod_cooks_are_byte_identical_at_any_thread_count_and_refuse_several_channels() {
     let d = tempfile::tempdir().unwrap();
     let out = |t: &str| d.path().join(format!("{t}.vdbc"));
-    for t in ["1", "2"] {
-        let o = out(t);
-        let (code, _, err) = run(&[
-            "--threads",
-            t,
-            "cook",
-            "fixtures/seq/smoke5",
-            "-o",
-            o.to_str().unwrap(),
-            "--format",
-            "bc4",
-            "--lod",
-            "all",
-        ]);
-        assert_eq!(code, 0, "{err}");
+    for from in ["1", "2"] {
+        for t in ["1", "2"] {
+            let o = out(&format!("{t}-{from}"));
+            let (code, _, err) = run(&[
+                "--threads",
+                t,
+                "cook",
+                "fixtures/seq/smoke5",
+                "-o",
+                o.to_str().unwrap(),
+                "--format",
+                "bc4",
+                "--lod",
+                "all",
+                "--lod-from",
+                from,
+            ]);
+            assert_eq!(code, 0, "{err}");
+        }
+        assert_eq!(
+            std::fs::read(out(&format!("1-{from}"))).unwrap(),
+            std::fs::read(out(&format!("2-{from}"))).unwrap()
+        );
     }
-    assert_eq!(
-        std::fs::read(out("1")).unwrap(),
-        std::fs::read(out("2")).unwrap()
-    );
     let (code, _, err) = run(&[
         "cook",
         "fixtures/seq/fire",
@@ -218,6 +323,16 @@ fn lod_bytes_on_the_wdas_cloud() {
     assert!((r.share - (lod_gpu - plain_gpu) as f64 / plain_gpu as f64).abs() < 1e-12);
     // A full chain of a cloud costs about a quarter: the first level dominates (docs/asset.md).
     assert!(r.share > 0.05 && r.share < 0.35, "{r:?}");
+    // From level 2 the chain is within the issue's 15%, and what it adds is again exactly what
+    // the report says.
+    let from2 = cook_from(&w, "bc4", None, Some("all"), Some(2));
+    let r2 = from2.report.lod.clone().unwrap();
+    let gpu2 = from2.report.bytes.topology + from2.report.bytes.atlas;
+    assert_eq!(gpu2 - plain_gpu, r2.topology_bytes + r2.atlas_bytes);
+    assert!(
+        r2.share < 0.15 && r2.share < r.share / 2.0,
+        "{r2:?} vs {r:?}"
+    );
 }
 
 /// Mean over each light-volume cell of `max(v, 0)`, exactly (fractional voxel overlaps), from
@@ -277,7 +392,9 @@ fn light_density_error(asset: &Asset, src: &[f64], dims: [usize; 3], res: u32) -
 
 /// The lit mode's light volume (issue 13 item 2's first use of the levels): with levels, cells
 /// wider than 4 voxels snap to a level's voxels and their density is the exact box mean of the
-/// cell; without, 4³ point reads per cell alias. On smoke5 and the WDAS cloud.
+/// cell; without, 4³ point reads per cell alias. With levels from 2 (`--lod-from 2`), cells the
+/// stored chain fits are exact too, and the others (4 to 8 voxels, which level 2 would widen up
+/// to 2×) are the plain grid's. On smoke5 and the WDAS cloud.
 #[test]
 fn light_volume_cells_read_the_level_that_box_filters_them() {
     let mut inputs = vec![(frame_path(0).to_string_lossy().into_owned(), frame_path(0))];
@@ -287,10 +404,29 @@ fn light_volume_cells_read_the_level_that_box_filters_them() {
     for (input, path) in inputs {
         let plain = cook_with(&input, "f32", None, None).asset;
         let lod = cook_with(&input, "f32", None, Some("all")).asset;
+        let from2 = cook_from(&input, "f32", None, None, Some(2)).asset;
         let (src, dims) = dense_source(&lod, &path);
-        for res in [4, 8, 16] {
+        for res in [4, 8, 16, 24] {
             let (e_plain, mean, cell) = light_density_error(&plain, &src, dims, res);
             let (e_lod, _, lod_cell) = light_density_error(&lod, &src, dims, res);
+            let (e_from, _, from_cell) = light_density_error(&from2, &src, dims, res);
+            let chain = vdbcook_trace::LevelChain::of(&from2);
+            let (k, shift, _) = vdbcook_trace::LightGrid::with_levels(
+                vdbcook_trace::content_box(&from2, 0),
+                res,
+                chain,
+            )
+            .density_level(chain);
+            eprintln!(
+                "{input} light_res {res}, --lod-from 2: cells {from_cell} voxels, stored level \
+                 {k} (shift {shift}), density RMSE {e_from:.3e}"
+            );
+            if k > 0 {
+                assert!(e_from <= 1e-6 * mean, "{input} res {res}: {e_from:e}");
+                assert!(from_cell >= cell && from_cell <= 1.5 * cell + 1e-9);
+            } else {
+                assert_eq!((from_cell, e_from), (cell, e_plain), "{input} res {res}");
+            }
             eprintln!(
                 "{input} light_res {res}: cells {cell} / {lod_cell} voxels, density RMSE \
                  {e_plain:.3e} point reads, {e_lod:.3e} levels (mean {mean:.3e})"

@@ -17,7 +17,7 @@ use std::sync::Mutex;
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
-    light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LightGrid,
+    light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LevelChain, LightGrid,
 };
 use wgpu::util::DeviceExt;
 
@@ -40,7 +40,7 @@ pub(crate) struct LightParams {
     pub frame_root: u32,
     /// Element of cell 0 in the shared buffer (set by [`LightPass::record`]).
     pub base: u32,
-    /// The density pass's level of detail (`LightGrid::density_level`): full-resolution
+    /// The density pass's level of detail (`LightGrid::density_level`'s shift): full-resolution
     /// indices shift right by it.
     pub level: u32,
     pub _pad2: u32,
@@ -57,18 +57,18 @@ impl LightParams {
         extinction: f64,
         unit: LengthUnit,
         frame_root: u32,
-        (levels, level_stride): (usize, usize),
+        (levels, level_stride): (LevelChain, usize),
     ) -> LightParams {
         let ((l, sun_len), axis) = light_dirs(xf, light_dir, unit);
-        let (level, sub) = grid.density_level(levels);
+        let (level, shift, sub) = grid.density_level(levels);
         LightParams {
             lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
             dims: [grid.dims[0], grid.dims[1], grid.dims[2], sub],
             sun: [l[0], l[1], l[2], sun_len].map(|v| v as f32),
             axis_len: [axis[0], axis[1], axis[2], extinction].map(|v| v as f32),
-            frame_root: frame_root + level * level_stride as u32,
+            frame_root: frame_root + (level * level_stride) as u32,
             base: 0,
-            level,
+            level: shift,
             _pad2: 0,
         }
     }

@@ -735,7 +735,7 @@ impl Renderer {
             emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1)),
             lod: [
                 if settings.mode == Mode::Lit && settings.primary_lod {
-                    self.vol.lod.0.max(1) as u32
+                    self.vol.lod.0.consecutive() as u32
                 } else {
                     1
                 },

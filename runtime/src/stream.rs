@@ -704,7 +704,7 @@ impl StreamingVolume {
                     .collect(),
             },
             frames,
-            levels: 1,
+            levels: vdbcook_scene::LevelChain::NONE,
             root_len: asset.root_len(),
             root_dims: asset.header.root_dims,
             index_to_world: asset.header.index_to_world,

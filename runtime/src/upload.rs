@@ -26,6 +26,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_asset::{bc, Asset, LeafRef, PayloadFormat, BRICK_VOXELS, L2_WORDS};
+use vdbcook_scene::LevelChain;
 use wgpu::util::DeviceExt;
 
 use crate::{Result, RuntimeError};
@@ -272,9 +273,9 @@ pub struct GpuVolume {
     pub(crate) bind_group: wgpu::BindGroup,
     layout: PayloadLayout,
     frames: usize,
-    /// Levels of detail uploaded (`Asset::level_count`; 1 for a streamed window): level `k` of
-    /// frame `f` is root set `f + k·frames`.
-    levels: usize,
+    /// Levels of detail uploaded (`LevelChain::of`; none for a streamed window): stored level
+    /// `k` of frame `f` is root set `f + k·frames`.
+    levels: LevelChain,
     root_len: usize,
     root_dims: [u32; 3],
     index_to_world: [[f64; 4]; 4],
@@ -964,7 +965,7 @@ impl GpuVolume {
             bind_group,
             layout,
             frames: asset.frame_count(),
-            levels: asset.level_count(),
+            levels: LevelChain::of(asset),
             root_len: asset.root_len(),
             root_dims: asset.header.root_dims,
             index_to_world: asset.header.index_to_world,
@@ -1115,7 +1116,7 @@ pub(crate) struct Bound {
     pub root_len: usize,
     /// Levels of detail and the root-offset stride between levels (`frames · root_len`), for
     /// `LightParams::new`.
-    pub lod: (usize, usize),
+    pub lod: (LevelChain, usize),
     pub extent: [f64; 3],
     /// Per frame: `GpuVolume::frame_bbox`, `content_box`, `frame_max`.
     pub bboxes: Vec<Option<([f64; 3], [f64; 3])>>,

@@ -1529,51 +1529,65 @@ fn lit_near_field_matches_the_cpu() {
     }
 }
 
-/// An asset with a level of detail (`cook --lod`, format version 4): the light volume's
-/// density pass reads the coarser level's root set with indices shifted by the level, on cells
-/// snapped to its voxels (`LightGrid::with_levels`). The blob's second frame stands in as
-/// frame 0's level 1 (the runtime does not check that a level is a box filter; the cooker's
-/// `lod` tests do), so a pass reading the wrong root set or shift draws a different image.
+/// An asset with a level of detail (`cook --lod`, format version 4, and `--lod-from 2`,
+/// version 5): the light volume's density pass reads the coarser level's root set with indices
+/// shifted by the level's place in the chain, on cells snapped to its voxels
+/// (`LightGrid::with_levels`). The blob's second frame stands in as frame 0's stored level 1
+/// (the runtime does not check that a level is a box filter; the cooker's `lod` tests do), so a
+/// pass reading the wrong root set or shift draws a different image than the CPU's.
 #[test]
 fn lit_reads_the_level_of_detail_like_the_cpu() {
     let Some(gpu) = Gpu::new("lit_reads_the_level_of_detail_like_the_cpu") else {
         return;
     };
     let plain = blob_asset(PayloadFormat::F32);
-    let lod = second_frame_as_level(plain.clone());
     let cam = vdbcook_trace::Camera::framing(&plain, 0, W as f64 / H as f64).unwrap();
-    let s = RenderSettings {
-        light_res: 6,
-        ..small(Mode::Lit, 0)
-    };
-    let content = vdbcook_trace::content_box(&lod, 0);
-    let grid = vdbcook_trace::LightGrid::with_levels(content, s.light_res, 2);
-    assert_eq!(
-        grid.density_level(2).0,
-        1,
-        "cells of {} voxels read level 1",
-        grid.cell
-    );
-    let mut images = Vec::new();
-    for asset in [&plain, &lod] {
-        let (_vol, r) = gpu.setup(asset);
-        let target = r.buffer_target(&gpu.device, W, H).unwrap();
-        let cpu = vdbcook_trace::render(asset, &cam, &s).unwrap();
-        let g = gpu.render(&r, &target, &cam, &s).unwrap();
-        let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
-        eprintln!(
-            "levels {}: {bad} pixels differ (max {max_diff:.2e}) {first}",
-            asset.level_count()
+    // (first level stored, light_res): cells of 4-8 voxels read level 1, of 8-16 level 2.
+    for (first, light_res) in [(1u32, 6u32), (2, 3)] {
+        let mut lod = second_frame_as_level(plain.clone());
+        lod.header.lod_first = first;
+        lod.validate().unwrap();
+        let s = RenderSettings {
+            light_res,
+            ..small(Mode::Lit, 0)
+        };
+        let content = vdbcook_trace::content_box(&lod, 0);
+        let chain = vdbcook_trace::LevelChain::of(&lod);
+        let grid = vdbcook_trace::LightGrid::with_levels(content, s.light_res, chain);
+        let (level, shift, _) = grid.density_level(chain);
+        assert_eq!(
+            (level, shift),
+            (1, first),
+            "cells of {} voxels read stored level 1",
+            grid.cell
         );
-        assert!(bad * 1000 <= cpu.value.len() * 5, "{bad} pixels; {first}");
-        images.push(g.rgba);
+        let mut images = Vec::new();
+        for asset in [&plain, &lod] {
+            let (_vol, r) = gpu.setup(asset);
+            let target = r.buffer_target(&gpu.device, W, H).unwrap();
+            let cpu = vdbcook_trace::render(asset, &cam, &s).unwrap();
+            let g = gpu.render(&r, &target, &cam, &s).unwrap();
+            let (bad, first_bad, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+            eprintln!(
+                "from level {first}, levels {}: {bad} pixels differ (max {max_diff:.2e}) {first_bad}",
+                asset.level_count()
+            );
+            assert!(
+                bad * 1000 <= cpu.value.len() * 5,
+                "{bad} pixels; {first_bad}"
+            );
+            images.push(g.rgba);
+        }
+        let changed = images[0]
+            .iter()
+            .zip(&images[1])
+            .filter(|(a, b)| (*a - *b).abs() > 1e-2)
+            .count();
+        assert!(
+            changed > 100,
+            "from level {first}: the level changed only {changed} values"
+        );
     }
-    let changed = images[0]
-        .iter()
-        .zip(&images[1])
-        .filter(|(a, b)| (*a - *b).abs() > 1e-2)
-        .count();
-    assert!(changed > 100, "the level changed only {changed} values");
 }
 
 /// The lit mode's primary rays by pixel footprint (`primary_lod`, `vdbcook_scene::level_start`):

@@ -218,6 +218,7 @@ impl AssetBuilder {
                 content_hash: 0,
                 channels: Vec::new(),
                 lod_levels: 0,
+                lod_first: 1,
             },
             roots: vec![],
             frame_ranges: vec![],

@@ -3,11 +3,14 @@
 use serde::{Deserialize, Serialize};
 
 pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
-/// The newest version this build writes and reads: a level-of-detail chain
-/// ([`Header::lod_levels`] > 0), with one channel or several. Assets without one are still
-/// written as [`FORMAT_VERSION_SINGLE`] or [`FORMAT_VERSION_CHANNELS`], byte for byte what
-/// earlier builds wrote.
-pub const FORMAT_VERSION: u32 = 4;
+/// The newest version this build writes and reads: a level-of-detail chain that starts below
+/// level 1 ([`Header::lod_first`] > 1, `cook --lod-from`). Assets without one are still written
+/// as [`FORMAT_VERSION_LOD`], [`FORMAT_VERSION_CHANNELS`] or [`FORMAT_VERSION_SINGLE`], byte for
+/// byte what earlier builds wrote.
+pub const FORMAT_VERSION: u32 = 5;
+/// A level-of-detail chain from level 1 ([`Header::lod_levels`] > 0, [`Header::lod_first`] 1),
+/// with one channel or several.
+pub const FORMAT_VERSION_LOD: u32 = 4;
 /// Several channels on one topology ([`Header::channels`]), no level-of-detail chain.
 pub const FORMAT_VERSION_CHANNELS: u32 = 3;
 /// The version of single-channel assets (no `channels` in the header).
@@ -247,11 +250,19 @@ pub struct Header {
     /// channel 0 is `grid_name` with `background`. Empty for a single-channel asset (version 2):
     /// its one channel is `grid_name`.
     pub channels: Vec<ChannelInfo>,
-    /// Coarser levels stored after the full-resolution frames (format version 4; 0 in versions
-    /// 2 and 3). Level `k` of frame `f` is the root set `f + k·frames`, over the same L2 nodes,
-    /// tiles and bricks: its voxel `i` is the mean of level `k − 1`'s voxels `2i + {0,1}³`
-    /// (background where nothing is stored), in an index space scaled by `2^-k`.
+    /// Coarser levels stored after the full-resolution frames (format versions 4 and 5; 0 in
+    /// versions 2 and 3). Stored level `k` of frame `f` is the root set `f + k·frames`, over the
+    /// same L2 nodes, tiles and bricks, in an index space scaled by `2^-s` (`s =`
+    /// [`Header::level_shift`]`(k)`): its voxel `i` is the mean of the full-resolution voxels
+    /// `2^s·i + [0, 2^s)³` (background where nothing is stored), built as a chain of 2× box
+    /// filters.
     pub lod_levels: u32,
+    /// The level the first stored coarser level is (format version 5; 1 in versions 2–4): with
+    /// `lod_first = K`, stored level `i ≥ 1` holds level `K + i − 1` of the chain, its voxels
+    /// `2^(K + i − 1)` full-resolution voxels wide ([`Header::level_shift`]); the levels between
+    /// full resolution and `K` are not stored. At least 2 in version 5, and `K + lod_levels − 1
+    /// ≤ MAX_LOD_LEVELS`.
+    pub lod_first: u32,
 }
 
 /// One grid of a multi-channel asset. All channels share the asset's topology (the union of
@@ -296,6 +307,33 @@ pub(crate) struct HeaderV2 {
 pub(crate) struct HeaderV3 {
     pub v2: HeaderV2,
     pub channels: Vec<ChannelInfo>,
+}
+
+/// The header as format version 4 stores it (a level-of-detail chain from level 1):
+/// [`HeaderV3`]'s fields, then `lod_levels`; [`Header`] without `lod_first`. Frozen, as
+/// [`HeaderV2`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct HeaderV4 {
+    pub v3: HeaderV3,
+    pub lod_levels: u32,
+}
+
+impl From<&Header> for HeaderV4 {
+    fn from(h: &Header) -> HeaderV4 {
+        HeaderV4 {
+            v3: HeaderV3::from(h),
+            lod_levels: h.lod_levels,
+        }
+    }
+}
+
+impl From<HeaderV4> for Header {
+    fn from(h: HeaderV4) -> Header {
+        Header {
+            lod_levels: h.lod_levels,
+            ..Header::from(h.v3)
+        }
+    }
 }
 
 impl From<&Header> for HeaderV3 {
@@ -354,6 +392,7 @@ impl From<HeaderV2> for Header {
             content_hash: h.content_hash,
             channels: Vec::new(),
             lod_levels: 0,
+            lod_first: 1,
         }
     }
 }
@@ -365,8 +404,10 @@ impl Header {
     }
     /// The format version this header is written as.
     pub fn format_version(&self) -> u32 {
-        if self.lod_levels > 0 {
+        if self.lod_levels > 0 && self.lod_first > 1 {
             FORMAT_VERSION
+        } else if self.lod_levels > 0 {
+            FORMAT_VERSION_LOD
         } else if self.channels.is_empty() {
             FORMAT_VERSION_SINGLE
         } else {
@@ -376,6 +417,15 @@ impl Header {
     /// Levels stored: the full resolution and [`Header::lod_levels`] coarser ones.
     pub fn level_count(&self) -> usize {
         1 + self.lod_levels as usize
+    }
+    /// Stored level `level`'s place in the chain: its voxel `i` covers full-resolution indices
+    /// `2^shift · i + [0, 2^shift)³` (0 for full resolution, `lod_first + level − 1` above).
+    pub fn level_shift(&self, level: usize) -> u32 {
+        if level == 0 {
+            0
+        } else {
+            self.lod_first + level as u32 - 1
+        }
     }
     /// Name of channel `c`.
     pub fn channel_name(&self, c: usize) -> &str {
@@ -408,6 +458,7 @@ impl Header {
         let r = match self.format_version() {
             FORMAT_VERSION_SINGLE => bincode::serde::encode_to_vec(HeaderV2::from(self), config),
             FORMAT_VERSION_CHANNELS => bincode::serde::encode_to_vec(HeaderV3::from(self), config),
+            FORMAT_VERSION_LOD => bincode::serde::encode_to_vec(HeaderV4::from(self), config),
             _ => bincode::serde::encode_to_vec(self, config),
         };
         r.map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))

@@ -51,11 +51,18 @@
 //! level's value is the mean of the full-resolution voxels it covers, up to the payload's error.
 //! Node, brick and root-set ranges bound each level's own values, as at full resolution.
 //!
+//! # A chain from a coarser level (format version 5)
+//! An asset cooked with `--lod-from K` (`K ≥ 2`, `Header::lod_first`) stores levels `K, K+1, …`
+//! only: stored level `i ≥ 1` is level `K + i − 1` of the chain above (its voxel `i` covers
+//! `2^(K+i−1)` full-resolution voxels per axis; [`Header::level_shift`]), built through the
+//! levels it skips, which are not stored. Everything else is as in version 4, which is the same
+//! layout with `K = 1`.
+//!
 //! # The file
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `b"VDBCOOK\x1a"` |
-//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several, 4 with coarser levels) |
+//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several, 4 with coarser levels, 5 with coarser levels from level 2 or beyond) |
 //! | 12 | 4 | header length `H` (`u32` LE) |
 //! | 16 | H | [`Header`], bincode 2 (standard config) |
 //! | 16 + H | … | sections: zstd frames at `Header::sections[i].offset` (relative to 16 + H) |
@@ -117,14 +124,20 @@ impl Asset {
     pub fn level_count(&self) -> usize {
         self.header.level_count()
     }
+    /// Stored level `level`'s shift (`Header::level_shift`): `level` itself unless the asset
+    /// was cooked with `--lod-from`.
+    pub fn level_shift(&self, level: usize) -> u32 {
+        self.header.level_shift(level)
+    }
     /// Root sets stored: every frame at every level (`frames × levels`).
     pub fn root_set_count(&self) -> usize {
         self.frame_count() * self.level_count()
     }
-    /// The root set of `frame` at `level` (0 = full resolution): pass it as the `frame` of any
-    /// per-frame accessor ([`Asset::value`], [`Asset::leaf_at`], [`Asset::for_each_leaf`],
-    /// [`Asset::frame_range`], [`Asset::frame_roots`]) to read that level, whose asset index
-    /// `i` covers full-resolution indices `2^level · i + [0, 2^level)³`.
+    /// The root set of `frame` at stored level `level` (0 = full resolution): pass it as the
+    /// `frame` of any per-frame accessor ([`Asset::value`], [`Asset::leaf_at`],
+    /// [`Asset::for_each_leaf`], [`Asset::frame_range`], [`Asset::frame_roots`]) to read that
+    /// level, whose asset index `i` covers full-resolution indices `2^s · i + [0, 2^s)³`, `s =`
+    /// [`Asset::level_shift`]`(level)`.
     pub fn lod_set(&self, frame: usize, level: usize) -> usize {
         debug_assert!(frame < self.frame_count() && level < self.level_count());
         frame + level * self.frame_count()

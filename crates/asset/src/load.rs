@@ -73,13 +73,24 @@ impl Asset {
                 let (h, used): (HeaderV3, usize) =
                     bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
                 (h.into(), used)
+            } else if version == FORMAT_VERSION_LOD {
+                let (h, used): (HeaderV4, usize) =
+                    bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
+                (h.into(), used)
             } else {
                 bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?
             };
-            if version == FORMAT_VERSION && (h.lod_levels == 0 || h.lod_levels > MAX_LOD_LEVELS) {
+            if version >= FORMAT_VERSION_LOD && (h.lod_levels == 0 || h.lod_levels > MAX_LOD_LEVELS)
+            {
                 return bad(format!(
                     "a version-{version} asset has 1..={MAX_LOD_LEVELS} coarser levels, this one {}",
                     h.lod_levels
+                ));
+            }
+            if version == FORMAT_VERSION && h.lod_first < 2 {
+                return bad(format!(
+                    "a version-{version} asset's levels start at level 2 or coarser, this one's at {}",
+                    h.lod_first
                 ));
             }
             if (version == FORMAT_VERSION_CHANNELS || !h.channels.is_empty())
@@ -229,6 +240,15 @@ impl Asset {
             return bad(format!(
                 "{} coarser levels; an asset holds at most {MAX_LOD_LEVELS}",
                 self.header.lod_levels
+            ));
+        }
+        let (first, levels) = (self.header.lod_first, self.header.lod_levels);
+        if first == 0
+            || (levels > 0 && u64::from(first) + u64::from(levels) - 1 > MAX_LOD_LEVELS.into())
+        {
+            return bad(format!(
+                "levels {first} to {} of detail; an asset holds levels 1 to {MAX_LOD_LEVELS}",
+                u64::from(first) + u64::from(levels.max(1)) - 1
             ));
         }
         let n_l2 = self.l2_count();

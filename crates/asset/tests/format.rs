@@ -75,6 +75,7 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
             content_hash: 0,
             channels: Vec::new(),
             lod_levels: 0,
+            lod_first: 1,
         },
         roots: vec![0, TILE_BIT | 1, 0, EMPTY],
         frame_ranges: vec![[0.0, 777.0], [0.0, 777.0]],
@@ -402,7 +403,7 @@ fn assets_with_levels_are_version_4_and_round_trip() {
     let (bytes, header) = a.to_bytes().unwrap();
     assert_eq!(
         u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
-        FORMAT_VERSION
+        FORMAT_VERSION_LOD
     );
     let mut expect = a.clone();
     expect.header = header;
@@ -423,9 +424,59 @@ fn assets_with_levels_are_version_4_and_round_trip() {
     let (sb, _) = s.to_bytes().unwrap();
     assert_eq!(
         u32::from_le_bytes(sb[8..12].try_into().unwrap()),
-        FORMAT_VERSION
+        FORMAT_VERSION_LOD
     );
     assert_eq!(Asset::from_bytes(&sb).unwrap().level_count(), 2);
+    assert_eq!(Asset::from_bytes(&sb).unwrap().level_shift(1), 1);
+}
+
+/// `cook --lod-from K`: the same root sets, the first stored level named `K`. Version 5, which
+/// differs from version 4 only by the header's last field; the shift follows it.
+#[test]
+fn levels_from_a_coarser_level_are_version_5_and_round_trip() {
+    let v4 = lod_asset();
+    let mut a = lod_asset();
+    a.header.lod_first = 3;
+    a.validate().unwrap();
+    assert_eq!((a.level_shift(0), a.level_shift(1)), (0, 3));
+    let (bytes, header) = a.to_bytes().unwrap();
+    assert_eq!(
+        u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+        FORMAT_VERSION
+    );
+    let mut expect = a.clone();
+    expect.header = header;
+    let back = Asset::from_bytes(&bytes).unwrap();
+    assert_eq!(back, expect, "v5 round trip");
+    assert_eq!(back.level_shift(1), 3);
+    // Version 4 assets read as a chain from level 1, and stay version 4 byte for byte.
+    let (b4, _) = v4.to_bytes().unwrap();
+    assert_eq!(Asset::from_bytes(&b4).unwrap().header.lod_first, 1);
+    assert_eq!(
+        b4.len() + 1,
+        bytes.len(),
+        "version 5 adds one varint to the header"
+    );
+    // A version-5 file whose chain starts at level 1 (that is version 4) is refused: the
+    // header's last byte is `lod_first` (one varint byte).
+    let hlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    assert_eq!(bytes[16 + hlen - 1], 3);
+    let mut forged = bytes.clone();
+    forged[16 + hlen - 1] = 1;
+    let e = Asset::from_bytes(&forged).unwrap_err().0;
+    assert!(e.contains("start at level 2"), "{e}");
+    // A chain past level 12 is refused, written or in memory; so is a first level of 0.
+    let mut far = a.clone();
+    far.header.lod_first = MAX_LOD_LEVELS + 1;
+    assert!(far.validate().unwrap_err().0.contains("levels 1 to"));
+    let (fb, _) = far.to_bytes().unwrap();
+    assert!(Asset::from_bytes(&fb)
+        .unwrap_err()
+        .0
+        .contains("levels 1 to"));
+    let mut z = a.clone();
+    z.header.lod_first = 0;
+    assert!(z.validate().unwrap_err().0.contains("levels 0 to"));
 }
 
 #[test]

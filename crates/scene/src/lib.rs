@@ -28,7 +28,7 @@ pub use diffusion::{
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
-    light_dirs, octave_source, sky_diffusion, sky_source, LightGrid, LIT_NEAR_DEPTH,
+    light_dirs, octave_source, sky_diffusion, sky_source, LevelChain, LightGrid, LIT_NEAR_DEPTH,
     LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{

@@ -50,6 +50,51 @@ pub const LIT_NEAR_TRANS: f64 = 0.05;
 /// than any path this long crosses).
 pub const LIT_NEAR_MAX_VOXELS: f64 = 1024.0;
 
+/// The levels of detail an asset stores (`cook --lod`, `--lod-from`): how many (full resolution
+/// included) and the chain level the first coarser one is. What the light volume's density pass
+/// and the primary rays choose from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LevelChain {
+    /// Levels stored, full resolution included (`Asset::level_count`, ≥ 1).
+    pub count: usize,
+    /// The chain level of stored level 1 (`Header::lod_first`, ≥ 1).
+    pub first: u32,
+}
+
+impl LevelChain {
+    /// Full resolution only.
+    pub const NONE: LevelChain = LevelChain { count: 1, first: 1 };
+
+    /// What `asset` stores.
+    pub fn of(asset: &vdbcook_asset::Asset) -> LevelChain {
+        LevelChain {
+            count: asset.level_count(),
+            first: asset.header.lod_first,
+        }
+    }
+
+    /// Stored level `level`'s shift: its voxels are `2^shift` full-resolution voxels wide
+    /// (`Header::level_shift`).
+    pub fn shift(&self, level: usize) -> u32 {
+        if level == 0 {
+            0
+        } else {
+            self.first + level as u32 - 1
+        }
+    }
+
+    /// The stored levels from full resolution on that leave no level out (all of them for a
+    /// chain from level 1, full resolution alone for one from a coarser level): what primary
+    /// rays by pixel footprint read (`vdbcook_scene::level_start`, one level per octave).
+    pub fn consecutive(&self) -> usize {
+        if self.first == 1 {
+            self.count.max(1)
+        } else {
+            1
+        }
+    }
+}
+
 /// Where a light volume's cells lie (cell space: voxel `i` is `[i, i + 1)`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightGrid {
@@ -82,37 +127,42 @@ impl LightGrid {
         LightGrid { lo, cell, dims }
     }
 
-    /// [`LightGrid::new`] for an asset with `levels` levels of detail (`cook --lod`). Where
-    /// cells are wider than [`MAX_SUB`] voxels and a coarser level exists, the grid snaps to
-    /// that level's voxels: the corner down to a multiple of `2^k` voxels and the cell up to
-    /// `m·2^k` (`m ≤ MAX_SUB`, computed for the content widened by one such voxel so the cells
-    /// along the longest side stay `≤ res`): every cell is then exactly `m³` voxels of level
-    /// `k`, each the box mean of `8^k` full-resolution voxels, and the density pass is the exact
-    /// box filter of the cell in `m³ ≤ 64` reads (where [`LightGrid::new`]'s cells read one
-    /// voxel in every `cell / MAX_SUB` per axis). Cells may come out up to 1.5× wider than
-    /// `new`'s; the same as `new` without levels or with cells of at most `MAX_SUB` voxels.
+    /// [`LightGrid::new`] for an asset with the levels of detail `chain` (`cook --lod`). Where
+    /// cells are wider than [`MAX_SUB`] voxels and [`LightGrid::density_level`] picks a coarser
+    /// level (`2^s` voxels wide), the grid snaps to that level's voxels: the corner down to a
+    /// multiple of `2^s` voxels and the cell up to `m·2^s` (`m ≤ MAX_SUB`, computed for the
+    /// content widened by one such voxel so the cells along the longest side stay `≤ res`):
+    /// every cell is then exactly `m³` voxels of that level, each the box mean of `8^s`
+    /// full-resolution voxels, and the density pass is the exact box filter of the cell in
+    /// `m³ ≤ 64` reads (where [`LightGrid::new`]'s cells read one voxel in every
+    /// `cell / MAX_SUB` per axis). Cells may come out up to 1.5× wider than `new`'s; the same as
+    /// `new` without levels, with cells of at most `MAX_SUB` voxels, or where the only coarser
+    /// level stored would widen them more (a chain from level `K > 1`).
     pub fn with_levels(
         content: Option<([f64; 3], [f64; 3])>,
         res: u32,
-        levels: usize,
+        chain: LevelChain,
     ) -> LightGrid {
         let g = LightGrid::new(content, res);
         let Some((lo, hi)) = content.filter(|(lo, hi)| (0..3).all(|a| hi[a] > lo[a])) else {
             return g;
         };
-        let (k, _) = g.density_level(levels);
+        let (k, s, _) = g.density_level(chain);
         if k == 0 {
             return g;
         }
-        let span = f64::from(1u32 << k);
+        let span = f64::from(1u32 << s);
         let res = res.max(1);
         let side = (0..3).fold(0.0f64, |m, a| m.max(hi[a] - lo[a]));
         let wide = LightGrid {
             cell: (side + span) / res as f64,
             ..g
         };
-        let (k, _) = wide.density_level(levels);
-        let span = f64::from(1u32 << k);
+        let (k, s, _) = wide.density_level(chain);
+        if k == 0 {
+            return g;
+        }
+        let span = f64::from(1u32 << s);
         let cell = (wide.cell / span).ceil() * span;
         let lo = lo.map(|v| (v / span).floor() * span);
         let dims = [0, 1, 2].map(|a| (((hi[a] - lo[a]) / cell).ceil() as u32).clamp(1, res));
@@ -123,20 +173,28 @@ impl LightGrid {
         self.dims.iter().map(|&d| d as usize).product()
     }
 
-    /// The density pass on an asset with `levels` levels of detail (1: none): the level `k`
-    /// whose voxels (`2^k` full-resolution voxels wide) are the coarsest that still give a cell
-    /// at most [`MAX_SUB`] of them per axis, and the sample points per cell axis there,
-    /// `clamp(⌈cell / 2^k⌉, 1, MAX_SUB)`. Each read of level `k` is a box mean over `8^k`
-    /// voxels, so a cell up to `MAX_SUB·2^k` voxels wide is box-filtered exactly up to the cell's
-    /// misalignment with the level's voxels, where one level alone reads one voxel in every
-    /// `cell / MAX_SUB` (aliasing). `(0, sub)` without levels.
-    pub fn density_level(&self, levels: usize) -> (u32, u32) {
-        let mut k = 0u32;
-        while (k as usize) + 1 < levels && self.cell / f64::from(1u32 << k) > MAX_SUB as f64 {
+    /// The density pass on an asset with the levels `chain`: `(level, shift, sub)`, the stored
+    /// level whose voxels (`2^shift` full-resolution voxels wide) are the finest that give a
+    /// cell at most [`MAX_SUB`] of them per axis, and the sample points per cell axis there,
+    /// `clamp(⌈cell / 2^shift⌉, 1, MAX_SUB)`. Each read of that level is a box mean over
+    /// `8^shift` voxels, so a cell up to `MAX_SUB·2^shift` voxels wide is box-filtered exactly
+    /// up to the cell's misalignment with the level's voxels, where full resolution alone reads
+    /// one voxel in every `cell / MAX_SUB` (aliasing). Full resolution (`(0, 0, sub)`) without
+    /// levels, and where the level found holds at most `MAX_SUB / 2` voxels per cell: only a
+    /// chain that skips levels (`--lod-from`) gets there, and snapping to its voxels would widen
+    /// the cells up to 2×.
+    pub fn density_level(&self, chain: LevelChain) -> (usize, u32, u32) {
+        let per = |s: u32| self.cell / f64::from(1u32 << s);
+        let mut k = 0usize;
+        while k + 1 < chain.count && per(chain.shift(k)) > MAX_SUB as f64 {
             k += 1;
         }
-        let sub = ((self.cell / f64::from(1u32 << k)).ceil() as u32).clamp(1, MAX_SUB);
-        (k, sub)
+        if k > 0 && per(chain.shift(k)) <= f64::from(MAX_SUB / 2) {
+            k = 0;
+        }
+        let s = chain.shift(k);
+        let sub = (per(s).ceil() as u32).clamp(1, MAX_SUB);
+        (k, s, sub)
     }
 
     /// The element of cell `c`.
@@ -300,4 +358,74 @@ pub fn sky_diffusion(albedo: f64, g: [f32; 2], w: f32, scale: f32) -> f64 {
     let mean = w as f64 * g[0] as f64 + (1.0 - w as f64) * g[1] as f64;
     let d = 3.0 * (1.0 - albedo).max(0.0) * (1.0 - mean * albedo).max(0.0);
     scale as f64 * d.sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cell(c: f64) -> LightGrid {
+        LightGrid {
+            lo: [0.0; 3],
+            cell: c,
+            dims: [4; 3],
+        }
+    }
+
+    /// The level a cell reads: the finest with at most 4 of its voxels per cell axis; a chain
+    /// that skips levels falls back to full resolution where its first level would hold 2 or
+    /// fewer (snapping would widen the cells up to 2×).
+    #[test]
+    fn density_level_follows_the_stored_chain() {
+        let all = LevelChain { count: 6, first: 1 };
+        let from3 = LevelChain { count: 3, first: 3 };
+        // cell, chain → (stored level, shift, reads per axis)
+        for (c, chain, want) in [
+            (3.0, all, (0, 0, 3)),
+            (3.0, LevelChain::NONE, (0, 0, 3)),
+            (9.5, all, (2, 2, 3)),
+            (9.5, LevelChain::NONE, (0, 0, 4)),
+            (38.0, all, (4, 4, 3)),
+            // From level 3: 9.5 voxels are 1.2 level-3 voxels, so full resolution, point reads.
+            (9.5, from3, (0, 0, 4)),
+            (20.0, from3, (1, 3, 3)),
+            (38.0, from3, (2, 4, 3)),
+            // Past the top stored level: the top, with at most 4 reads.
+            (500.0, from3, (2, 4, 4)),
+        ] {
+            assert_eq!(cell(c).density_level(chain), want, "cell {c}, {chain:?}");
+        }
+        assert_eq!(from3.consecutive(), 1);
+        assert_eq!(all.consecutive(), 6);
+        assert_eq!((from3.shift(0), from3.shift(1), from3.shift(2)), (0, 3, 4));
+    }
+
+    /// Snapped grids put every cell on whole voxels of the level read, and skipped levels never
+    /// widen a cell by more than 1.5×. Content 157 voxels wide: cells of 39 to 2.5 voxels.
+    #[test]
+    fn grids_snap_to_the_level_they_read() {
+        let content = Some(([3.0, 5.0, 7.0], [160.0, 100.0, 60.0]));
+        for chain in [
+            LevelChain { count: 5, first: 1 },
+            LevelChain { count: 3, first: 2 },
+            LevelChain { count: 2, first: 3 },
+        ] {
+            for res in [4u32, 8, 16, 32, 64] {
+                let plain = LightGrid::new(content, res);
+                let g = LightGrid::with_levels(content, res, chain);
+                let (k, s, sub) = g.density_level(chain);
+                assert!(g.cell <= 1.5 * plain.cell + 1e-9, "{chain:?} res {res}");
+                assert!(g.dims.iter().all(|&d| d <= res));
+                if k > 0 {
+                    let span = f64::from(1u32 << s);
+                    assert_eq!(g.cell % span, 0.0, "{chain:?} res {res}");
+                    assert!(g.lo.iter().all(|v| v % span == 0.0));
+                    // Whole voxels per cell, all read (past the top stored level: 4 of them).
+                    assert_eq!(((g.cell / span) as u32).min(MAX_SUB), sub);
+                } else {
+                    assert_eq!(g, plain, "{chain:?} res {res}");
+                }
+            }
+        }
+    }
 }

@@ -273,7 +273,7 @@ pub struct RenderSettings {
     /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
     /// `--lod`) where a pixel spans more voxels (`crate::level_start`): level `k` where it
     /// spans `2^k` or more, with the step `2^k` times longer. No effect on an asset without
-    /// levels. Off by default: the mean density of a level makes a far pixel more opaque than
+    /// levels or with levels from `K > 1` only (`LevelChain::consecutive`). Off by default: the mean density of a level makes a far pixel more opaque than
     /// the mean over the pixel of the full resolution's transmittance (Jensen's inequality).
     pub primary_lod: bool,
 }

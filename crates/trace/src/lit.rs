@@ -55,7 +55,7 @@ use rayon::prelude::*;
 use vdbcook_asset::Asset;
 use vdbcook_scene::{
     content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
-    LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
+    LevelChain, LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
 };
 pub use vdbcook_scene::{LIT_NEAR_DEPTH, LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS};
 
@@ -100,8 +100,8 @@ impl LightVolume {
         s: &RenderSettings,
         extinction: f64,
     ) -> LightVolume {
-        let grid =
-            LightGrid::with_levels(content_box(asset, frame), s.light_res, asset.level_count());
+        let chain = LevelChain::of(asset);
+        let grid = LightGrid::with_levels(content_box(asset, frame), s.light_res, chain);
         let [nx, ny, _] = grid.dims.map(|d| d as usize);
         let slab = nx * ny;
         let n = grid.cells();
@@ -109,8 +109,8 @@ impl LightVolume {
         // Density pass, one z slab per task.
         let mut density = vec![0.0f32; n];
         // With levels of detail, wide cells read the coarser level (`LightGrid::density_level`).
-        let (level, sub) = grid.density_level(asset.level_count());
-        let (sub, set) = (sub as usize, asset.lod_set(frame, level as usize));
+        let (level, shift, sub) = grid.density_level(chain);
+        let (sub, set) = (sub as usize, asset.lod_set(frame, level));
         let fill = |(z, out): (usize, &mut [f32])| {
             for y in 0..ny {
                 for x in 0..nx {
@@ -120,7 +120,7 @@ impl LightVolume {
                         let q = [k % sub, (k / sub) % sub, k / (sub * sub)];
                         let a = [0, 1, 2].map(|i| {
                             let f = (c[i] as f64 + (q[i] as f64 + 0.5) / sub as f64) * grid.cell;
-                            ((grid.lo[i] + f).floor() as i64) >> level
+                            ((grid.lo[i] + f).floor() as i64) >> shift
                         });
                         let v = asset.value(set, a);
                         if v > 0.0 {

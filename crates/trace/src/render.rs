@@ -17,7 +17,7 @@ use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
     blackbody_table, depth_range, length, level_start, normalize, stored_bbox, Affine, Camera,
-    Emission, LengthUnit, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
+    Emission, LengthUnit, LevelChain, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -144,7 +144,9 @@ impl<'a> Tracer<'a> {
         let light = (settings.mode == Mode::Lit)
             .then(|| LightVolume::build(asset, settings.frame, &xf, settings, extinction));
         let levels = if settings.mode == Mode::Lit && settings.primary_lod {
-            (1..asset.level_count())
+            // Primary rays by footprint read one level per octave: the levels from full
+            // resolution on that skip none (none above it in a `--lod-from` asset).
+            (1..LevelChain::of(asset).consecutive())
                 .map(|k| Grid::new(asset, asset.lod_set(settings.frame, k)))
                 .collect()
         } else {
