@@ -39,7 +39,8 @@ struct DrawView {
     has_depth: u32,
     voxel_units: u32,
     // Lighting (lit instances only): xyz the unit world direction toward the light, w the march
-    // step (length unit); xyz the light colour, w unused; xyz the sky radiance; the phase
+    // step (length unit); xyz the light colour, w `Lighting::near_scatter`; xyz the sky
+    // radiance; the phase
     // (g0, g1, weight); the octave falloff (a, b, c), w 1 for trilinear density.
     light_dir: vec4<f32>,
     light_color: vec4<f32>,
@@ -135,16 +136,24 @@ fn draw_diffuse(base: u32, lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, eye: ve
 // volume at `base` over `lo`, `dims`), the tracer's `lit_sun_depth` in the instance's cell
 // space: the first `sun_near` cells toward the sun (`l`: the cell-space image of the unit
 // world direction) walked exactly where a cell is optically thick and the ray's transmittance
-// `trans` is above `LV_NEAR_TRANS`, the light volume beyond.
-fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, rho: f32, trans: f32, l: vec3<f32>) -> f32 {
+// `trans` is above `LV_NEAR_TRANS`, the light volume beyond; and the light volume's depth at
+// `q` (the same without a walk).
+fn draw_sun_depth(inst: DrawInstance, root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, rho: f32, trans: f32, l: vec3<f32>) -> vec2<f32> {
+    let cells = draw_lv_lookup(base, lo, dims, q).x;
     let cell = lo.w;
-    let near = select(0.0, min(draw_view.sun_near * cell, LV_NEAR_MAX_VOXELS), cell > 1.0);
+    let near = min(draw_view.sun_near * cell, LV_NEAR_MAX_VOXELS);
     let axis = inst.lv_axis.xyz;
     let cell_len = cell * min(axis.x, min(axis.y, axis.z));
-    if (!DRAW_NEAR || !(near > 0.0) || !(inst.extinction * rho * cell_len >= LV_NEAR_DEPTH)
+    if (!DRAW_NEAR || !(near > 0.0) || !(inst.extinction * rho * cell_len >= lv_near_depth(cell))
         || !(trans >= LV_NEAR_TRANS)) {
-        return draw_lv_lookup(base, lo, dims, q).x;
+        return vec2<f32>(cells);
     }
+    return vec2<f32>(draw_near_sun_depth(root, base, lo, dims, q, near, l), cells);
+}
+
+// The near field's depth toward the sun from `q` over `near` voxels (`l`: the cell-space image
+// of the unit world direction toward the sun), the light volume's beyond.
+fn draw_near_sun_depth(root: u32, base: u32, lo: vec4<f32>, dims: vec4<u32>, q: vec3<f32>, near: f32, l: vec3<f32>) -> f32 {
     var ray: VdbRay;
     ray.o = q;
     ray.d = l;
@@ -230,16 +239,17 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         }
         let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
         // Each frame of the crossfade (one call site: lavapipe inlines each one).
-        var tau_f = vec2<f32>(0.0);
+        // Per frame (walked, cells).
+        var tau_f = array<vec2<f32>, 2>(vec2<f32>(0.0), vec2<f32>(0.0));
         for (var f = 0u; f < select(1u, 2u, a > 0.0); f++) {
             let one = f == 1u;
             tau_f[f] = draw_sun_depth(inst, select(inst.frame_root0, inst.frame_root1, one),
                 select(inst.lv_base0, inst.lv_base1, one), select(inst.lv_lo0, inst.lv_lo1, one),
                 select(inst.lv_dims0, inst.lv_dims1, one), q, rho, trans, l);
         }
-        var tau_sun = tau_f.x;
+        var tau_sun = tau_f[0];
         if (a > 0.0) {
-            tau_sun = mix(tau_f.x, tau_f.y, a);
+            tau_sun = mix(tau_f[0], tau_f[1], a);
         }
         var sun = 0.0;
         var sky = 0.0;
@@ -256,14 +266,16 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             if (a > 0.0) {
                 diffuse = mix(d[0], d[1], a);
             }
-            sun = sun_ph[0] * exp(-ext * tau_sun) + diffuse.x;
+            let direct = exp(-ext * tau_sun.x);
+            sun = sun_ph[0] * direct
+                + max(diffuse.x + lv_near_scatter(draw_view.light_color.w, inst.albedo, direct, exp(-ext * tau_sun.y)), 0.0);
             sky = diffuse.y;
         } else {
             var tau_sky = draw_lv_lookup(inst.lv_base0, inst.lv_lo0, inst.lv_dims0, q).y;
             if (a > 0.0) {
                 tau_sky = mix(tau_sky, draw_lv_lookup(inst.lv_base1, inst.lv_lo1, inst.lv_dims1, q).y, a);
             }
-            sun = lv_octaves(ext * tau_sun, ms, octaves, &sun_ph);
+            sun = lv_octaves(ext * tau_sun.x, ms, octaves, &sun_ph);
             sky = lv_sky_source(ext * tau_sky, inst.sky_k);
         }
         rad += trans * inst.albedo * (1.0 - e) * (draw_view.light_color.xyz * sun + draw_view.sky.xyz * sky);

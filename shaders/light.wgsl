@@ -71,6 +71,13 @@ fn lv_sun_phases(phase: vec3<f32>, c: f32, mu: f32) -> array<f32, 8> {
     return ph;
 }
 
+// `vdbcook_scene::near_scatter_source`: the once-scattered sunlight below the light volume's
+// cells, `k·α/4π·(T − T_cells)`, from the walked transmittance toward the sun `t` and the light
+// volume's `t_cells` at the same point.
+fn lv_near_scatter(k: f32, albedo: f32, t: f32, t_cells: f32) -> f32 {
+    return k * albedo * 0.07957747154594767 * (t - t_cells);
+}
+
 // `vdbcook_scene::sky_source`: the sky's source at sky optical depth y, diffusion attenuation k.
 fn lv_sky_source(y: f32, k: f32) -> f32 {
     let direct = exp(-y);
@@ -138,6 +145,14 @@ fn lv_box_entry(lo: vec4<f32>, dims: vec3<u32>, p: vec3<f32>, l: vec3<f32>) -> f
 // Optical depth of one light-volume cell below which a lit march reads the sun's depth from the
 // light volume alone (`vdbcook_trace::LIT_NEAR_DEPTH`).
 const LV_NEAR_DEPTH: f32 = 0.25;
+// `vdbcook_trace::LIT_NEAR_DEPTH_FINE`, for cells no wider than a voxel.
+const LV_NEAR_DEPTH_FINE: f32 = 2.0;
+
+// `vdbcook_scene::lit_near_depth`: the optical depth of one cell `cell` voxels wide from which a
+// lit march walks the near field.
+fn lv_near_depth(cell: f32) -> f32 {
+    return select(LV_NEAR_DEPTH_FINE, LV_NEAR_DEPTH, cell > 1.0);
+}
 // The primary ray's transmittance below which it does not walk (`vdbcook_trace::LIT_NEAR_TRANS`).
 const LV_NEAR_TRANS: f32 = 0.05;
 // Longest near field, in voxels (`vdbcook_trace::LIT_NEAR_MAX_VOXELS`).

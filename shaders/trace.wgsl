@@ -85,7 +85,8 @@ struct Params {
     lod: vec4<u32>,
     // The lit mode: x the near field toward the sun in voxels (`RenderSettings::sun_near` cells;
     // 0: none), y a light-volume cell's edge in the length unit (the shortest), z the phase's
-    // mean cosine; `lv_axis` xyz: length per cell-space unit along each axis.
+    // mean cosine, w `RenderSettings::near_scatter`; `lv_axis` xyz: length per cell-space unit
+    // along each axis.
     lit: vec4<f32>,
     lv_axis: vec4<f32>,
 }
@@ -573,13 +574,21 @@ fn lit_diffuse(p: vec3<f32>, eye: vec3<f32>) -> vec2<f32> {
 // `Tracer::sun_depth`: the sun's optical depth at `q` (density `rho`, the primary ray's
 // transmittance `trans`), the first `params.lit.x` voxels toward the sun walked exactly where
 // one light-volume cell is optically thick and the ray still bright, the light volume's depth
-// where that walk ends beyond.
-fn lit_sun_depth(q: vec3<f32>, rho: f32, trans: f32) -> f32 {
+// where that walk ends beyond; and the light volume's depth at `q` (the same without a walk).
+fn lit_sun_depth(q: vec3<f32>, rho: f32, trans: f32) -> vec2<f32> {
+    let cells = lit_lookup(q).x;
     let near = params.lit.x;
-    if (!LIT_NEAR || !(near > 0.0) || !(params.extinction * rho * params.lit.y >= LV_NEAR_DEPTH)
+    if (!LIT_NEAR || !(near > 0.0)
+        || !(params.extinction * rho * params.lit.y >= lv_near_depth(params.lv_lo.w))
         || !(trans >= LV_NEAR_TRANS)) {
-        return lit_lookup(q).x;
+        return vec2<f32>(cells);
     }
+    return vec2<f32>(lit_near_sun_depth(q, near), cells);
+}
+
+// `Tracer::near_sun_depth`: the near field's depth toward the sun from `q` over `near`
+// voxels, the light volume's beyond.
+fn lit_near_sun_depth(q: vec3<f32>, near: f32) -> f32 {
     let ray = light_ray(q);
     let c = vdb_clip(ray, params.extent.xyz);
     if (!(c.y > c.x)) {
@@ -664,13 +673,16 @@ fn lit_light(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, x: f32
     var sun = 0.0;
     var sky = 0.0;
     if (octaves == 0u) {
-        // The diffusion model: single scattering plus the solve's sun; the solve's sky.
+        // The diffusion model: single scattering plus the solve's sun (with the once-scattered
+        // light below its cells where the near field was walked); the solve's sky.
         let diffuse = lit_diffuse(q, (*st).eye);
-        sun = (*st).ph[0] * exp(-ext * tau_sun) + diffuse.x;
+        let direct = exp(-ext * tau_sun.x);
+        sun = (*st).ph[0] * direct
+            + max(diffuse.x + lv_near_scatter(params.lit.w, params.albedo, direct, exp(-ext * tau_sun.y)), 0.0);
         sky = diffuse.y;
     } else {
         var ph = (*st).ph;
-        sun = lv_octaves(ext * tau_sun, params.ms.xyz, octaves, &ph);
+        sun = lv_octaves(ext * tau_sun.x, params.ms.xyz, octaves, &ph);
         sky = lv_sky_source(ext * lit_lookup(q).y, params.sky.w);
     }
     (*st).rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);

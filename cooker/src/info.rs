@@ -133,7 +133,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .iter()
         .enumerate()
         .map(|(k, l)| {
-            json!({"level": k, "voxel_span": 1u64 << asset.level_shift(k), "bricks": l.bricks,
+            // `level`: the chain's (voxels 2^level wide); `stored`: the index among the asset's
+            // levels (`Asset::lod_set`). The same unless cooked with --lod-from.
+            json!({"level": asset.level_shift(k), "stored": k,
+                   "voxel_span": 1u64 << asset.level_shift(k), "bricks": l.bricks,
                    "new_bricks": l.new_bricks, "new_atlas_bytes": l.new_atlas_bytes})
         })
         .collect();

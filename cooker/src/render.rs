@@ -148,6 +148,12 @@ pub struct Args {
     /// the light volume's cells, comes out too dark).
     #[arg(long, default_value_t = vdbcook_trace::DEFAULT_SUN_NEAR, value_name = "CELLS")]
     sun_near: f32,
+    /// Lit mode, diffusion model: where the near field was walked, add the once-scattered
+    /// sunlight the light volume's cells cannot hold (a dense cloud's sunlit skin sees more of
+    /// the sun than its cell's mean), scaled by this: 0.5 is the first-flight fluence at a
+    /// surface, 1 deep inside, 0 the cells' light alone (a dense cloud comes out darker).
+    #[arg(long, default_value_t = vdbcook_trace::DEFAULT_NEAR_SCATTER, value_name = "K")]
+    near_scatter: f32,
     /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or
     /// more, stepping 2^k voxels (mip-mapping along the ray, for far or low-resolution views).
     /// Off by default: averaging density before the exponential makes far pixels slightly
@@ -339,6 +345,7 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         filter: Filter::parse(&a.filter).expect("clap checked"),
         march: March::parse(&a.march).expect("clap checked"),
         sun_near: a.sun_near,
+        near_scatter: a.near_scatter,
         primary_lod: a.primary_lod,
     })
 }
@@ -988,6 +995,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
             "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
             "march": a.march, "march_used": march_used, "sun_near": short(s.sun_near),
+            "near_scatter": short(s.near_scatter),
             "primary_lod": s.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {

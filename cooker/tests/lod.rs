@@ -307,6 +307,37 @@ fn lod_cooks_are_byte_identical_at_any_thread_count_and_refuse_several_channels(
     assert!(err.contains("level count"), "{err}");
 }
 
+/// `info --json` names each stored level by its place in the chain (`level`, voxels
+/// `voxel_span = 2^level` wide) and by its index among the asset's levels (`stored`, what
+/// `Asset::lod_set` takes), full resolution first: the same on a full chain, apart from
+/// `--lod-from K`.
+#[test]
+fn info_names_levels_by_the_chain_and_by_the_stored_index() {
+    let d = tempfile::tempdir().unwrap();
+    for (from, first) in [(None, 1u64), (Some("2"), 2)] {
+        let o = d.path().join("l.vdbc");
+        let out = o.to_str().unwrap();
+        let mut args = vec!["cook", "fixtures/seq/smoke5", "-o", out, "--lod", "all"];
+        if let Some(k) = from {
+            args.extend(["--lod-from", k]);
+        }
+        let (code, _, err) = run(&args);
+        assert_eq!(code, 0, "{err}");
+        let (code, json, err) = run(&["info", out, "--json"]);
+        assert_eq!(code, 0, "{err}");
+        let doc: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let levels = doc["levels"].as_array().unwrap();
+        // Full resolution, then from `first` to 4 (smoke5's extent has levels 1 to 4).
+        let chain: Vec<u64> = std::iter::once(0).chain(first..=4).collect();
+        assert_eq!(levels.len(), chain.len(), "{from:?}: {levels:?}");
+        for (k, (l, &chain)) in levels.iter().zip(&chain).enumerate() {
+            assert_eq!(l["level"].as_u64(), Some(chain), "{from:?}: {l}");
+            assert_eq!(l["stored"].as_u64(), Some(k as u64), "{from:?}: {l}");
+            assert_eq!(l["voxel_span"].as_u64(), Some(1 << chain), "{from:?}: {l}");
+        }
+    }
+}
+
 /// On the real cloud the chain's bytes are what `info` and the report say, and modest.
 #[test]
 fn lod_bytes_on_the_wdas_cloud() {

@@ -128,6 +128,7 @@ fn render_json_reports_settings_camera_and_timing() {
         "ms",
         "filter",
         "sun_near",
+        "near_scatter",
         "primary_lod",
     ] {
         assert!(!doc["settings"][k].is_null(), "missing settings.{k}");

@@ -441,6 +441,10 @@ pub struct Lighting {
     /// volume's depth takes over, where a cell is optically thick (`Settings::sun_near`; 0: the
     /// light volume alone, cheaper, a dense cloud's sunlit skin too dark).
     pub sun_near: f32,
+    /// With the diffusion model, where the near field was walked: the scale of the
+    /// once-scattered sunlight the light volume's cells cannot hold (`Settings::near_scatter`;
+    /// 0.5 by default, 0: the cells' light alone, a dense cloud darker).
+    pub near_scatter: f32,
     /// Blackbody emission of the density grid's values read as Kelvin (the tracer's
     /// `--emission`), added by the lit march and absorbed like the rest of its light; a pure
     /// glow with `scatter` 0, a black `light_color` and `sky`, and the medium's `absorb` small.
@@ -473,6 +477,7 @@ impl Lighting {
             seed: s.seed,
             filter: s.filter,
             sun_near: s.sun_near,
+            near_scatter: s.near_scatter,
             emission: s.emission,
         }
     }
@@ -486,6 +491,7 @@ impl Lighting {
             mode: vdbcook_scene::Mode::Lit,
             march: vdbcook_scene::March::Steps,
             sun_near: self.sun_near,
+            near_scatter: self.near_scatter,
             absorb: medium.absorb,
             unit: medium.unit,
             scatter: self.scatter,
@@ -545,8 +551,8 @@ struct DrawView {
     instance_count: u32,
     has_depth: u32,
     voxel_units: u32,
-    /// Lighting: direction toward the light and the step; light colour; sky; phase; octave
-    /// falloff; octaves; seed.
+    /// Lighting: direction toward the light and the step; light colour and `near_scatter`;
+    /// sky; phase; octave falloff; octaves; seed.
     light_dir: [f32; 4],
     light_color: [f32; 4],
     sky: [f32; 4],
@@ -1229,7 +1235,12 @@ impl VolumeDrawer {
             has_depth: target.depth.is_some() as u32,
             voxel_units: (medium.unit == LengthUnit::Voxel) as u32,
             light_dir: [l[0], l[1], l[2], lighting.step],
-            light_color: v3(lighting.light_color),
+            light_color: [
+                lighting.light_color[0],
+                lighting.light_color[1],
+                lighting.light_color[2],
+                lighting.near_scatter,
+            ],
             sky: v3(lighting.sky),
             phase: [
                 lighting.phase_g[0],

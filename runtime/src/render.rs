@@ -7,8 +7,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    blackbody_table, depth_range, light_dirs, pixel_angle, sky_diffusion, Affine, DiffusionInputs,
-    Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, LIT_NEAR_DEPTH,
+    blackbody_table, depth_range, light_dirs, lit_near_depth, pixel_angle, sky_diffusion, Affine,
+    DiffusionInputs, Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN,
     LIT_NEAR_MAX_VOXELS, MAX_SIDE,
 };
 
@@ -84,7 +84,7 @@ struct Params {
     /// decides which march runs).
     lod: [u32; 4],
     /// The lit mode: the near field toward the sun in voxels (`sun_near` cells), a light-volume
-    /// cell's shortest edge in the length unit, the phase's mean cosine, 0.
+    /// cell's shortest edge in the length unit, the phase's mean cosine, `near_scatter`.
     lit: [f32; 4],
     /// Length per cell-space unit along each axis (`vdbcook_scene::light_dirs`), 0.
     lv_axis: [f32; 4],
@@ -183,7 +183,7 @@ struct LitVariant {
     /// `Filter::Trilinear`.
     trilinear: bool,
     /// The near field toward the sun (`sun_near` > 0 on a frame dense enough for some sample to
-    /// walk it: `LIT_NEAR_DEPTH`).
+    /// walk it: `vdbcook_scene::lit_near_depth`).
     near: bool,
     /// `March::Voxels`.
     voxels: bool,
@@ -568,7 +568,7 @@ impl Renderer {
                 // f32 rounding: a variant with the near field draws the same without it).
                 near: params.lit[0] > 0.0
                     && params.extinction * params.value_max * params.lit[1]
-                        >= LIT_NEAR_DEPTH as f32 * (1.0 - 1e-4),
+                        >= lit_near_depth(grid.cell) as f32 * (1.0 - 1e-4),
                 voxels: March::resolve(settings, self.vol.frame_max[frame]) == March::Voxels,
             }
         } else {
@@ -745,15 +745,11 @@ impl Renderer {
                 (March::resolve(settings, vmax) == March::Voxels) as u32,
             ],
             lit: [
-                // `LightVolume::near_voxels`: none where cells are no wider than a voxel.
-                if grid.cell > 1.0 {
-                    (settings.sun_near as f64 * grid.cell).min(LIT_NEAR_MAX_VOXELS) as f32
-                } else {
-                    0.0
-                },
+                // `LightVolume::near_voxels`.
+                (settings.sun_near as f64 * grid.cell).min(LIT_NEAR_MAX_VOXELS) as f32,
                 (axis_len.into_iter().fold(f64::INFINITY, f64::min) * grid.cell) as f32,
                 DiffusionInputs::of_settings(&grid, &self.xf, settings).mean_cos as f32,
-                0.0,
+                settings.near_scatter,
             ],
             lv_axis: [axis_len[0], axis_len[1], axis_len[2], 0.0].map(|v| v as f32),
         };

@@ -1500,7 +1500,8 @@ fn values_changed(a: &[f32], b: &[f32]) -> usize {
 /// light-volume cells toward the sun are walked voxel by voxel through the tree (a pipeline
 /// variant with that code), the light volume's depth beyond. On the blob (cells of about eight
 /// voxels at `light_res` 24, optical depth up to 15 across one) both marches match the CPU, and
-/// the near field changes the image (a renderer that left it out would not).
+/// the near field and the once-scattered light it adds below the cells (`near_scatter`) change
+/// the image (a renderer that left either out would not).
 #[test]
 fn lit_near_field_matches_the_cpu() {
     let Some(gpu) = Gpu::new("lit_near_field_matches_the_cpu") else {
@@ -1512,21 +1513,54 @@ fn lit_near_field_matches_the_cpu() {
     let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
     for march in [March::Steps, March::Voxels] {
         let mut images = Vec::new();
-        for sun_near in [3.0f32, 0.0] {
+        // The default; the near field without the once-scattered light below the cells
+        // (`near_scatter`); no near field.
+        for (sun_near, near_scatter) in [(3.0f32, 0.5f32), (3.0, 0.0), (0.0, 0.5)] {
             let s = RenderSettings {
                 march,
                 sun_near,
+                near_scatter,
                 ..small(Mode::Lit, 0)
             };
-            let label = format!("{march:?} sun_near {sun_near}");
+            let label = format!("{march:?} sun_near {sun_near} near_scatter {near_scatter}");
             images.push(lit_matches_cpu(&gpu, &r, &target, &asset, &cam, &s, &label));
         }
-        let changed = values_changed(&images[0], &images[1]);
-        assert!(
-            changed > 100,
-            "{march:?}: the near field changed {changed} values only"
-        );
+        for (k, what) in [(1, "near_scatter"), (2, "the near field")] {
+            let changed = values_changed(&images[0], &images[k]);
+            assert!(
+                changed > 100,
+                "{march:?}: {what} changed {changed} values only"
+            );
+        }
     }
+    // Cells narrower than a voxel still walk where one is optically thick (a voxel's skin
+    // is blurred between cell centres as well): the second frame, the denser blob without a
+    // tile, at 128 cells, forty times denser (optical depth up to 160 per voxel: the cells
+    // walk from an optical depth of 2, `LIT_NEAR_DEPTH_FINE`).
+    let fine = RenderSettings {
+        light_res: 128,
+        absorb: 4.0,
+        scatter: 60.0,
+        march: March::Voxels,
+        ..small(Mode::Lit, 1)
+    };
+    let cam = vdbcook_trace::Camera::framing(&asset, 1, W as f64 / H as f64).unwrap();
+    let grid = vdbcook_trace::LightGrid::new(vdbcook_trace::content_box(&asset, 1), 128);
+    assert!(grid.cell < 1.0, "cells of {} voxels", grid.cell);
+    let mut images = Vec::new();
+    for sun_near in [3.0f32, 0.0] {
+        let s = RenderSettings {
+            sun_near,
+            ..fine.clone()
+        };
+        let label = format!("cells of {:.2} voxels, sun_near {sun_near}", grid.cell);
+        images.push(lit_matches_cpu(&gpu, &r, &target, &asset, &cam, &s, &label));
+    }
+    let changed = values_changed(&images[0], &images[1]);
+    assert!(
+        changed > 100,
+        "sub-voxel cells: the near field changed {changed} values only"
+    );
 }
 
 /// An asset with a level of detail (`cook --lod`, format version 4, and `--lod-from 2`,

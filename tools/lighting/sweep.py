@@ -68,7 +68,8 @@ sys.dont_write_bytecode = True  # leave no __pycache__ in tools/mitsuba
 sys.path.insert(0, MITSUBA)
 from pfm import read_pfm  # noqa: E402
 
-LIT_DEFAULT = "diffusion (sun and sky), light-res 64, sun-near 3, march auto, step 1"
+LIT_DEFAULT = ("diffusion (sun and sky), light-res 64, sun-near 3, near-scatter 0.5, march auto,"
+               " step 1")
 
 # (id, mode, extra CLI args, settings shown in the table, compared with the reference?)
 LIT_METHODS = [
@@ -80,6 +81,8 @@ LIT_METHODS = [
     ("lit-vox", "lit", ["--march", "voxels"], "--march voxels (each voxel exact)", True),
     ("lit-steps", "lit", ["--march", "steps"], "--march steps (every step, jittered)", True),
     ("lit-near0", "lit", ["--sun-near", "0"], "--sun-near 0 (the light volume alone)", True),
+    ("lit-ns0", "lit", ["--near-scatter", "0"],
+     "--near-scatter 0 (the solve's cells alone, no once-scattered light below them)", True),
     ("lit-lr16", "lit", ["--light-res", "16"], "--light-res 16", True),
     ("lit-lr32", "lit", ["--light-res", "32"], "--light-res 32", True),
     ("lit-lr128", "lit", ["--light-res", "128"], "--light-res 128", True),
@@ -98,7 +101,7 @@ def method_list(args):
     gpu = [] if args.no_gpu else ["gpu"]
     out = []
     for mid, mode, extra, settings, cmp in LIT_METHODS:
-        backends = ["cpu"] + (gpu if (mid in ("lit", "lit-oct", "lit-vox", "lit-steps", "lit-near0") or args.gpu_variants) else [])
+        backends = ["cpu"] + (gpu if (mid in ("lit", "lit-oct", "lit-vox", "lit-steps", "lit-near0", "lit-ns0") or args.gpu_variants) else [])
         out += [(mid, mode, b, extra, settings, cmp) for b in backends]
     for mid, mode, extra, settings, cmp in OTHER_METHODS:
         out += [(mid, mode, b, extra, settings, cmp) for b in ["cpu"] + gpu]

@@ -28,12 +28,13 @@ pub use diffusion::{
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
-    light_dirs, octave_source, sky_diffusion, sky_source, LevelChain, LightGrid, LIT_NEAR_DEPTH,
-    LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS, MAX_SUB,
+    light_dirs, lit_near_depth, near_scatter_source, octave_source, sky_diffusion, sky_source,
+    LevelChain, LightGrid, LIT_NEAR_DEPTH, LIT_NEAR_DEPTH_FINE, LIT_NEAR_MAX_VOXELS,
+    LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
-    Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_SUN_NEAR,
-    LIT_VOXEL_DEPTH, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE,
-    MAX_SPP, MAX_SUN_NEAR, MIN_STEP,
+    Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_NEAR_SCATTER,
+    DEFAULT_SUN_NEAR, LIT_VOXEL_DEPTH, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY,
+    MAX_PHASE_G, MAX_SIDE, MAX_SPP, MAX_SUN_NEAR, MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

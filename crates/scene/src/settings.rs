@@ -266,10 +266,19 @@ pub struct RenderSettings {
     /// `Lit`'s near field toward the sun, in light-volume cells: from each sample the voxels
     /// of the first `sun_near` cells toward the sun are walked exactly (a voxel DDA through
     /// the tree), and only the depth beyond is looked up in the light volume, whose cells blur
-    /// a dense cloud's lit skin (`docs/rendering.md`); where one cell is optically thin, the
-    /// cells are no wider than a voxel or the ray's transmittance is below `LIT_NEAR_TRANS`
-    /// the light volume alone. 0: the light volume alone everywhere (cheaper).
+    /// a dense cloud's lit skin (`docs/rendering.md`); where one cell is optically thin
+    /// (`crate::lit_near_depth`) or the ray's transmittance is below `LIT_NEAR_TRANS` the
+    /// light volume alone. 0: the light volume alone everywhere (cheaper).
     pub sun_near: f32,
+    /// `MsModel::Diffusion` where the near field was walked: the once-scattered sunlight the
+    /// light volume's cells cannot hold, `near_scatter·α/4π·(e^{−σ·τ} − e^{−σ·τ_cells})` added
+    /// to the solve's sun light (at least 0 in sum), `τ` the walked depth toward the sun and
+    /// `τ_cells` the light volume's at the sample (what the solve's source saw). Light
+    /// scattered once within a mean free path of a point reaches it with a fluence of `α·T`
+    /// per unit irradiance for a locally uniform source deep inside, half that on a surface
+    /// (`DEFAULT_NEAR_SCATTER`); in `[0, 1]`, 0 reads the cells' light alone
+    /// (`docs/rendering.md`).
+    pub near_scatter: f32,
     /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
     /// `--lod`) where a pixel spans more voxels (`crate::level_start`): level `k` where it
     /// spans `2^k` or more, with the step `2^k` times longer. No effect on an asset without
@@ -313,6 +322,7 @@ impl Default for RenderSettings {
             filter: Filter::Nearest,
             march: March::Auto,
             sun_near: DEFAULT_SUN_NEAR,
+            near_scatter: DEFAULT_NEAR_SCATTER,
             primary_lod: false,
         }
     }
@@ -331,6 +341,12 @@ pub const MAX_LIGHT_RES: u32 = 256;
 /// `Lit`'s default near field toward the sun, in light-volume cells
 /// (`RenderSettings::sun_near`).
 pub const DEFAULT_SUN_NEAR: f32 = 3.0;
+/// `Lit`'s default `near_scatter`: the first-flight fluence of once-scattered light at the
+/// surface of a medium with a locally uniform source, `α·T/2` per unit irradiance (half the
+/// `α·T` deep inside: half the space around a surface point is empty). A dense cloud's
+/// visible samples lie on its surface. Chosen for that reason, not fitted per scene: 1 and
+/// 0.35 were measured beside it against the reference (`docs/rendering.md`).
+pub const DEFAULT_NEAR_SCATTER: f32 = 0.5;
 /// Longest near field toward the sun accepted, in light-volume cells (more than the longest
 /// side of any light volume).
 pub const MAX_SUN_NEAR: f32 = 512.0;
@@ -454,6 +470,9 @@ impl RenderSettings {
                 "sun-near = {} (0..={MAX_SUN_NEAR} light-volume cells)",
                 self.sun_near
             ));
+        }
+        if !(0.0..=1.0).contains(&self.near_scatter) {
+            return bad(format!("near-scatter = {} (0..=1)", self.near_scatter));
         }
         if let Some(e) = self.emission {
             if !matches!(

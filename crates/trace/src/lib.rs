@@ -143,8 +143,8 @@ pub use walk::Holder;
 pub use vdbcook_scene::{
     blackbody_rgb, blackbody_table, content_box, depth_range, stored_bbox, stored_boxes, Affine,
     Basis, Camera, Emission, Filter, LengthUnit, LevelChain, LightGrid, March, Mode, MsModel,
-    RenderSettings, TraceError, DEFAULT_SUN_NEAR, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES,
-    MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    RenderSettings, TraceError, DEFAULT_NEAR_SCATTER, DEFAULT_SUN_NEAR, MAX_BOUNCES, MAX_LIGHT_RES,
+    MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };
 pub use vdbcook_scene::{
     length, level_start, light_dirs, normalize, octave_source, pixel_angle, sky_diffusion,

@@ -37,12 +37,16 @@
 //!    ([`mean_depth`]); stops once `T < LIT_MIN_TRANS`.
 //! 3. **Source** `S = sun·… + sky·…` at that point: the sun's depth `τ_sun` from the light
 //!    volume (trilinear), or, within `sun_near` cells where one cell is optically thick
-//!    (`LIT_NEAR_DEPTH`), wider than a voxel and the ray's `T ≥ LIT_NEAR_TRANS`, walked voxel
-//!    by voxel and the light volume's only beyond (`Tracer::sun_depth`: the near field); then
+//!    (`lit_near_depth`) and the ray's `T ≥ LIT_NEAR_TRANS`, walked voxel by voxel and the
+//!    light volume's only beyond (`Tracer::sun_depth`: the near field); then
 //!    `MsModel::Diffusion` (default): single scattering `p(μ)·e^{−σ·τ_sun}` plus the diffusion
 //!    solve's sun light, and its sky light as the sky's whole source, both read to first order
 //!    `φ/4π + 3ḡ·J·ω/4π` (`LightVolume::diffuse_at`, `crate::diffusion`; exactly the sky at
-//!    albedo 1: the white furnace holds); or `MsModel::Octaves`: the sun's by
+//!    albedo 1: the white furnace holds), and where the near field was walked the
+//!    once-scattered sunlight below the cells (`vdbcook_scene::near_scatter_source`: the
+//!    walked transmittance's excess over the cells', which the solve's source averaged away,
+//!    by the first flight's fluence at a surface, `RenderSettings::near_scatter`); or
+//!    `MsModel::Octaves`: the sun's by
 //!    `vdbcook_scene::octave_source`, octave `i` with the dual-lobe phase's `g` scaled by `c^i`
 //!    at `μ = d·l`, and the sky's (a uniform sky, isotropic) by `vdbcook_scene::sky_source` of
 //!    the light volume's `τ_sky`, what the medium takes out of the sky's beam attenuated as
@@ -54,10 +58,11 @@
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
 use vdbcook_scene::{
-    content_box, light_dirs, normalize, octave_source, sky_diffusion, sky_source, Affine, Filter,
-    LevelChain, LightGrid, MsModel, RenderSettings, MAX_MS_OCTAVES,
+    content_box, light_dirs, lit_near_depth, near_scatter_source, normalize, octave_source,
+    sky_diffusion, sky_source, Affine, Filter, LevelChain, LightGrid, MsModel, RenderSettings,
+    MAX_MS_OCTAVES,
 };
-pub use vdbcook_scene::{LIT_NEAR_DEPTH, LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS};
+pub use vdbcook_scene::{LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS};
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
@@ -264,15 +269,12 @@ impl LightVolume {
         self.lookup([0, 1, 2].map(|a| p[a] + t0 * l[a]))[0]
     }
 
-    /// The near field toward the sun in voxels for `sun_near` cells (`Tracer::sun_depth`): 0
-    /// where the cells are no wider than a voxel (the light volume then resolves every voxel),
-    /// at most [`LIT_NEAR_MAX_VOXELS`].
+    /// The near field toward the sun in voxels for `sun_near` cells (`Tracer::sun_depth`), at
+    /// most [`LIT_NEAR_MAX_VOXELS`]; cells narrower than a voxel walk less than one (a voxel
+    /// dense as a surface, optically thick within one cell, still has its skin blurred between
+    /// cell centres: `the_near_field_resolves_a_skin_inside_one_voxel`).
     pub fn near_voxels(&self, sun_near: f32) -> f64 {
-        if self.grid.cell > 1.0 {
-            (sun_near as f64 * self.grid.cell).min(LIT_NEAR_MAX_VOXELS)
-        } else {
-            0.0
-        }
+        (sun_near as f64 * self.grid.cell).min(LIT_NEAR_MAX_VOXELS)
     }
 
     /// `(τ_sun, τ_sky)` at cell-space point `p` (trilinear).
@@ -329,9 +331,11 @@ impl Tracer<'_> {
     /// exactly (the density mode's voxel sum), the light volume's depth where that walk ends
     /// beyond (`sun_depth_at`: 0 once the ray has left the grid). The light volume's lookup at
     /// `q` alone where there is no near field (`LightVolume::near_voxels`), where one cell's
-    /// optical depth at density `rho` is below [`LIT_NEAR_DEPTH`] (a medium the cells resolve:
+    /// optical depth at density `rho` is below `LIT_NEAR_DEPTH` (`LIT_NEAR_DEPTH_FINE` for cells
+    /// no wider than a voxel: `vdbcook_scene::lit_near_depth`; a medium the cells resolve:
     /// its depth changes little across one), or where the primary ray's transmittance `trans`
-    /// is below [`LIT_NEAR_TRANS`].
+    /// is below [`LIT_NEAR_TRANS`]. Returns that depth and the light volume's lookup at `q`
+    /// (the same where no near field was walked): `[τ, τ_cells]`.
     pub(crate) fn sun_depth(
         &self,
         lv: &LightVolume,
@@ -339,12 +343,28 @@ impl Tracer<'_> {
         rho: f64,
         trans: f64,
         cache: &mut BrickCache,
-    ) -> f64 {
+    ) -> [f64; 2] {
         let near = lv.near_voxels(self.settings.sun_near);
         let cell_depth = self.extinction * rho * lv.cell_len;
-        if !(near > 0.0) || !(cell_depth >= LIT_NEAR_DEPTH) || !(trans >= LIT_NEAR_TRANS) {
-            return lv.lookup(q)[0];
+        let cells = lv.lookup(q)[0];
+        if !(near > 0.0)
+            || !(cell_depth >= lit_near_depth(lv.grid.cell))
+            || !(trans >= LIT_NEAR_TRANS)
+        {
+            return [cells, cells];
         }
+        [self.near_sun_depth(lv, q, near, cache), cells]
+    }
+
+    /// The near field's depth toward the sun from `q` over `near` voxels, the light volume's
+    /// beyond (`Tracer::sun_depth`).
+    fn near_sun_depth(
+        &self,
+        lv: &LightVolume,
+        q: [f64; 3],
+        near: f64,
+        cache: &mut BrickCache,
+    ) -> f64 {
         let ray = self.light_ray(q);
         let Some((t0, t1)) = ray.clip(self.extent) else {
             return 0.0;
@@ -481,7 +501,7 @@ impl LitMarch<'_, '_> {
         let e = (-x).exp();
         let m = len * mean_depth(x);
         let q = self.ray.at((sa + m) / self.ray.per_t);
-        let ts = t.sun_depth(self.lv, q, rho, self.trans, self.shadow);
+        let [ts, ts_cells] = t.sun_depth(self.lv, q, rho, self.trans, self.shadow);
         let (sun, sky) = match s.ms_model {
             MsModel::Octaves => (
                 octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]),
@@ -490,7 +510,21 @@ impl LitMarch<'_, '_> {
             MsModel::Diffusion => {
                 let [diffuse_sun, diffuse_sky] = self.lv.diffuse_at(q, self.eye);
                 (
-                    self.sun_phase[0] * (-ext * ts).exp() + diffuse_sun,
+                    self.sun_phase[0] * (-ext * ts).exp()
+                        + (diffuse_sun
+                            + near_scatter_source(
+                                if std::env::var("XP_KSKY").is_ok() {
+                                    s.near_scatter as f64
+                                        * 2.0
+                                        * (1.0 - (-ext * self.lv.lookup(q)[1]).exp())
+                                } else {
+                                    s.near_scatter as f64
+                                },
+                                albedo,
+                                ext * ts,
+                                ext * ts_cells,
+                            ))
+                        .max(0.0),
                     diffuse_sky,
                 )
             }
