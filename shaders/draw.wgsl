@@ -19,7 +19,7 @@
 // Concatenated after `volume.wgsl` and `light.wgsl` (group 0: the volume). Group 1: the view
 // (uniform), the instances (storage), the scene depth, the (L, T) output. Group 2: the light
 // volumes, (τ_sun, τ_sky) per cell, each instance's at its own base elements, and (binding 1)
-// the diffusion model's light, three vec4 per cell at 3·(base + cell). The structs mirror `runtime/src/
+// the diffusion model's light, six words per cell at 6·(base + cell). The structs mirror `runtime/src/
 // draw.rs` (`DrawView`, `DrawInstance`; sizes checked by its unit tests and by the bindings'
 // minimum sizes).
 
@@ -98,8 +98,8 @@ struct DrawInstance {
 @group(1) @binding(2) var draw_depth: texture_depth_2d;
 @group(1) @binding(3) var draw_out: texture_storage_2d<rgba16float, write>;
 @group(2) @binding(0) var<storage, read> draw_lv: array<vec2<f32>>;
-// The diffusion model's three vec4 per cell of `draw_lv` (`light_build.wgsl`'s `ms_store_main`).
-@group(2) @binding(1) var<storage, read> draw_lv_ms: array<vec4<f32>>;
+// The diffusion model's six words per cell of `draw_lv` (`light_build.wgsl`'s `ms_store_main`).
+@group(2) @binding(1) var<storage, read> draw_lv_ms: array<vec2<u32>>;
 
 // Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
 const DRAW_LIT: bool = {{DRAW_LIT}};

@@ -85,7 +85,7 @@ fn lv_sky_source(y: f32, k: f32) -> f32 {
 }
 
 // The diffusion model's light (`vdbcook_trace::LightVolume::diffuse_at`), summed over the
-// eight taps of a light volume's cells (three vec4 per cell: `light_build.wgsl`'s
+// eight taps of a light volume's cells (six words per cell: `light_build.wgsl`'s
 // `ms_store_main`, density-premultiplied) by `lv_diffuse_add`, then read toward the eye by
 // `lv_diffuse_read`.
 struct LvDiffuse {
@@ -96,10 +96,19 @@ struct LvDiffuse {
     j_sky: vec3<f32>,
 }
 
-fn lv_diffuse_add(acc: ptr<function, LvDiffuse>, w: f32, c0: vec4<f32>, c1: vec4<f32>, c2: vec4<f32>) {
-    (*acc).phi += w * c0.xyz;
-    (*acc).j_sun += w * c1.xyz;
-    (*acc).j_sky += w * c2.xyz;
+// `vdbcook_scene::MS_FLUX_RATIO`: the largest |J|/φ per axis a light volume stores.
+const MS_FLUX_RATIO: f32 = 8.0;
+
+// One cell's six words, read as three pairs (ρ·φ_sun/4π, ρ·φ_sky/4π), (ρ, J_sun.xy), (J_sun.z
+// and J_sky.x, J_sky.yz): the f32s as bits, each flux as J/φ in 16 bits; added with weight `w`.
+fn lv_diffuse_add(acc: ptr<function, LvDiffuse>, w: f32, a: vec2<u32>, b: vec2<u32>, c: vec2<u32>) {
+    let phi = vec3<f32>(bitcast<vec2<f32>>(a), bitcast<f32>(b.x));
+    let s = unpack2x16snorm(b.y);
+    let m = unpack2x16snorm(c.x);
+    let k = unpack2x16snorm(c.y);
+    (*acc).phi += w * phi;
+    (*acc).j_sun += (w * MS_FLUX_RATIO * phi.x) * vec3<f32>(s, m.x);
+    (*acc).j_sky += (w * MS_FLUX_RATIO * phi.y) * vec3<f32>(m.y, k);
 }
 
 // (sun, sky): each `φ/4π + 3ḡ·J·ω/4π` (at least 0), `eye` the unit direction toward the eye in

@@ -213,7 +213,8 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // boundary's φ at the coarsest) and `ms_sweeps(level)` Jacobi sweeps of `ms_limit_main` +
 // `ms_update_main` run there (an even number: the result ends in φ A); one more
 // `ms_limit_main` on level 0's result, then `ms_store_main` writes per cell of level 0 into
-// `lv_ms_out` (three vec4: (ρ·φ_sun/4π, ρ·φ_sky/4π, ρ, 0), (ρ·J_sun/4π, 0), (ρ·J_sky/4π, 0)),
+// `lv_ms_out` (six words: ρ·φ_sun/4π, ρ·φ_sky/4π, ρ as f32, then J/φ per axis of both fields
+// in 16 bits, `ms_store_main`),
 // which the tracer and the drawer read density-weighted (`lv_diffuse_*` in `light.wgsl`).
 // One `MsParams` record per level and sweep parity (bound with a dynamic offset).
 
@@ -238,7 +239,7 @@ struct MsParams {
 // x y z of the sun's field, then of the sky's).
 @group(2) @binding(0) var<storage, read_write> lv_ms: array<f32>;
 @group(2) @binding(1) var<uniform> mp: MsParams;
-@group(2) @binding(2) var<storage, read_write> lv_ms_out: array<vec4<f32>>;
+@group(2) @binding(2) var<storage, read_write> lv_ms_out: array<u32>;
 
 // `vdbcook_trace::diffusion::MS_VACUUM`.
 const MS_VACUUM: f32 = 2.0;
@@ -421,8 +422,10 @@ fn ms_update_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // Level 0's result for the tracer and the drawer, per cell (φ A, after `ms_limit_main` on
-// it): (ρ·φ_sun/4π, ρ·φ_sky/4π, ρ, 0), then ρ·J/4π of each field, J per axis the mean of
-// the cell's two faces' fluxes (φᵢ − φⱼ)/(h·R) along it.
+// it), six words (`vdbcook_scene::ms_stored_flux`; `lv_diffuse_add` in `light.wgsl` reads them):
+// ρ·φ_sun/4π, ρ·φ_sky/4π and ρ as f32 bits; then each field's net flux J per axis (the mean of
+// the cell's two faces' fluxes (φᵢ − φⱼ)/(h·R) along it) as J/φ over ±MS_FLUX_RATIO in 16 bits
+// (`pack2x16snorm`): (J_sun.x, J_sun.y), (J_sun.z, J_sky.x), (J_sky.y, J_sky.z).
 @compute @workgroup_size(4, 4, 4)
 fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = mp.dims.xyz;
@@ -431,22 +434,28 @@ fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let i = lv_index(gid, dims);
     let rho = lv_density[i];
-    let out = 3u * (lp.base + i);
-    var j = array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
+    let out = 6u * (lp.base + i);
+    var r = array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
     let c = vec3<i32>(gid);
     let filled = lv_ms[mp.off.x + i] > 0.0;
+    let phi = vec2<f32>(ms_phi(c, 0u), ms_phi(c, 1u));
     if (filled) {
         for (var f = 0u; f < 2u; f++) {
-            let phi = ms_phi(c, f);
-            for (var a = 0u; a < 3u; a++) {
-                let lo = ms_face(i, c, a, 0u, f);
-                let up = ms_face(i, c, a, 1u, f);
-                j[f][a] = 0.5 * ((lo.y - phi) * lo.x + (phi - up.y) * up.x);
+            if (phi[f] > 0.0) {
+                for (var a = 0u; a < 3u; a++) {
+                    let lo = ms_face(i, c, a, 0u, f);
+                    let up = ms_face(i, c, a, 1u, f);
+                    let j = 0.5 * ((lo.y - phi[f]) * lo.x + (phi[f] - up.y) * up.x);
+                    r[f][a] = j / phi[f] / MS_FLUX_RATIO;
+                }
             }
         }
     }
     let w = rho / MS_FOUR_PI;
-    lv_ms_out[out] = vec4<f32>(w * ms_phi(c, 0u), w * ms_phi(c, 1u), rho, 0.0);
-    lv_ms_out[out + 1u] = vec4<f32>(w * j[0], 0.0);
-    lv_ms_out[out + 2u] = vec4<f32>(w * j[1], 0.0);
+    lv_ms_out[out] = bitcast<u32>(w * phi.x);
+    lv_ms_out[out + 1u] = bitcast<u32>(w * phi.y);
+    lv_ms_out[out + 2u] = bitcast<u32>(rho);
+    lv_ms_out[out + 3u] = pack2x16snorm(r[0].xy);
+    lv_ms_out[out + 4u] = pack2x16snorm(vec2<f32>(r[0].z, r[1].x));
+    lv_ms_out[out + 5u] = pack2x16snorm(r[1].yz);
 }

@@ -95,9 +95,9 @@ struct Params {
 @group(2) @binding(0) var out_texture: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(2) @binding(1) var<storage, read_write> out_buffer: array<f32>;
 // Group 3: the lit mode's light volume, (τ_sun, τ_sky) per cell, and the diffusion model's
-// three vec4 per cell (`light_build.wgsl`'s `ms_store_main`; written only for that model).
+// six words per cell (`light_build.wgsl`'s `ms_store_main`; written only for that model).
 @group(3) @binding(0) var<storage, read> lv_tau: array<vec2<f32>>;
-@group(3) @binding(1) var<storage, read> lv_diffusion: array<vec4<f32>>;
+@group(3) @binding(1) var<storage, read> lv_diffusion: array<vec2<u32>>;
 
 // Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
 const TRACE_EMISSION: bool = {{EMISSION}};

@@ -8,10 +8,11 @@
 //!
 //! A volume built for `MsModel::Diffusion` also runs the diffusion solve (`ms_*` passes, six
 //! more pipelines over a scratch of every level, one `MsParams` record per level and sweep
-//! parity bound with a dynamic offset) and stores three `vec4<f32>` per cell in a second buffer
-//! (cell `i` of the volume at base `b` at elements `3(b + i)..`): `(ρ·φ_sun/4π, ρ·φ_sky/4π, ρ,
-//! 0)` and `ρ·J/4π` of each field (binding 1 of the read group; `lv_diffuse_*` in
-//! `light.wgsl` reads it).
+//! parity bound with a dynamic offset) and stores six 32-bit words per cell in a second buffer
+//! (cell `i` of the volume at base `b` at words `6(b + i)..`): `ρ·φ_sun/4π`, `ρ·φ_sky/4π` and
+//! `ρ` as f32, then each field's flux per axis as `J/φ` in 16 bits (`ms_store_main`,
+//! `vdbcook_scene::ms_stored_flux`; binding 1 of the read group; `lv_diffuse_*` in `light.wgsl`
+//! reads it). 24 bytes a cell: 6 MiB at `light_res` 64 on a cubic box (48 until 2026-11-26).
 
 use std::sync::Mutex;
 
@@ -134,14 +135,14 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
 /// f32s of the diffusion solve's scratch per cell of a level (`light_build.wgsl`: st, sr, q,
 /// two fields in φ A and φ B, six resistances).
 const MS_FLOATS_PER_CELL: usize = 13;
-/// Bytes of the diffusion model's output per cell (three `vec4<f32>`).
-const MS_OUT_BYTES: usize = 48;
+/// Bytes of the diffusion model's output per cell (six words: three f32, six 16-bit fluxes).
+const MS_OUT_BYTES: usize = 24;
 
 /// What was built last: the buffers and the uniforms of the volumes in them.
 #[derive(Default)]
 struct State {
-    /// The shared buffers (`(τ_sun, τ_sky)` per cell, and the diffusion model's three
-    /// `vec4<f32>` per cell), their capacity in cells, their read bind group.
+    /// The shared buffers (`(τ_sun, τ_sky)` per cell, and the diffusion model's six words per
+    /// cell), their capacity in cells, their read bind group.
     /// The capacities: cells, and cells of the diffusion output.
     pool: Option<(wgpu::Buffer, wgpu::Buffer, usize, usize, wgpu::BindGroup)>,
     /// The density scratch and its capacity in cells.

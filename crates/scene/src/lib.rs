@@ -23,7 +23,8 @@ mod space;
 pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use diffusion::{
-    ms_levels, ms_sweeps, DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_ITERATIONS, MS_VACUUM,
+    ms_levels, ms_stored_flux, ms_sweeps, DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS,
+    MS_FLUX_RATIO, MS_ITERATIONS, MS_VACUUM,
 };
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use footprint::{level_start, pixel_angle};

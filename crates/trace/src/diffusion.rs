@@ -32,7 +32,9 @@
 //!   coarse levels: a sweep moves light one cell, and 16 sweeps of a 64-cell grid alone leave
 //!   a thin stormscape frame at half its converged brightness.
 //! - **flux**: after the last sweep, the net flux `J` at each cell centre, per axis the mean of
-//!   its two faces' `(φᵢ − φⱼ)/(h·R)`.
+//!   its two faces' `(φᵢ − φⱼ)/(h·R)`, kept as the GPU keeps it: per axis `J/φ` rounded to 16
+//!   bits over ±8 (`vdbcook_scene::ms_stored_flux`, a step of 2.4·10⁻⁴·φ), so a light volume
+//!   holds 24 bytes a cell (φ of both fields and the density in f32, six 16-bit fluxes).
 //!
 //! The march reads both fields density-weighted trilinear (`Σ wρφ / Σ wρ`: empty cells, which
 //! hold `φ_out`, do not bleed into a sample next to them) as first-order (P1) radiance: the light
@@ -42,7 +44,7 @@
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
-use vdbcook_scene::{ms_levels, ms_sweeps, LightGrid};
+use vdbcook_scene::{ms_levels, ms_stored_flux, ms_sweeps, LightGrid};
 pub use vdbcook_scene::{DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_ITERATIONS, MS_VACUUM};
 
 /// The two fields the solve carries per cell: the sun's scattered light and the sky's.
@@ -139,7 +141,9 @@ pub struct Diffusion {
     /// `[φ_sun/4π, φ_sky/4π]` per cell (empty cells: `[0, 1]`).
     pub phi: Vec<[f32; 2]>,
     /// The net flux `J/4π` per cell of both fields, per axis (empty cells: 0): the mean of the
-    /// cell's two faces' fluxes along each axis with the solve's resistances.
+    /// cell's two faces' fluxes along each axis with the solve's resistances, as a light volume
+    /// stores it: `J/φ` in 16 bits (`vdbcook_scene::ms_stored_flux`; the GPU's 24 bytes a
+    /// cell).
     pub flux: Vec<[[f32; 3]; 2]>,
 }
 
@@ -190,14 +194,15 @@ pub fn solve(
         phi = relax(l, start, m.albedo, ms_sweeps(li));
     }
     let norm = 1.0 / (4.0 * std::f64::consts::PI);
-    let flux = flux(&levels[0], &phi)
+    let flux = flux(&levels[0], &phi);
+    let phi: Vec<[f32; 2]> = phi.iter().map(|p| p.map(|v| (v * norm) as f32)).collect();
+    // Stored as the GPU stores it: per axis, J/φ in 16 bits (`ms_stored_flux`).
+    let flux = flux
         .into_iter()
-        .map(|j| j.map(|v| v.map(|c| (c * norm) as f32)))
+        .zip(&phi)
+        .map(|(j, p)| [0, 1].map(|f| j[f].map(|c| ms_stored_flux((c * norm) as f32, p[f]))))
         .collect();
-    Diffusion {
-        phi: phi.iter().map(|p| p.map(|v| (v * norm) as f32)).collect(),
-        flux,
-    }
+    Diffusion { phi, flux }
 }
 
 /// Each cell of a level of `dims` takes its parent's value (`parent` over `pd` cells).
