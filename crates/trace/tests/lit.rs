@@ -17,6 +17,8 @@
 //!   frames with changing seeds removes;
 //! - the **near field** toward the sun restores a dense skin the light volume's cells blur, also
 //!   inside one voxel under cells narrower than a voxel;
+//! - where **coarse cells** fail and the guard (finer cells): a thin wisp beside a dense core
+//!   reads its shadow, a thin dense wall leaks light;
 //! - the settings it refuses.
 
 mod common;
@@ -675,5 +677,117 @@ fn banding_at_large_steps_is_noise_that_frames_average_out() {
     assert!(
         voxels < 0.2 * one,
         "march auto (voxels) {voxels} against steps {one}"
+    );
+}
+
+/// Two constant slabs along z over x `[104, 152)`, y `[8, 40)` (leaf-aligned boxes, each
+/// `(z0, z1, density)`), under the constant box's transform.
+fn slabs(boxes: &[(i64, i64, f32)]) -> vdbcook_asset::Asset {
+    let mut f = FrameSpec::default();
+    for &(z0, z1, v) in boxes {
+        box_leaves([104, 8, z0], [152, 40, z1], v, &mut f.leaves);
+    }
+    let xf = [
+        [BOX_S, 0.0, 0.0, BOX_T[0]],
+        [0.0, BOX_S, 0.0, BOX_T[1]],
+        [0.0, 0.0, BOX_S, BOX_T[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    build([2, 1, 1], xf, 0.0, &[f], vdbcook_asset::PayloadFormat::F32)
+}
+
+/// Single scattering seen edge-on along +x through the slabs at cell `z` (the sun toward −z,
+/// at 90° to the ray; one octave, no sky, the voxel march at ¼ voxel), `light_res` cells:
+/// (radiance, cell width in voxels), and the settings.
+fn edge_on(asset: &vdbcook_asset::Asset, z: f64, light_res: u32) -> (f64, f64, RenderSettings) {
+    let s = RenderSettings {
+        absorb: 0.1,
+        scatter: 1.5,
+        light_dir: [0.0, 0.0, -1.0],
+        light_color: [2.0; 3],
+        sky: [0.0; 3],
+        ms_model: MsModel::Octaves,
+        ms_octaves: 1,
+        light_res,
+        march: March::Voxels,
+        step: 0.25,
+        ..lit()
+    };
+    let tracer = Tracer::new(asset, &camera(), &s).unwrap();
+    let cell = tracer.light_volume().unwrap().grid.cell;
+    let eye = box_world([96.0, 24.5, z]);
+    let px = tracer.trace(eye, [1.0, 0.0, 0.0], 0, &mut Scratch::default());
+    (px.rgba[0] as f64, cell, s)
+}
+
+/// The closed form of [`edge_on`]: a slab of density `rho` 48 voxels along the ray, the sun's
+/// optical depth `tau` (with the extinction) at the ray, the default dual-lobe phase at 90°.
+fn edge_on_closed_form(s: &RenderSettings, rho: f64, tau: f64) -> f64 {
+    let kappa = (s.absorb + s.scatter) as f64 * rho;
+    let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
+    let phase = 0.8 * hg(0.6, 0.0) + 0.2 * hg(-0.3, 0.0);
+    albedo * phase * s.light_color[0] as f64 * (-tau).exp() * -(-kappa * 48.0).exp_m1()
+}
+
+/// A thin wisp beside a dense core under a coarse light volume: one cell holds both, its mean
+/// density is half the core's, and the wisp reads the core's shadow from it (the depth toward
+/// the sun interpolated between cell centres); too thin to walk the near field (a cell of its
+/// own density is optically thin, below `LIT_NEAR_DEPTH`), it comes out far too dark. The guard
+/// is a light volume whose cells do not straddle the two (`light_res`). A wisp of density
+/// 0.005 (8 voxels thick) on the sun's side of a core of density 1: cells of 16 voxels give
+/// under a tenth of the closed form, cells of 2 voxels the closed form within 5%.
+#[test]
+fn a_thin_wisp_beside_a_dense_core_reads_its_shadow_under_coarse_cells() {
+    let asset = slabs(&[(40, 48, 0.005), (48, 64, 1.0)]);
+    // Through the wisp's middle voxel row, 4.5 voxels from its sunlit face.
+    let (coarse, cell, s) = edge_on(&asset, 44.5, 3);
+    let want = edge_on_closed_form(&s, 0.005, 1.6 * 0.005 * 4.5);
+    assert!(cell >= 15.0, "cells of {cell} voxels");
+    assert!(
+        coarse < 0.1 * want,
+        "coarse cells should shadow the wisp: {coarse}, want {want}"
+    );
+    let (fine, cell, _) = edge_on(&asset, 44.5, 24);
+    eprintln!(
+        "wisp: coarse {:.4}, fine {:.4} of the closed form",
+        coarse / want,
+        fine / want
+    );
+    assert!(cell <= 2.0, "cells of {cell} voxels");
+    assert!(
+        (fine / want - 1.0).abs() < 0.05,
+        "fine cells: {fine}, want {want}"
+    );
+}
+
+/// The mirror failure: light leaking through a thin dense wall under a coarse light volume.
+/// The cell's mean density (what a level of detail's voxel holds too: the light volume reads
+/// levels as exact cell means, `cooker/tests/lod.rs`) spreads the wall over the cell, so a
+/// thin medium in its shadow sees the sun through half a cell of a diluted wall instead of the
+/// whole wall. A wall of density 4, 2 voxels thick (optical depth 12.8), and a wisp of density
+/// 0.005 behind it: cells of 16 voxels let through over a hundred times the closed form's
+/// light, cells of 2 voxels give the closed form within 5%.
+#[test]
+fn a_thin_dense_wall_leaks_light_under_coarse_cells() {
+    let asset = slabs(&[(40, 42, 4.0), (48, 56, 0.005)]);
+    // The wisp's voxel row at cell z 50.5: behind the whole wall and 2.5 voxels of wisp.
+    let tau = 1.6 * (4.0 * 2.0 + 0.005 * 2.5);
+    let (coarse, cell, s) = edge_on(&asset, 50.5, 3);
+    let want = edge_on_closed_form(&s, 0.005, tau);
+    assert!(cell >= 15.0, "cells of {cell} voxels");
+    assert!(
+        coarse > 100.0 * want,
+        "coarse cells should leak: {coarse}, want {want}"
+    );
+    let (fine, cell, _) = edge_on(&asset, 50.5, 24);
+    eprintln!(
+        "wall: coarse {:.1}, fine {:.4} of the closed form",
+        coarse / want,
+        fine / want
+    );
+    assert!(cell <= 2.0, "cells of {cell} voxels");
+    assert!(
+        (fine / want - 1.0).abs() < 0.05,
+        "fine cells: {fine}, want {want}"
     );
 }
