@@ -8,8 +8,7 @@ use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
     blackbody_table, depth_range, light_dirs, lit_near_depth, pixel_angle, sky_diffusion, Affine,
-    DiffusionInputs, Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN,
-    LIT_NEAR_MAX_VOXELS, MAX_SIDE,
+    DiffusionInputs, Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
@@ -745,8 +744,7 @@ impl Renderer {
                 (March::resolve(settings, vmax) == March::Voxels) as u32,
             ],
             lit: [
-                // `LightVolume::near_voxels`.
-                (settings.sun_near as f64 * grid.cell).min(LIT_NEAR_MAX_VOXELS) as f32,
+                grid.near_voxels(settings.sun_near) as f32,
                 (axis_len.into_iter().fold(f64::INFINITY, f64::min) * grid.cell) as f32,
                 DiffusionInputs::of_settings(&grid, &self.xf, settings).mean_cos as f32,
                 settings.near_scatter,

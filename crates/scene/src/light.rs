@@ -188,6 +188,15 @@ impl LightGrid {
         LightGrid { lo, cell, dims }
     }
 
+    /// `Lit`'s near field toward the sun in voxels for `sun_near` cells (the CPU's
+    /// `Tracer::sun_depth`, the renderer's and the drawer's walks), at most
+    /// [`LIT_NEAR_MAX_VOXELS`]; cells narrower than a voxel walk less than one (a voxel dense
+    /// as a surface, optically thick within one cell, still has its skin blurred between cell
+    /// centres: [`LIT_NEAR_DEPTH_FINE`]).
+    pub fn near_voxels(&self, sun_near: f32) -> f64 {
+        (sun_near as f64 * self.cell).min(LIT_NEAR_MAX_VOXELS)
+    }
+
     pub fn cells(&self) -> usize {
         self.dims.iter().map(|&d| d as usize).product()
     }

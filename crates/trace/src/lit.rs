@@ -57,12 +57,12 @@
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use vdbcook_asset::Asset;
+pub use vdbcook_scene::LIT_NEAR_TRANS;
 use vdbcook_scene::{
     content_box, light_dirs, lit_near_depth, near_scatter_source, normalize, octave_source,
     sky_diffusion, sky_source, Affine, Filter, LevelChain, LightGrid, MsModel, RenderSettings,
     MAX_MS_OCTAVES,
 };
-pub use vdbcook_scene::{LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS};
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
@@ -269,14 +269,6 @@ impl LightVolume {
         self.lookup([0, 1, 2].map(|a| p[a] + t0 * l[a]))[0]
     }
 
-    /// The near field toward the sun in voxels for `sun_near` cells (`Tracer::sun_depth`), at
-    /// most [`LIT_NEAR_MAX_VOXELS`]; cells narrower than a voxel walk less than one (a voxel
-    /// dense as a surface, optically thick within one cell, still has its skin blurred between
-    /// cell centres: `the_near_field_resolves_a_skin_inside_one_voxel`).
-    pub fn near_voxels(&self, sun_near: f32) -> f64 {
-        (sun_near as f64 * self.grid.cell).min(LIT_NEAR_MAX_VOXELS)
-    }
-
     /// `(τ_sun, τ_sky)` at cell-space point `p` (trilinear).
     pub fn lookup(&self, p: [f64; 3]) -> [f64; 2] {
         let mut out = [0.0f64; 2];
@@ -330,7 +322,7 @@ impl Tracer<'_> {
     /// of density `rho`: the first `settings.sun_near` light-volume cells toward the sun walked
     /// exactly (the density mode's voxel sum), the light volume's depth where that walk ends
     /// beyond (`sun_depth_at`: 0 once the ray has left the grid). The light volume's lookup at
-    /// `q` alone where there is no near field (`LightVolume::near_voxels`), where one cell's
+    /// `q` alone where there is no near field (`LightGrid::near_voxels`), where one cell's
     /// optical depth at density `rho` is below `LIT_NEAR_DEPTH` (`LIT_NEAR_DEPTH_FINE` for cells
     /// no wider than a voxel: `vdbcook_scene::lit_near_depth`; a medium the cells resolve:
     /// its depth changes little across one), or where the primary ray's transmittance `trans`
@@ -344,7 +336,7 @@ impl Tracer<'_> {
         trans: f64,
         cache: &mut BrickCache,
     ) -> [f64; 2] {
-        let near = lv.near_voxels(self.settings.sun_near);
+        let near = lv.grid.near_voxels(self.settings.sun_near);
         let cell_depth = self.extinction * rho * lv.cell_len;
         let cells = lv.lookup(q)[0];
         if !(near > 0.0)
@@ -513,13 +505,7 @@ impl LitMarch<'_, '_> {
                     self.sun_phase[0] * (-ext * ts).exp()
                         + (diffuse_sun
                             + near_scatter_source(
-                                if std::env::var("XP_KSKY").is_ok() {
-                                    s.near_scatter as f64
-                                        * 2.0
-                                        * (1.0 - (-ext * self.lv.lookup(q)[1]).exp())
-                                } else {
-                                    s.near_scatter as f64
-                                },
+                                s.near_scatter as f64,
                                 albedo,
                                 ext * ts,
                                 ext * ts_cells,

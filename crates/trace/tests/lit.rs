@@ -49,15 +49,7 @@ const ALIGNED_LO: [i64; 3] = [104, 8, 24];
 const ALIGNED_HI: [i64; 3] = [152, 40, 56];
 
 fn aligned_box() -> vdbcook_asset::Asset {
-    let mut f = FrameSpec::default();
-    box_leaves(ALIGNED_LO, ALIGNED_HI, SIGMA, &mut f.leaves);
-    let xf = [
-        [BOX_S, 0.0, 0.0, BOX_T[0]],
-        [0.0, BOX_S, 0.0, BOX_T[1]],
-        [0.0, 0.0, BOX_S, BOX_T[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
-    build([2, 1, 1], xf, 0.0, &[f], vdbcook_asset::PayloadFormat::F32)
+    boxes(&[(ALIGNED_LO, ALIGNED_HI, SIGMA)])
 }
 
 /// The light volume of `s` over the aligned box.
@@ -193,14 +185,11 @@ fn one_octave_is_single_scattering_with_the_reference_phase_convention() {
     }
 }
 
-/// The single scattering off a constant box of density `density` seen along +z with the sun
-/// behind the camera, `light_res` cells along the box, the voxel march at `step` voxels, the
-/// near field over `sun_near` cells: (radiance, the closed form, the cell width in voxels).
-fn skin(density: f32, light_res: u32, step: f32, sun_near: f32) -> (f64, f64, f64) {
-    let asset = constant_box(density);
-    let depth = (BOX_HI[2] - BOX_LO[2]) as f64;
-    let cam = camera();
-    let s = RenderSettings {
+/// Single scattering of the default medium (one octave, no sky) from a sun of irradiance 2
+/// toward −z, `light_res` cells, the voxel march at `step` voxels, the near field over
+/// `sun_near` cells.
+fn sun_single(light_res: u32, step: f32, sun_near: f32) -> RenderSettings {
+    RenderSettings {
         absorb: 0.1,
         scatter: 1.5,
         light_dir: [0.0, 0.0, -1.0],
@@ -213,7 +202,17 @@ fn skin(density: f32, light_res: u32, step: f32, sun_near: f32) -> (f64, f64, f6
         step,
         sun_near,
         ..lit()
-    };
+    }
+}
+
+/// The single scattering off a constant box of density `density` seen along +z with the sun
+/// behind the camera, `light_res` cells along the box, the voxel march at `step` voxels, the
+/// near field over `sun_near` cells: (radiance, the closed form, the cell width in voxels).
+fn skin(density: f32, light_res: u32, step: f32, sun_near: f32) -> (f64, f64, f64) {
+    let asset = constant_box(density);
+    let depth = (BOX_HI[2] - BOX_LO[2]) as f64;
+    let cam = camera();
+    let s = sun_single(light_res, step, sun_near);
     let tracer = Tracer::new(&asset, &cam, &s).unwrap();
     let cell = tracer.light_volume().unwrap().grid.cell;
     let px = tracer.trace(cam.eye, [0.0, 0.0, 1.0], 0, &mut Scratch::default());
@@ -680,39 +679,21 @@ fn banding_at_large_steps_is_noise_that_frames_average_out() {
     );
 }
 
-/// Two constant slabs along z over x `[104, 152)`, y `[8, 40)` (leaf-aligned boxes, each
+/// Constant slabs along z over x `[104, 152)`, y `[8, 40)` (leaf-aligned boxes, each
 /// `(z0, z1, density)`), under the constant box's transform.
-fn slabs(boxes: &[(i64, i64, f32)]) -> vdbcook_asset::Asset {
-    let mut f = FrameSpec::default();
-    for &(z0, z1, v) in boxes {
-        box_leaves([104, 8, z0], [152, 40, z1], v, &mut f.leaves);
-    }
-    let xf = [
-        [BOX_S, 0.0, 0.0, BOX_T[0]],
-        [0.0, BOX_S, 0.0, BOX_T[1]],
-        [0.0, 0.0, BOX_S, BOX_T[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
-    build([2, 1, 1], xf, 0.0, &[f], vdbcook_asset::PayloadFormat::F32)
+fn slabs(list: &[(i64, i64, f32)]) -> vdbcook_asset::Asset {
+    let b: Vec<_> = list
+        .iter()
+        .map(|&(z0, z1, v)| ([104, 8, z0], [152, 40, z1], v))
+        .collect();
+    boxes(&b)
 }
 
 /// Single scattering seen edge-on along +x through the slabs at cell `z` (the sun toward −z,
 /// at 90° to the ray; one octave, no sky, the voxel march at ¼ voxel), `light_res` cells:
 /// (radiance, cell width in voxels), and the settings.
 fn edge_on(asset: &vdbcook_asset::Asset, z: f64, light_res: u32) -> (f64, f64, RenderSettings) {
-    let s = RenderSettings {
-        absorb: 0.1,
-        scatter: 1.5,
-        light_dir: [0.0, 0.0, -1.0],
-        light_color: [2.0; 3],
-        sky: [0.0; 3],
-        ms_model: MsModel::Octaves,
-        ms_octaves: 1,
-        light_res,
-        march: March::Voxels,
-        step: 0.25,
-        ..lit()
-    };
+    let s = sun_single(light_res, 0.25, DEFAULT_SUN_NEAR);
     let tracer = Tracer::new(asset, &camera(), &s).unwrap();
     let cell = tracer.light_volume().unwrap().grid.cell;
     let eye = box_world([96.0, 24.5, z]);

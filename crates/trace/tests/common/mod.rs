@@ -122,6 +122,12 @@ pub const BOX_S: f64 = 0.5;
 pub const BOX_T: [f64; 3] = [1.0, 2.0, 3.0];
 
 pub fn constant_box(v: f32) -> Asset {
+    boxes(&[(BOX_LO, BOX_HI, v)])
+}
+
+/// Constant boxes `[lo, hi)` of value `v` (each in leaves of its own: a later box replaces the
+/// leaves it shares with an earlier one) under [`constant_box`]'s transform, f32.
+pub fn boxes(list: &[([i64; 3], [i64; 3], f32)]) -> Asset {
     let xf = [
         [BOX_S, 0.0, 0.0, BOX_T[0]],
         [0.0, BOX_S, 0.0, BOX_T[1]],
@@ -129,7 +135,9 @@ pub fn constant_box(v: f32) -> Asset {
         [0.0, 0.0, 0.0, 1.0],
     ];
     let mut f = FrameSpec::default();
-    box_leaves(BOX_LO, BOX_HI, v, &mut f.leaves);
+    for &(lo, hi, v) in list {
+        box_leaves(lo, hi, v, &mut f.leaves);
+    }
     build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
 }
 
