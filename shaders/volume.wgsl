@@ -496,11 +496,18 @@ fn vdb_dda_next(ray: VdbRay, s: ptr<function, VdbDda>) -> VdbSeg {
 const VDB_OPAQUE_DEPTH: f32 = 20.0;
 
 // `vdb_optical_depth` for a short stretch of `ray` (a few voxels, at most 1024; `absorb` 0: no
-// opaque stop): one flat voxel DDA over the
-// box the stretch [t0, t1] crosses, the tree descended once per 8³ leaf entered (`vdb_holder`)
-// and each voxel read from it: the same voxels and sum as the hierarchical walk in less code
-// (which software Vulkan runs faster).
+// opaque stop): one flat voxel DDA over the box the stretch [t0, t1] crosses, the tree descended
+// once per 8³ leaf entered (`vdb_holder`) and each voxel read from it: the same voxels and sum as
+// the hierarchical walk in less code (which software Vulkan runs faster).
 fn vdb_optical_depth_near(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32) -> f32 {
+    return vdb_optical_depth_near_from(frame_root, ray, t0, t1, absorb, vec3<i32>(-1), VDB_EMPTY);
+}
+
+// `vdb_optical_depth_near` for a caller that knows the holder `r0` of 8³ leaf `leaf0` (leaf
+// coordinates: index >> 3; −1 for none), typically the brick its own walk is in: no descent for
+// that leaf. The DDA keeps its three crossings in a vector and advances the nearest (ties: x,
+// then y), the crossing of a cell boundary b being (b − o)·(1/d).
+fn vdb_optical_depth_near_from(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32, leaf0: vec3<i32>, r0: u32) -> f32 {
     var tau = 0.0;
     if (!(t1 > t0)) {
         return tau;
@@ -510,32 +517,52 @@ fn vdb_optical_depth_near(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb
     let ext = vec3<i32>(vdb_info.root_dims * 128u);
     let lo = max(vec3<i32>(floor(min(pa, pb))), vec3<i32>(0));
     let hi = min(vec3<i32>(floor(max(pa, pb))) + vec3<i32>(1), ext);
-    var d = vdb_dda_init(ray, 1.0, lo, hi, t0, t1);
-    var leaf = vec3<i32>(-1);
-    var r = VDB_EMPTY;
-    // 4096 steps: more than a path of `LIT_NEAR_MAX_VOXELS` (1024) voxels crosses.
-    for (var i = 0; i < 4096; i++) {
-        let s = vdb_dda_next(ray, &d);
-        if (!s.ok) {
-            break;
-        }
-        let l = s.cell >> vec3<u32>(3u);
-        if (any(l != leaf)) {
-            leaf = l;
-            r = vdb_holder(frame_root, s.cell);
-        }
-        var v = vdb_info.background;
-        if ((r & VDB_TILE_BIT) != 0u && r != VDB_EMPTY) {
-            v = vdb_tile(r & ~VDB_TILE_BIT);
-        } else if (r != VDB_EMPTY) {
-            v = vdb_brick_voxel(r, s.cell);
-        }
-        if (v > 0.0) {
-            tau += v * (s.tb - s.ta) * ray.per_t;
-            if (absorb * tau >= VDB_OPAQUE_DEPTH) {
-                break;
+    let pos = ray.d > vec3<f32>(0.0);
+    let moves = pos | (ray.d < vec3<f32>(0.0));
+    let step = select(vec3<i32>(0), select(vec3<i32>(-1), vec3<i32>(1), pos), moves);
+    let up = select(vec3<i32>(0), vec3<i32>(1), pos);
+    let inv = select(vec3<f32>(0.0), 1.0 / ray.d, moves);
+    var cell = clamp(vec3<i32>(clamp(floor(pa), vec3<f32>(-1.0e9), vec3<f32>(1.0e9))), lo, hi - vec3<i32>(1));
+    var next = select(vec3<f32>(VDB_BIG), (vec3<f32>(cell + up) - ray.o) * inv, moves);
+    let hs = hi - lo;
+    let n = min(hs.x + hs.y + hs.z + 3, 4096);
+    var tm = t0;
+    var leaf = leaf0;
+    var r = r0;
+    for (var i = 0; i < n; i++) {
+        let ax = next.x <= next.y && next.x <= next.z;
+        let ay = !ax && next.y <= next.z;
+        let m = vec3<bool>(ax, ay, !(ax || ay));
+        let tn = select(select(next.z, next.y, ay), next.x, ax);
+        let te = max(min(tn, t1), tm);
+        if (te > tm) {
+            let l = cell >> vec3<u32>(3u);
+            if (any(l != leaf)) {
+                leaf = l;
+                r = vdb_holder(frame_root, cell);
+            }
+            var v = vdb_info.background;
+            if ((r & VDB_TILE_BIT) != 0u && r != VDB_EMPTY) {
+                v = vdb_tile(r & ~VDB_TILE_BIT);
+            } else if (r != VDB_EMPTY) {
+                v = vdb_brick_voxel(r, cell);
+            }
+            if (v > 0.0) {
+                tau += v * (te - tm) * ray.per_t;
+                if (absorb * tau >= VDB_OPAQUE_DEPTH) {
+                    break;
+                }
             }
         }
+        if (!(tn < t1)) {
+            break;
+        }
+        tm = te;
+        cell += select(vec3<i32>(0), step, m);
+        if (any(cell < lo) || any(cell >= hi)) {
+            break;
+        }
+        next = select(next, (vec3<f32>(cell + up) - ray.o) * inv, m);
     }
     return tau;
 }
