@@ -37,6 +37,17 @@ fn score(a: &[f32], truth: &[f32]) -> (f64, f64) {
     ((se / n as f64).sqrt() / mean, sa / st)
 }
 
+/// `score` of the CPU render of `asset` with settings `s` against `truth`.
+fn error_of(
+    asset: &vdbcook_asset::Asset,
+    cam: &Camera,
+    s: &RenderSettings,
+    truth: &Image,
+) -> (f64, f64) {
+    let img = render(asset, cam, s).unwrap();
+    score(&img.rgba, &truth.rgba)
+}
+
 /// `input` cooked, its default camera at 64×36, the lit mode's default settings there, and the
 /// reference path tracer's image at 1024 spp (its own noise is about 0.03 of the errors below).
 fn lit_scene(input: &str) -> (vdbcook_asset::Asset, Camera, RenderSettings, Image) {
@@ -72,17 +83,12 @@ fn diffusion_is_closer_to_the_reference_than_the_octaves() {
     for input in inputs {
         let (asset, cam, s, truth) = lit_scene(&input);
         let lit = |ms_model: MsModel| {
-            let img = render(
-                &asset,
-                &cam,
-                &RenderSettings {
-                    ms_model,
-                    ms_sky: ms_model.default_ms_sky(),
-                    ..s.clone()
-                },
-            )
-            .unwrap();
-            score(&img.rgba, &truth.rgba)
+            let s = RenderSettings {
+                ms_model,
+                ms_sky: ms_model.default_ms_sky(),
+                ..s.clone()
+            };
+            error_of(&asset, &cam, &s, &truth)
         };
         let (e_oct, r_oct) = lit(MsModel::Octaves);
         let (e_dif, r_dif) = lit(MsModel::Diffusion);
@@ -122,16 +128,11 @@ fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
     for input in inputs {
         let (asset, cam, s, truth) = lit_scene(&input);
         let lit = |near_scatter: f32| {
-            let img = render(
-                &asset,
-                &cam,
-                &RenderSettings {
-                    near_scatter,
-                    ..s.clone()
-                },
-            )
-            .unwrap();
-            score(&img.rgba, &truth.rgba)
+            let s = RenderSettings {
+                near_scatter,
+                ..s.clone()
+            };
+            error_of(&asset, &cam, &s, &truth)
         };
         let (e_off, r_off) = lit(0.0);
         let (e_on, r_on) = lit(vdbcook_trace::DEFAULT_NEAR_SCATTER);
