@@ -14,7 +14,6 @@ use std::path::PathBuf;
 
 use serde_json::json;
 use vdbcook::bcenc::{encode_bc4, encode_bc7, Bc7Quality};
-use vdbcook::cook;
 use vdbcook::report::chart::{scatter_chart, Point, Series, PALETTE};
 use vdbcook_asset::bc::decode_bc7_block;
 use vdbcook_asset::payload::{decode_brick, dequantize, quantize, vox_index};
@@ -137,10 +136,16 @@ fn main() {
     } else {
         root.join(&input)
     };
-    let mut a = cook::Args::defaults(vec![input_path.display().to_string()], "/dev/null".into());
-    a.grids = grids.clone();
-    a.keep_empty_channels = true;
-    let asset = match cook::cook(&a) {
+    let a = vdbcook_cook::CookOptions {
+        grids: vdbcook_cook::Grids::Several(grids.clone()),
+        keep_empty_channels: true,
+        ..Default::default()
+    };
+    let asset = match vdbcook_cook::cook_inputs(
+        &[input_path.display().to_string()],
+        &a,
+        &vdbcook_cook::Context::quiet(),
+    ) {
         Ok(c) => c.asset,
         Err(e) => {
             eprintln!("channel_payloads: {e}");

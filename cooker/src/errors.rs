@@ -21,6 +21,17 @@ impl From<VdbError> for CliError {
     }
 }
 
+impl From<vdbcook_cook::CookError> for CliError {
+    fn from(e: vdbcook_cook::CookError) -> Self {
+        use vdbcook_cook::CookError;
+        match e {
+            CookError::Input(v) => CliError::Vdb(v),
+            CookError::Options(m) => CliError::Usage(m),
+            CookError::Internal(m) => CliError::Other(m),
+        }
+    }
+}
+
 impl std::fmt::Display for CliError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {

@@ -361,7 +361,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                     // compares as empty.
                     let empty = h.channel_active_voxels(*c, fi) == 0;
                     out.push(
-                        match crate::cook::read_named_in(&file, f, name, &how, empty, false)? {
+                        match vdbcook_cook::frames::read_named_in(
+                            &file, f, name, &how, empty, false,
+                        )? {
                             None => (ErrStats::new(), None),
                             Some(l) => (
                                 compare_frame_c(&asset, fi, *c, &l.grid),
@@ -411,7 +413,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         })
         .collect();
     let file_bytes = std::fs::metadata(&a.asset).map(|m| m.len()).unwrap_or(0);
-    let gpu: u64 = crate::cook::section_sizes(&asset)
+    let gpu: u64 = vdbcook_cook::assemble::section_sizes(&asset)
         .iter()
         .map(|(_, n)| n)
         .sum();

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use serde_json::json;
 use vdbcook_asset::{LeafRef, EMPTY, TILE_BIT};
 
-use crate::cook::{section_sizes, topology_and_atlas};
 use crate::errors::CliError;
+use vdbcook_cook::assemble::{section_sizes, topology_and_atlas};
 
 #[derive(clap::Args)]
 pub struct Args {

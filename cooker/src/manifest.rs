@@ -8,10 +8,12 @@
 //! reads (each error names the manifest line). Then every entry gets a **key**: xxh3-128 over the
 //! cooker's version, the options that shape the bytes, and each input frame's file name, number
 //! and content hash. The cache folder holds `KEY.vdbc` (the asset) and `KEY.json` (its cook
-//! report); a key that is there is **cached** (its bytes are copied to the output if it differs),
-//! the others are **cooked** (in parallel over the thread pool), stored, then written (output
-//! folders are created as needed). Cooks are
-//! deterministic, so a cached asset is byte-identical to a fresh cook (tested).
+//! report); a key whose asset is there and loads (every section's hash checked) is **cached**
+//! (its bytes are copied to the output if it differs); a damaged entry is named in a note and
+//! cooked again; the others are **cooked** (in parallel over the thread pool), stored (report
+//! first, then asset, each through a temporary file renamed into place, so concurrent runs
+//! sharing a cache see whole entries), then written (output folders are created as needed).
+//! Cooks are deterministic, so a cached asset is byte-identical to a fresh cook (tested).
 //!
 //! Content hashes are remembered per file in `files.json` in the cache folder under the file's
 //! size, modification time (ns) and inode: a second run re-hashes only files whose metadata
@@ -29,8 +31,12 @@ use toml::Spanned;
 use vdbcook_vdb::sequence::Frame;
 use xxhash_rust::xxh3::Xxh3;
 
-use crate::cook::{self, Args};
+use vdbcook_cook::progress::Progress;
+use vdbcook_cook::{Context, CookOptions};
+
+use crate::cook::Args;
 use crate::errors::CliError;
+use crate::spell;
 
 /// The manifest file: `[[asset]]` tables.
 #[derive(Deserialize)]
@@ -55,6 +61,32 @@ enum Size {
     Text(String),
 }
 
+/// `grids` as `"auto"`, `"density,temperature"` or a list.
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum GridList {
+    Text(String),
+    Many(Vec<String>),
+}
+
+/// `max-error` as one bound, `"density=0.01,5"` as the flag spells it, or a table of bounds per
+/// channel (`{ density = 0.01, temperature = 5 }`).
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum MaxError {
+    All(f32),
+    Text(String),
+    Per(BTreeMap<String, f32>),
+}
+
+/// `lod` as a level count or `"all"`.
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum LodLevels {
+    Count(u32),
+    Text(String),
+}
+
 /// One `[[asset]]`: the options of `vdbcook cook`, spelt as its flags.
 #[derive(Deserialize, Clone)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
@@ -62,42 +94,31 @@ struct Entry {
     input: Inputs,
     output: String,
     format: Option<String>,
-    max_error: Option<f32>,
+    max_error: Option<MaxError>,
     max_bytes: Option<Size>,
     grid: Option<String>,
+    grids: Option<GridList>,
     clusters: Option<usize>,
     iterations: Option<usize>,
     variance_threshold: Option<f32>,
     frames: Option<String>,
     range: Option<String>,
     bc7_quality: Option<String>,
+    lod: Option<LodLevels>,
+    lod_from: Option<u32>,
     allow_gaps: Option<bool>,
     allow_missing_grid: Option<bool>,
+    keep_empty_channels: Option<bool>,
     replace_non_finite: Option<f32>,
-}
-
-/// What shapes an asset's bytes besides its input frames (part of the key).
-#[derive(Serialize)]
-struct KeyOptions<'a> {
-    format: &'a Option<String>,
-    max_error: Option<u32>,
-    max_bytes: Option<u64>,
-    grid: &'a Option<String>,
-    clusters: Option<usize>,
-    iterations: Option<usize>,
-    variance_threshold: Option<u32>,
-    range: &'a str,
-    bc7_quality: &'a str,
-    allow_gaps: bool,
-    allow_missing_grid: bool,
-    replace_non_finite: Option<u32>,
 }
 
 /// A checked entry, ready to cook.
 struct Job {
     line: usize,
-    args: Args,
+    opts: CookOptions,
     frames: Vec<Frame>,
+    /// As the manifest names it (relative to the manifest's folder), and canonical.
+    output_given: PathBuf,
     output: PathBuf,
     key: String,
 }
@@ -193,8 +214,9 @@ fn content_hash(
     })
 }
 
-/// The cook arguments of one entry (paths resolved against `base`), checked like the CLI's.
-fn entry_args(e: &Entry, base: &Path) -> Result<Args, String> {
+/// The inputs, output and cook options of one entry (paths resolved against `base`), checked as
+/// the CLI checks its flags: each key goes through the same parser as its flag.
+fn entry_options(e: &Entry, base: &Path) -> Result<(Vec<String>, PathBuf, CookOptions), String> {
     let inputs = match &e.input {
         Inputs::One(s) => vec![s.clone()],
         Inputs::Many(v) => v.clone(),
@@ -206,70 +228,90 @@ fn entry_args(e: &Entry, base: &Path) -> Result<Args, String> {
         .iter()
         .map(|i| rel(base, i).to_string_lossy().into_owned())
         .collect();
-    let mut a = Args::defaults(inputs, rel(base, &e.output));
+    let (max_error, max_bytes) = (
+        match &e.max_error {
+            None => None,
+            Some(MaxError::All(v)) => Some(spell::MaxErrorArg::All(*v)),
+            Some(MaxError::Text(t)) => Some(spell::parse_max_error(t)?),
+            Some(MaxError::Per(m)) => Some(spell::MaxErrorArg::Per {
+                all: None,
+                per: m.iter().map(|(k, v)| (k.clone(), *v)).collect(),
+            }),
+        },
+        match &e.max_bytes {
+            None => None,
+            Some(Size::Bytes(n)) => Some(*n),
+            Some(Size::Text(t)) => Some(spell::parse_size(t)?),
+        },
+    );
     if let Some(f) = &e.format {
         if !["f32", "f16", "unorm8", "bc4", "bc7"].contains(&f.as_str()) {
             return Err(format!("format '{f}' (f32, f16, unorm8, bc4, bc7)"));
         }
-        a.format = Some(f.clone());
     }
     if let Some(r) = &e.range {
         if !["brick", "global"].contains(&r.as_str()) {
             return Err(format!("range '{r}' (brick, global)"));
         }
-        a.range = r.clone();
     }
-    if let Some(q) = &e.bc7_quality {
-        a.bc7_quality = q.clone();
+    if e.grid.is_some() && e.grids.is_some() {
+        return Err("give `grid` or `grids`, not both".into());
     }
-    a.max_error = e.max_error;
-    a.max_bytes = match &e.max_bytes {
-        None => None,
-        Some(Size::Bytes(n)) => Some(*n),
-        Some(Size::Text(t)) => Some(crate::size_budget::parse_size(t)?),
+    let args = Args {
+        inputs: Vec::new(),
+        output: None,
+        frames: e.frames.as_deref().map(spell::parse_frames).transpose()?,
+        manifest: None,
+        cache_dir: None,
+        format: e.format.clone(),
+        max_error,
+        max_bytes,
+        range: e.range.clone().unwrap_or_else(|| "brick".into()),
+        bc7_quality: e.bc7_quality.clone().unwrap_or_else(|| "fast".into()),
+        grid: e.grid.clone(),
+        grids: match &e.grids {
+            None => Vec::new(),
+            Some(GridList::Text(t)) => t.split(',').map(|g| g.trim().to_string()).collect(),
+            Some(GridList::Many(v)) => v.clone(),
+        },
+        json: false,
+        allow_gaps: e.allow_gaps.unwrap_or(false),
+        clusters: e.clusters,
+        iterations: e.iterations,
+        variance_threshold: e.variance_threshold,
+        allow_missing_grid: e.allow_missing_grid.unwrap_or(false),
+        keep_empty_channels: e.keep_empty_channels.unwrap_or(false),
+        lod: match &e.lod {
+            None => None,
+            Some(LodLevels::Count(n)) => Some(spell::parse_levels(&n.to_string())?),
+            Some(LodLevels::Text(t)) => Some(spell::parse_levels(t)?),
+        },
+        lod_from: e
+            .lod_from
+            .map(|k| spell::parse_first(&k.to_string()))
+            .transpose()?,
+        replace_non_finite: e.replace_non_finite,
     };
-    a.grid = e.grid.clone();
-    a.clusters = e.clusters;
-    a.iterations = e.iterations;
-    a.variance_threshold = e.variance_threshold;
-    a.frames = e.frames.clone();
-    a.allow_gaps = e.allow_gaps.unwrap_or(false);
-    a.allow_missing_grid = e.allow_missing_grid.unwrap_or(false);
-    a.replace_non_finite = e.replace_non_finite;
-    a.validate().map_err(|e| e.to_string())?;
-    if crate::bcenc::Bc7Quality::parse(&a.bc7_quality).is_none() {
-        return Err(format!(
-            "bc7-quality '{}' (ultra-fast, very-fast, fast, basic, slow)",
-            a.bc7_quality
-        ));
-    }
-    Ok(a)
+    let opts = args.options().map_err(|e| e.to_string())?;
+    Ok((inputs, rel(base, &e.output), opts))
 }
 
 /// The cache key of an entry: the cooker's version, its options and its frames' contents.
 fn key_of(
-    a: &Args,
+    opts: &CookOptions,
     frames: &[Frame],
     stamps: &mut BTreeMap<String, FileStamp>,
 ) -> std::io::Result<String> {
-    let opts = KeyOptions {
-        format: &a.format,
-        max_error: a.max_error.map(f32::to_bits),
-        max_bytes: a.max_bytes,
-        grid: &a.grid,
-        clusters: a.clusters,
-        iterations: a.iterations,
-        variance_threshold: a.variance_threshold.map(f32::to_bits),
-        range: &a.range,
-        bc7_quality: &a.bc7_quality,
-        allow_gaps: a.allow_gaps,
-        allow_missing_grid: a.allow_missing_grid,
-        replace_non_finite: a.replace_non_finite.map(f32::to_bits),
-    };
     let mut h = Xxh3::new();
-    h.update(b"vdbcook cook cache v1\n");
+    h.update(b"vdbcook cook cache v2\n");
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(serde_json::to_string(&opts).expect("json").as_bytes());
+    // Every option that shapes the bytes, as Rust prints it (floats exactly: shortest
+    // round-trip); the frame range is in the frames themselves.
+    let shaping = CookOptions {
+        frames: None,
+        ..opts.clone()
+    };
+    h.update(format!("{shaping:?}").as_bytes());
     for f in frames {
         let canonical_name = canonical(&f.path).to_string_lossy().into_owned();
         let stamp = content_hash(&f.path, &canonical_name, stamps)?;
@@ -282,6 +324,24 @@ fn key_of(
         stamps.insert(canonical_name, stamp);
     }
     Ok(hex128(h.digest128()))
+}
+
+/// The cached asset of `key`, if the cache holds one that loads: every section's hash checked
+/// (`Asset::from_bytes`). A corrupt or truncated entry is reported by `note` and not served.
+fn cached_entry(cache_dir: &Path, key: &str, note: &dyn Fn(String)) -> Option<Vec<u8>> {
+    let path = cache_dir.join(format!("{key}.vdbc"));
+    let bytes = std::fs::read(&path).ok()?;
+    match vdbcook_asset::Asset::from_bytes(&bytes) {
+        Ok(_) => Some(bytes),
+        Err(e) => {
+            note(format!(
+                "note: cache entry {} is damaged ({}); cooking it again",
+                path.display(),
+                e.0
+            ));
+            None
+        }
+    }
 }
 
 /// Runs `vdbcook cook --manifest` (`a.manifest` set; `a.json` and `--cache-dir` honoured).
@@ -324,11 +384,13 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     for s in &file.asset {
         let line = line_of(&text, s.span().start);
         let e = s.get_ref();
-        let args = entry_args(e, &base).map_err(|m| manifest_err(path, line, m))?;
-        let frames = cook::resolve_frames(&args).map_err(|err| manifest_err(path, line, err))?;
-        crate::output::refuse_inputs(&args.output, &frames, &args.inputs, "asset")
+        let (inputs, output_given, opts) =
+            entry_options(e, &base).map_err(|m| manifest_err(path, line, m))?;
+        let frames = vdbcook_cook::frames::resolve_frames(&inputs, opts.allow_gaps, opts.frames)
+            .map_err(|err| manifest_err(path, line, CliError::from(err)))?;
+        crate::output::refuse_inputs(&output_given, &frames, &inputs, "asset")
             .map_err(|err| manifest_err(path, line, err))?;
-        let output = canonical(&args.output);
+        let output = canonical(&output_given);
         if let Some(o) = jobs.iter().find(|j| j.output == output) {
             return Err(manifest_err(
                 path,
@@ -336,16 +398,17 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 format!(
                     "this entry and the one at line {} both write {}",
                     o.line,
-                    args.output.display()
+                    output_given.display()
                 ),
             ));
         }
-        let key = key_of(&args, &frames, &mut stamps)
+        let key = key_of(&opts, &frames, &mut stamps)
             .map_err(|err| manifest_err(path, line, format!("cannot read an input: {err}")))?;
         jobs.push(Job {
             line,
-            args,
+            opts,
             frames,
+            output_given,
             output,
             key,
         });
@@ -373,80 +436,93 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         ))
     })?;
 
-    // Cook what the cache lacks (each key once), in parallel; then write every output.
-    let cached: Vec<bool> = jobs
+    // Entries the cache holds intact are served from it; the others (missing, truncated or
+    // corrupt) are cooked, each key once, in parallel, and stored: the report first, then the
+    // asset (whose presence marks the entry), each written to a temporary and renamed, so a run
+    // beside this one sees a whole entry or none.
+    let note = |m: String| eprintln!("{m}");
+    let mut held: Vec<Option<Vec<u8>>> = jobs
         .iter()
-        .map(|j| cache_dir.join(format!("{}.vdbc", j.key)).is_file())
+        .map(|j| cached_entry(&cache_dir, &j.key, &note))
         .collect();
-    let mut todo: Vec<usize> = (0..jobs.len()).filter(|&i| !cached[i]).collect();
+    let mut todo: Vec<usize> = (0..jobs.len()).filter(|&i| held[i].is_none()).collect();
     let mut seen = std::collections::BTreeSet::new();
     todo.retain(|i| seen.insert(jobs[*i].key.clone()));
     let n = jobs.len();
-    let cooked: Vec<Result<(usize, f64), CliError>> = todo
+    // Per cooked job: its index, seconds and asset bytes.
+    type Done = Result<(usize, f64, Vec<u8>), CliError>;
+    let cooked: Vec<Done> = todo
         .par_iter()
         .map(|&i| {
             let j = &jobs[i];
             let t = Instant::now();
-            let c = cook::cook_frames(&j.args, j.frames.clone())
-                .map_err(|err| manifest_err(path, j.line, err))?;
-            crate::output::write(
-                &cache_dir.join(format!("{}.vdbc", j.key)),
-                &c.bytes,
-                "cached asset",
-            )?;
+            let cx = Context {
+                progress: Progress::with(None, true, !a.json),
+                ..Context::quiet()
+            };
+            let c = vdbcook_cook::cook(&j.opts, j.frames.clone(), &cx)
+                .map_err(|err| manifest_err(path, j.line, CliError::from(err)))?;
             let doc = serde_json::to_vec_pretty(&c.report).expect("json");
             crate::output::write(
                 &cache_dir.join(format!("{}.json", j.key)),
                 &doc,
                 "cook report",
             )?;
+            crate::output::write(
+                &cache_dir.join(format!("{}.vdbc", j.key)),
+                &c.bytes,
+                "cached asset",
+            )?;
             if !a.json {
                 eprintln!(
                     "cooked {} ({:.2} s)",
-                    j.args.output.display(),
+                    j.output_given.display(),
                     t.elapsed().as_secs_f64()
                 );
             }
-            Ok((i, t.elapsed().as_secs_f64()))
+            Ok((i, t.elapsed().as_secs_f64(), c.bytes))
         })
         .collect();
     let mut seconds = vec![0.0; n];
+    let mut fresh = vec![false; n];
     for r in cooked {
-        let (i, s) = r?;
+        let (i, s, bytes) = r?;
         seconds[i] = s;
+        fresh[i] = true;
+        // Entries of the same key share the cook.
+        for k in 0..n {
+            if jobs[k].key == jobs[i].key {
+                held[k] = Some(bytes.clone());
+            }
+        }
     }
     let mut assets = Vec::with_capacity(n);
     for (i, j) in jobs.iter().enumerate() {
-        let bytes = std::fs::read(cache_dir.join(format!("{}.vdbc", j.key))).map_err(|e| {
-            CliError::Usage(format!(
-                "{}: cannot read the cache entry: {e}",
-                cache_dir.display()
-            ))
-        })?;
-        if std::fs::read(&j.args.output).ok().as_deref() != Some(&bytes[..]) {
+        let bytes = held[i].take().expect("cooked or cached");
+        if std::fs::read(&j.output_given).ok().as_deref() != Some(&bytes[..]) {
             // A build's output folders may not exist yet: make them (only now, all checks done).
-            if let Some(dir) = j.args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+            if let Some(dir) = j
+                .output_given
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+            {
                 std::fs::create_dir_all(dir).map_err(|e| {
                     CliError::Usage(format!("{}: cannot create the folder: {e}", dir.display()))
                 })?;
             }
-            crate::output::write(&j.args.output, &bytes, "asset")?;
+            crate::output::write(&j.output_given, &bytes, "asset")?;
         }
         let report: Value = std::fs::read(cache_dir.join(format!("{}.json", j.key)))
             .ok()
             .and_then(|b| serde_json::from_slice(&b).ok())
             .unwrap_or(Value::Null);
-        let status = if cached[i] || seconds[i] == 0.0 {
-            "cached"
-        } else {
-            "cooked"
-        };
+        let status = if fresh[i] { "cooked" } else { "cached" };
         if !a.json && status == "cached" {
-            eprintln!("cached {}", j.args.output.display());
+            eprintln!("cached {}", j.output_given.display());
         }
         assets.push(json!({
             "line": j.line,
-            "output": j.args.output.display().to_string(),
+            "output": j.output_given.display().to_string(),
             "status": status,
             "key": j.key,
             "bytes": bytes.len(),

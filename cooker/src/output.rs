@@ -217,6 +217,64 @@ pub fn is_special(out: &Path) -> bool {
         })
 }
 
+/// Checks, before any long work, that `out` can be written: its folder exists and takes files
+/// (or it is a device or FIFO), and it is not a folder itself. `what` names it in errors.
+pub fn check_writable(out: &Path, what: &str) -> Result<(), CliError> {
+    let target = resolve_links(out)?;
+    if let Ok(m) = std::fs::metadata(&target) {
+        if m.is_dir() {
+            return Err(io_err(
+                out,
+                format!("is a folder; give a file name for the {what}"),
+            ));
+        }
+        if !m.is_file() {
+            return Ok(());
+        }
+    }
+    let dir = target
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    match std::fs::metadata(dir) {
+        Err(_) => Err(io_err(
+            out,
+            format!(
+                "cannot write the {what}: the folder {} does not exist",
+                dir.display()
+            ),
+        )),
+        Ok(m) if !m.is_dir() => Err(io_err(
+            out,
+            format!("cannot write the {what}: {} is not a folder", dir.display()),
+        )),
+        Ok(_) => {
+            // A probe file: permissions, read-only mounts and full inode tables all show here.
+            static PROBE: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+            let probe = dir.join(format!(
+                ".vdbcook-probe-{}-{}",
+                std::process::id(),
+                PROBE.fetch_add(1, Ordering::Relaxed)
+            ));
+            let tmp = Temp::register(probe);
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&tmp.path)
+                .map(|_| ())
+                .map_err(|e| {
+                    io_err(
+                        out,
+                        format!(
+                            "cannot write the {what} into the folder {}: {e}",
+                            dir.display()
+                        ),
+                    )
+                })
+        }
+    }
+}
+
 /// Writes `bytes` to `out` as the module documentation says; `what` names it in errors
 /// ("asset", "PNG").
 pub fn write(out: &Path, bytes: &[u8], what: &str) -> Result<(), CliError> {
@@ -249,10 +307,14 @@ pub fn write(out: &Path, bytes: &[u8], what: &str) -> Result<(), CliError> {
     let name = target
         .file_name()
         .ok_or_else(|| io_err(out, "output path has no file name"))?;
+    // Unique per process and per write, so concurrent writers (threads or processes) of one
+    // name never share a temporary; the rename makes the last one win whole.
+    static SERIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let mut tmp = Temp::register(dir.join(format!(
-        ".{}.partial-{}",
+        ".{}.partial-{}-{}",
         name.to_string_lossy(),
-        std::process::id()
+        std::process::id(),
+        SERIAL.fetch_add(1, Ordering::Relaxed)
     )));
     let result = (|| {
         // A leftover from an earlier process with the same id is stale.

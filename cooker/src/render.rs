@@ -17,7 +17,6 @@ use vdbcook_trace::{
     Tracer,
 };
 
-use crate::cook;
 use crate::errors::CliError;
 use crate::gpu::Gpu;
 
@@ -682,32 +681,42 @@ fn near_plane(camera: &Camera) -> f64 {
 }
 
 /// The asset to draw: `input` loaded, or, when it names VDB sources, cooked in memory (f32,
-/// lossless; `grid`, `allow_gaps` and `replace_non_finite` as `cook`'s options, `label` the
-/// path its errors name) with the seconds that took. Shared by `render` and `view`.
+/// lossless; `grid`, `allow_gaps` and `replace_non_finite` as `cook`'s options) with the seconds that took. Shared by `render` and `view`.
 pub fn load_input(
     input: &Path,
-    label: &Path,
     grid: Option<String>,
     allow_gaps: bool,
     replace_non_finite: Option<f32>,
     extra_grid: Option<&str>,
 ) -> Result<(Asset, Option<f64>), CliError> {
     if looks_like_vdb(input) {
-        let mut c =
-            cook::Args::defaults(vec![input.to_string_lossy().into_owned()], label.to_owned());
-        match extra_grid {
-            // A second grid (emission): a two-channel cook, the rendered grid first.
-            Some(e) if grid.as_deref() != Some(e) => {
-                c.grids = vec![grid.unwrap_or_else(|| "density".into()), e.to_string()];
-            }
-            _ => c.grid = grid,
-        }
-        c.allow_gaps = allow_gaps;
-        c.replace_non_finite = replace_non_finite;
+        let opts = vdbcook_cook::CookOptions {
+            grids: match (extra_grid, grid) {
+                // A second grid (emission): a two-channel cook, the rendered grid first.
+                (Some(e), g) if g.as_deref() != Some(e) => vdbcook_cook::Grids::Several(vec![
+                    g.unwrap_or_else(|| "density".into()),
+                    e.to_string(),
+                ]),
+                (_, Some(g)) => vdbcook_cook::Grids::One(g),
+                (_, None) => vdbcook_cook::Grids::Default,
+            },
+            allow_gaps,
+            replace_non_finite,
+            ..Default::default()
+        };
         let t = Instant::now();
-        Ok((cook::cook(&c)?.asset, Some(t.elapsed().as_secs_f64())))
+        let frames = vdbcook_cook::frames::resolve_frames(
+            &[input.to_string_lossy().into_owned()],
+            allow_gaps,
+            None,
+        )?;
+        let cx = vdbcook_cook::Context::quiet();
+        Ok((
+            vdbcook_cook::cook(&opts, frames, &cx)?.asset,
+            Some(t.elapsed().as_secs_f64()),
+        ))
     } else {
-        Ok((cook::load_asset(input)?, None))
+        Ok((crate::cook::load_asset(input)?, None))
     }
 }
 
@@ -820,7 +829,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     };
     let (asset, cooked_from) = load_input(
         &a.input,
-        &a.output,
         a.grid.clone(),
         a.allow_gaps,
         a.replace_non_finite,

@@ -630,9 +630,8 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             };
             crate::output::refuse_inputs(shot, &frames, &[input], "PNG")?;
         }
-        let label = a.screenshot.clone().unwrap_or_else(|| a.input.clone());
         let (asset, _) =
-            crate::render::load_input(&a.input, &label, a.grid.clone(), a.allow_gaps, None, None)?;
+            crate::render::load_input(&a.input, a.grid.clone(), a.allow_gaps, None, None)?;
         if a.frame >= asset.frame_count() {
             return Err(CliError::Usage(format!(
                 "--frame {} is out of range: {} has {} frame(s)",

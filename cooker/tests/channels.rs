@@ -255,7 +255,7 @@ fn bad_channel_inputs_are_refused_clearly_and_leave_no_output() {
         &out,
         &["soot"],
     );
-    // Budgets for grids not cooked, duplicates, options not supported with several grids.
+    // Budgets for grids not cooked, duplicates, an option several grids cannot share.
     refused(
         &[
             "cook",
@@ -281,13 +281,13 @@ fn bad_channel_inputs_are_refused_clearly_and_leave_no_output() {
             FIRE,
             "--grids",
             "density,flame",
-            "--clusters",
-            "4",
+            "--range",
+            "global",
             "-o",
             o,
         ],
         &out,
-        &["--clusters", "several grids"],
+        &["--range global", "several grids"],
     );
     refused(
         &[
@@ -790,10 +790,5 @@ fn grids_auto_cooks_what_inspect_suggests() {
         ],
         &out,
         &["--grids auto", "no float grid", "float grids: "],
-    );
-    refused(
-        &["cook", FIRE, "--grids", "auto", "--clusters", "4", "-o", o],
-        &out,
-        &["--clusters"],
     );
 }

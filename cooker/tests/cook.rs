@@ -734,7 +734,6 @@ fn max_bytes_that_cannot_fit_or_contradict_are_refused() {
     assert!(!out.exists(), "nothing is written");
     for bad in [
         vec!["--max-bytes", "64KiB", "--max-error", "0.01"],
-        vec!["--max-bytes", "64KiB", "--clusters", "8"],
         vec!["--max-bytes", "12 parsecs"],
         vec!["--max-bytes", "0"],
     ] {

@@ -7,15 +7,14 @@
 
 mod common;
 
-use std::path::PathBuf;
-
 use common::sample;
-use vdbcook::cook::{self, Args};
 use vdbcook_trace::{render, Camera, Image, Mode, MsModel, RenderSettings};
 
 fn cook(input: &str) -> vdbcook_asset::Asset {
-    let a = Args::defaults(vec![input.to_string()], PathBuf::from("unused.vdbc"));
-    cook::cook(&a).unwrap().asset
+    let a = vdbcook_cook::CookOptions::default();
+    vdbcook_cook::cook_inputs(&[input.to_string()], &a, &vdbcook_cook::Context::quiet())
+        .unwrap()
+        .asset
 }
 
 /// Relative RMSE and mean ratio of `a` against `truth` (channel sums) where the truth

@@ -132,18 +132,34 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
     let mut gpu_layouts = Vec::new();
     for c in &configs {
         progress.step(&format!("cook + trace {}", c.label));
-        let mut ca = cook::Args::defaults(a.inputs.clone(), a.output.join("x.vdbc"));
-        ca.grid = a.grid.clone();
-        ca.allow_gaps = a.allow_gaps;
-        ca.no_non_finite_flag = true;
-        ca.format = c.format.map(str::to_string);
-        if let Some((k, t)) = c.clusters {
-            ca.clusters = Some(k);
-            ca.variance_threshold = Some(t);
-        }
         let max_error = c.tolerance.map(|t| t * value_range);
-        ca.max_error = max_error.map(|e| e as f32);
-        let cooked = cook::cook(&ca)?;
+        let ca = vdbcook_cook::CookOptions {
+            grids: a
+                .grid
+                .clone()
+                .map_or(vdbcook_cook::Grids::Default, vdbcook_cook::Grids::One),
+            allow_gaps: a.allow_gaps,
+            format: c
+                .format
+                .map(|f| vdbcook_asset::PayloadFormat::parse(f).expect("known format")),
+            clustering: c.clusters.map(|(k, t)| vdbcook_cook::Clustering {
+                variance_threshold: t,
+                ..vdbcook_cook::Clustering::new(k)
+            }),
+            budget: match max_error {
+                Some(e) => vdbcook_cook::Budget::MaxError {
+                    all: Some(e as f32),
+                    per: Vec::new(),
+                },
+                None => vdbcook_cook::Budget::Default,
+            },
+            ..Default::default()
+        };
+        let cx = vdbcook_cook::Context {
+            hint_non_finite: false,
+            ..vdbcook_cook::Context::quiet()
+        };
+        let cooked = vdbcook_cook::cook_inputs(&a.inputs, &ca, &cx)?;
         let d = &cooked.report;
         if camera.is_none() {
             // The reference (f32) cook.

@@ -25,7 +25,6 @@ use serde_json::{json, Value};
 use vdbcook_trace::{Camera, Image, Mode, RenderSettings};
 use vdbcook_vdb::sequence;
 
-use crate::cook;
 use crate::errors::CliError;
 use crate::gpu::Gpu;
 use chart::{Point, Series, Tile, PALETTE};

@@ -11,7 +11,6 @@ use std::time::Instant;
 use vdbcook_trace::{Camera, RenderSettings};
 use vdbcook_vdb::sequence::{self, Frame};
 
-use crate::cook;
 use crate::eval::{compare_frame, ErrStats};
 
 /// One NanoVDB configuration's figures.
@@ -102,10 +101,16 @@ pub fn nanovdb(
     }
     // The round trip, cooked losslessly, compared with each source frame.
     let err = (|| -> Option<ErrStats> {
-        let mut a = cook::Args::defaults(back.clone(), scratch.join("rt.vdbc"));
-        a.grid = select.map(str::to_string);
-        a.allow_gaps = true;
-        let rt = cook::cook(&a).ok()?.asset;
+        let a = vdbcook_cook::CookOptions {
+            grids: select.map_or(vdbcook_cook::Grids::Default, |g| {
+                vdbcook_cook::Grids::One(g.to_string())
+            }),
+            allow_gaps: true,
+            ..Default::default()
+        };
+        let rt = vdbcook_cook::cook_inputs(&back, &a, &vdbcook_cook::Context::quiet())
+            .ok()?
+            .asset;
         if rt.frame_count() != frames.len() {
             return None;
         }

@@ -1,5 +1,5 @@
 //! Level of detail (`cook --lod`): after the full-resolution frames are in the pool, each frame
-//! gains coarser levels, each a 2× box-filtered reduction of the one before, built from the
+//! (every channel of it) gains coarser levels, each a 2× box-filtered reduction of the one before, built from the
 //! pool's exact (pre-encode) values and added to the same pool as more root sets, so their
 //! bricks are deduplicated, clustered and encoded with the rest under the same error budget.
 //! Secondary rays (the light volume's density pass, shadow and sky depths) read the level whose
@@ -12,32 +12,11 @@
 
 use std::collections::BTreeMap;
 
-use vdbcook_asset::{BRICK_VOXELS, EMPTY, L2_SPAN, L2_WORDS, MAX_LOD_LEVELS, TILE_BIT};
+use vdbcook_asset::{BRICK_VOXELS, EMPTY, L2_SPAN, L2_WORDS, TILE_BIT};
 
 use crate::build::{region_of, BuiltFrame, BuiltLeaf, LeafContent, Region};
+use crate::options::Levels;
 use crate::pool::Pool;
-
-/// `--lod`: how many coarser levels to store.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Levels {
-    /// Down to the level whose extent fits one 8³ brick.
-    All,
-    /// This many (capped at `All`'s count).
-    Count(u32),
-}
-
-/// Parses `--lod`: `all` or a count 1..=12.
-pub fn parse_levels(s: &str) -> Result<Levels, String> {
-    if s == "all" {
-        return Ok(Levels::All);
-    }
-    match s.parse::<u32>() {
-        Ok(n) if (1..=MAX_LOD_LEVELS).contains(&n) => Ok(Levels::Count(n)),
-        _ => Err(format!(
-            "'{s}' is not a level count: give 'all' (down to one brick) or 1 to {MAX_LOD_LEVELS}"
-        )),
-    }
-}
 
 /// Levels below full resolution until an extent of `root_dims` regions fits one brick.
 pub fn levels_to_one_brick(root_dims: [u32; 3]) -> u32 {
@@ -75,19 +54,16 @@ impl Leaf<'_> {
     }
 }
 
-/// Parses `--lod-from`: the first coarser level stored, 1 to 12.
-pub fn parse_first(s: &str) -> Result<u32, String> {
-    match s.parse::<u32>() {
-        Ok(n) if (1..=MAX_LOD_LEVELS).contains(&n) => Ok(n),
-        _ => Err(format!(
-            "'{s}' is not a level: give 1 to {MAX_LOD_LEVELS} (level K's voxels are 2^K wide)"
-        )),
-    }
-}
-
-/// Every stored leaf of pool frame `pf` by asset-index origin (8-aligned), a tiled region
-/// expanded into its 4096 leaves.
-fn leaves_of<'a>(pool: &'a Pool, pf: usize, offset: [i32; 3]) -> Vec<([i32; 3], Leaf<'a>)> {
+/// Every stored leaf of channel `c` of pool frame `pf` by asset-index origin (8-aligned), a
+/// tiled region expanded into its 4096 leaves; slots where the channel is its background
+/// (`EMPTY`) are left out.
+fn leaves_of<'a>(
+    pool: &'a Pool,
+    pf: usize,
+    c: usize,
+    offset: [i32; 3],
+) -> Vec<([i32; 3], Leaf<'a>)> {
+    let n = pool.channels;
     let mut out = Vec::new();
     for &(origin, e) in &pool.frames[pf] {
         let r = [0, 1, 2].map(|a| origin[a] - offset[a]);
@@ -111,10 +87,10 @@ fn leaves_of<'a>(pool: &'a Pool, pf: usize, offset: [i32; 3]) -> Vec<([i32; 3], 
             out.extend((0..L2_WORDS * 64).map(|s| (at(s), t)));
             continue;
         }
-        let n = e as usize;
-        let refs = &pool.l2_refs[n];
+        let nd = e as usize;
+        let refs = &pool.l2_refs[nd];
         let mut k = 0;
-        for (w, &word) in pool.l2_masks[n * L2_WORDS..(n + 1) * L2_WORDS]
+        for (w, &word) in pool.l2_masks[nd * L2_WORDS..(nd + 1) * L2_WORDS]
             .iter()
             .enumerate()
         {
@@ -122,7 +98,10 @@ fn leaves_of<'a>(pool: &'a Pool, pf: usize, offset: [i32; 3]) -> Vec<([i32; 3], 
             while bits != 0 {
                 let s = w * 64 + bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                out.push((at(s), leaf(refs[k])));
+                let rf = refs[k * n + c];
+                if rf != EMPTY {
+                    out.push((at(s), leaf(rf)));
+                }
                 k += 1;
             }
         }
@@ -230,34 +209,41 @@ fn reduce(leaves: Vec<([i32; 3], Leaf<'_>)>, offset: [i32; 3], bg: f32) -> Built
 }
 
 /// Adds levels `first..=last` of the pool's `frames` full-resolution frames, level by level
-/// (each from the one before; levels below `first` are built in memory and not added), without
-/// recording brick uses (the error figures of the cook report are over the source's active
-/// voxels; the levels share the encoder's budget). The pool then holds stored level `i ≥ 1` of
-/// frame `f` as pool frame `f + i·frames`.
+/// (each from the one before, every channel on its own with its background `bgs[c]`; levels
+/// below `first` are built in memory and not added), without recording brick uses (the error
+/// figures of the cook report are over the source's active voxels; the levels share the
+/// encoder's budget). The pool then holds stored level `i ≥ 1` of frame `f` as pool frame
+/// `f + i·frames`.
 pub fn add_levels(
     pool: &mut Pool,
     frames: usize,
     (first, last): (u32, u32),
     offset: [i32; 3],
-    bg: f32,
+    bgs: &[f32],
 ) {
     let track = std::mem::replace(&mut pool.track_uses, false);
-    // Per frame, the level below in memory (`None`: it is in the pool).
-    let mut below: Vec<Option<BuiltFrame>> = (0..frames).map(|_| None).collect();
+    // Per frame, the level below in memory, a frame per channel (`None`: it is in the pool).
+    let mut below: Vec<Option<Vec<BuiltFrame>>> = (0..frames).map(|_| None).collect();
     for k in 1..=last {
         for (f, held) in below.iter_mut().enumerate() {
-            let leaves = match held {
-                Some(frame) => leaves_of_built(frame, offset),
-                // Level k − 1 is full resolution or a stored level: pool frame f + i·frames.
-                None => leaves_of(
-                    pool,
-                    (k.saturating_sub(first) as usize) * frames + f,
-                    offset,
-                ),
-            };
-            let coarse = reduce(leaves, offset, bg);
+            let coarse: Vec<BuiltFrame> = (0..pool.channels)
+                .map(|c| {
+                    let leaves = match held {
+                        Some(chans) => leaves_of_built(&chans[c], offset),
+                        // Level k − 1 is full resolution or a stored level: pool frame
+                        // f + i·frames.
+                        None => leaves_of(
+                            pool,
+                            (k.saturating_sub(first) as usize) * frames + f,
+                            c,
+                            offset,
+                        ),
+                    };
+                    reduce(leaves, offset, bgs[c])
+                })
+                .collect();
             if k >= first {
-                pool.add_frame(coarse);
+                pool.add_frame(&coarse.into_iter().map(Some).collect::<Vec<_>>());
                 *held = None;
             } else {
                 *held = Some(coarse);
@@ -417,10 +403,5 @@ mod tests {
         assert_eq!(levels_to_one_brick([32, 32, 32]), 9);
         assert_eq!(resolve(Levels::Count(2), [1, 1, 1]), 2);
         assert_eq!(resolve(Levels::Count(12), [1, 1, 1]), 4);
-        assert_eq!(parse_levels("all"), Ok(Levels::All));
-        assert_eq!(parse_levels("3"), Ok(Levels::Count(3)));
-        assert!(parse_levels("0").is_err());
-        assert!(parse_levels("13").is_err());
-        assert!(parse_levels("two").is_err());
     }
 }

@@ -839,8 +839,8 @@ mod tests {
             converted_from_double: false,
         };
         for f in PayloadFormat::ORDER {
-            let mut pool = Pool::new(true);
-            pool.add_frame(
+            let mut pool = Pool::new(1, true);
+            pool.add_frame(&[Some(
                 build_frame(
                     grid(),
                     NonFinite {
@@ -849,7 +849,7 @@ mod tests {
                     },
                 )
                 .unwrap(),
-            );
+            )]);
             // One real brick (the ramp); the constant leaf and the tile are tile values.
             assert_eq!(pool.brick_count(), 1, "{}", f.name());
             assert_eq!(pool.tiles.len(), 2);

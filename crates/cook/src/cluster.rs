@@ -1,5 +1,5 @@
 //! Cluster stage (lossy, optional): k-means over the low-variance bricks of the deduplicated
-//! pool, Manhattan (L1) distance as in the thesis, so near-identical bricks share one centroid
+//! pool (per channel group, [`cluster_groups`]; then guarded by the budget, [`Grouped::guard`]), Manhattan (L1) distance as in the thesis, so near-identical bricks share one centroid
 //! brick. Bricks whose normalized variance (variance / |mean|) exceeds the threshold keep their
 //! own data. Deterministic: seeded initialisation, assignments per brick, and centroid sums
 //! reduced in fixed-size chunks in a fixed order, so the result is the same at any thread count.
@@ -454,6 +454,179 @@ pub fn cluster(pool: &[f32], o: &ClusterOptions) -> ClusterResult {
         candidates: cand.len(),
         rejected_by_variance: n - cand.len(),
         iterations_run,
+    }
+}
+
+/// k-means over the pool by channel group: bricks that the same set of channels reads (one
+/// group for a single grid) are clustered among themselves, so no centroid mixes the units of two
+/// grids, and each group is guarded by its own budget. The centroids requested are shared among
+/// the groups in proportion to their sizes (all of them to a lone group).
+pub struct Grouped {
+    /// Per group: its channel mask, its pool bricks (ascending), its k-means over them.
+    pub groups: Vec<(u8, Vec<u32>, ClusterResult)>,
+    pub requested: usize,
+    pub iterations: usize,
+    pub variance_threshold: f32,
+}
+
+/// What the guard let through: per pool brick, the encode input it reads, and that input.
+pub struct Guarded {
+    /// Per pool brick: its index in `input`.
+    pub input_of: Vec<u32>,
+    /// Bricks that keep their own data (pool order), then the centroids that kept members.
+    pub input: Vec<f32>,
+    /// Per input brick: the bound it is encoded under (its own, or its group's for a centroid).
+    pub budgets: Vec<f32>,
+    pub clusters_used: usize,
+    pub rejected_by_error: usize,
+}
+
+/// Runs k-means over every channel group of `bricks` (`channels[b]`: the mask of pool brick `b`).
+pub fn cluster_groups(bricks: &[f32], channels: &[u8], o: &ClusterOptions) -> Grouped {
+    let n = bricks.len() / BRICK_VOXELS;
+    let mut masks: Vec<u8> = channels[..n].to_vec();
+    masks.sort_unstable();
+    masks.dedup();
+    let groups: Vec<(u8, Vec<u32>)> = masks
+        .iter()
+        .map(|&m| {
+            (
+                m,
+                (0..n as u32)
+                    .filter(|&b| channels[b as usize] == m)
+                    .collect(),
+            )
+        })
+        .collect();
+    let lone = groups.len() == 1;
+    let groups = groups
+        .into_iter()
+        .map(|(m, members)| {
+            let k = if lone {
+                o.clusters
+            } else {
+                ((o.clusters as f64 * members.len() as f64 / n as f64).round() as usize).max(1)
+            };
+            let r = if lone {
+                cluster(bricks, &ClusterOptions { clusters: k, ..*o })
+            } else {
+                let mut gathered = Vec::with_capacity(members.len() * BRICK_VOXELS);
+                for &b in &members {
+                    let b = b as usize;
+                    gathered.extend_from_slice(&bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+                }
+                cluster(&gathered, &ClusterOptions { clusters: k, ..*o })
+            };
+            (m, members, r)
+        })
+        .collect();
+    Grouped {
+        groups,
+        requested: o.clusters,
+        iterations: o.iterations,
+        variance_threshold: o.variance_threshold,
+    }
+}
+
+impl Grouped {
+    pub fn candidates(&self) -> usize {
+        self.groups.iter().map(|g| g.2.candidates).sum()
+    }
+    pub fn rejected_by_variance(&self) -> usize {
+        self.groups.iter().map(|g| g.2.rejected_by_variance).sum()
+    }
+    pub fn iterations_run(&self) -> usize {
+        self.groups
+            .iter()
+            .map(|g| g.2.iterations_run)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The encode input under the per-brick budgets `budget` (`None`: lossless, nothing is
+    /// guarded): each member joins its centroid only if the *decoded* centroid, plus what a GPU's
+    /// native read of it may add, is within its group's budget of each of its voxels
+    /// ([`crate::encode::guard_members`]).
+    pub fn guard(
+        &self,
+        bricks: &[f32],
+        budget: &[f32],
+        eopts: &crate::encode::EncodeOptions,
+    ) -> Result<Guarded, String> {
+        let n = bricks.len() / BRICK_VOXELS;
+        // Per pool brick: (group, centroid) it joined.
+        let mut joined: Vec<Option<(usize, u32)>> = vec![None; n];
+        let mut rejected_by_error = 0;
+        for (g, (_, members, r)) in self.groups.iter().enumerate() {
+            let mut member_of = r.member_of.clone();
+            if let (Some(&b0), Some(_)) = (members.first(), eopts.max_error) {
+                let o = crate::encode::EncodeOptions {
+                    max_error: Some(budget[b0 as usize]),
+                    ..*eopts
+                };
+                let ce = crate::encode::encode(&r.centroids, &o)?;
+                let gathered;
+                let own: &[f32] = if self.groups.len() == 1 {
+                    bricks
+                } else {
+                    let mut v = Vec::with_capacity(members.len() * BRICK_VOXELS);
+                    for &b in members {
+                        let b = b as usize;
+                        v.extend_from_slice(&bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+                    }
+                    gathered = v;
+                    &gathered
+                };
+                rejected_by_error +=
+                    crate::encode::guard_members(own, &r.centroids, &ce, &mut member_of, &o);
+            }
+            for (i, m) in member_of.iter().enumerate() {
+                if let Some(c) = m {
+                    joined[members[i] as usize] = Some((g, *c));
+                }
+            }
+        }
+        let mut input_of = vec![0u32; n];
+        let mut input = Vec::new();
+        let mut budgets = Vec::new();
+        let mut next = 0u32;
+        for (b, j) in joined.iter().enumerate() {
+            if j.is_none() {
+                input.extend_from_slice(&bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+                budgets.push(budget[b]);
+                input_of[b] = next;
+                next += 1;
+            }
+        }
+        let mut used: Vec<Vec<u32>> = self
+            .groups
+            .iter()
+            .map(|g| vec![u32::MAX; g.2.centroids.len() / BRICK_VOXELS])
+            .collect();
+        let mut clusters_used = 0;
+        for (b, j) in joined.iter().enumerate() {
+            if let Some((g, c)) = *j {
+                let slot = &mut used[g][c as usize];
+                if *slot == u32::MAX {
+                    *slot = next;
+                    next += 1;
+                    clusters_used += 1;
+                    let cents = &self.groups[g].2.centroids;
+                    input.extend_from_slice(
+                        &cents[c as usize * BRICK_VOXELS..(c as usize + 1) * BRICK_VOXELS],
+                    );
+                    budgets.push(budget[b]);
+                }
+                input_of[b] = *slot;
+            }
+        }
+        Ok(Guarded {
+            input_of,
+            input,
+            budgets,
+            clusters_used,
+            rejected_by_error,
+        })
     }
 }
 

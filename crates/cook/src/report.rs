@@ -7,6 +7,10 @@
 //! `docs/cli.md` defines every one. Renaming a field breaks scripts: add, never rename.
 
 use serde::{Deserialize, Serialize};
+use vdbcook_asset::{PayloadFormat, RangeMode};
+
+use crate::assemble::{section_sizes, topology_and_atlas, Figures};
+use crate::ingest::ChannelState;
 
 /// `cook --json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -186,7 +190,12 @@ pub struct SizeSearch {
     pub limit: u64,
     pub predicted_gpu_bytes: u64,
     pub trials: usize,
+    /// Channel 0's bound at each step.
     pub steps: Vec<SizeStep>,
+    /// The fraction of each channel's value range (background included) the bounds are
+    /// (`None`: lossless f32 fits).
+    #[serde(default)]
+    pub fraction_of_range: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -203,6 +212,198 @@ pub struct Seconds {
     pub dedup: f64,
     pub cluster: f64,
     pub encode: f64,
-    /// 0 until the asset is written (`cook::run`).
+    /// 0 until the asset is written (by the caller).
     pub write: f64,
+}
+
+/// What [`build`] makes the report from.
+pub struct BuildInputs<'a> {
+    pub asset: &'a vdbcook_asset::Asset,
+    pub file_bytes: u64,
+    pub channels: &'a [ChannelState],
+    pub budgets: &'a [Option<f32>],
+    pub budget_source: &'a [Option<&'a str>],
+    pub figures: &'a Figures,
+    /// The format the bricks were encoded from (f32 when `--max-bytes` found lossless fits).
+    pub format: PayloadFormat,
+    /// Bricks the encoder made tiles of.
+    pub tiles_made: u64,
+    pub missing: Vec<String>,
+    pub bricks: Bricks,
+    pub clustering: Option<Clustering>,
+    pub size_search: Option<SizeSearch>,
+    pub bc7_quality: &'a str,
+    pub range: RangeMode,
+    pub seconds: Seconds,
+    pub lod_max_abs: f64,
+}
+
+/// 10·log10(peak²/mse) for a nonzero error, with `peak` the value range.
+fn psnr(rmse: f64, peak: Option<f64>) -> Option<f64> {
+    peak.filter(|&p| rmse > 0.0 && p > 0.0)
+        .map(|p| 20.0 * (p / rmse).log10())
+}
+
+fn figures(sum_sq: f64, max_abs: f64, gpu: f64, active: u64, peak: Option<f64>) -> ErrorFigures {
+    let rmse = if active > 0 {
+        (sum_sq / active as f64).sqrt()
+    } else {
+        0.0
+    };
+    ErrorFigures {
+        rmse,
+        psnr_db: psnr(rmse, peak),
+        max_abs,
+        exact: max_abs == 0.0,
+        max_abs_any_gpu: gpu,
+    }
+}
+
+/// The report of an assembled cook: sizes, error per channel, frame and overall, stage times.
+pub fn build(b: BuildInputs) -> CookReport {
+    let asset = b.asset;
+    let n = b.channels.len();
+    let nframes = asset.frame_count();
+    let active: u64 = asset.header.frames.iter().map(|f| f.active_voxels).sum();
+    let (topology, atlas) = topology_and_atlas(&section_sizes(asset));
+    let bpv = |x: u64| {
+        if active > 0 {
+            x as f64 * 8.0 / active as f64
+        } else {
+            0.0
+        }
+    };
+    let peak_of = |c: usize| b.channels[c].active_range().map(|r| (r[1] - r[0]) as f64);
+    let channel_reports: Vec<ChannelReport> = (0..n)
+        .map(|c| {
+            let s = &b.channels[c];
+            let (mut sq, mut mx, mut gpu) = (0.0, 0.0f64, 0.0f64);
+            for f in 0..nframes {
+                let e = b.figures.of(f, c);
+                sq += e.sum_sq;
+                mx = mx.max(e.max_abs);
+                gpu = gpu.max(e.gpu_bound);
+            }
+            let act: u64 = s.active.iter().sum();
+            let cost = b.figures.cost[c];
+            ChannelReport {
+                name: s.name.clone(),
+                background: s.background,
+                active_voxels: act,
+                value_range: s.active_range(),
+                max_error: b.budgets[c],
+                max_error_source: b.budget_source[c].map(str::to_string),
+                error: figures(sq, mx, gpu, act, peak_of(c)),
+                bricks: cost.bricks,
+                atlas_bytes: cost.atlas_bytes,
+                empty_leaf_refs: cost.empty_leaf_refs,
+            }
+        })
+        .collect();
+    let all = b.figures.errors.iter();
+    let total_sq: f64 = all.clone().map(|e| e.sum_sq).sum();
+    let total_max = all.clone().fold(0.0f64, |m, e| m.max(e.max_abs));
+    let total_gpu = all.fold(0.0f64, |m, e| m.max(e.gpu_bound));
+    let mut overall = figures(total_sq, total_max, total_gpu, active, None);
+    // One channel: its own PSNR; several mix units, so the worst channel's.
+    overall.psnr_db = channel_reports
+        .iter()
+        .filter_map(|c| c.error.psnr_db)
+        .reduce(f64::min);
+    let frame_errors = (0..nframes)
+        .map(|f| {
+            let (mut sq, mut mx) = (0.0, 0.0f64);
+            for c in 0..n {
+                let e = b.figures.of(f, c);
+                sq += e.sum_sq;
+                mx = mx.max(e.max_abs);
+            }
+            let act = asset.header.frames[f].active_voxels;
+            let rmse = if act > 0 {
+                (sq / act as f64).sqrt()
+            } else {
+                0.0
+            };
+            FrameError {
+                frame: f,
+                number: asset.header.frames[f].number,
+                rmse,
+                psnr_db: if n == 1 { psnr(rmse, peak_of(0)) } else { None },
+                max_abs: mx,
+            }
+        })
+        .collect();
+    let [r0, r1, r2, r3, r4] = asset.header.brick_counts;
+    let shared = match b.budgets {
+        [b0, rest @ ..] if rest.iter().all(|x| x == b0) => *b0,
+        _ => None,
+    };
+    CookReport {
+        output: String::new(),
+        format: b.format.name().to_string(),
+        grid: asset.header.grid_name.clone(),
+        missing_grid_frames: b.missing,
+        frames: nframes,
+        active_voxels: active,
+        bricks: b.bricks,
+        nodes: Nodes {
+            l2: asset.l2_count() as u64,
+            leaf_refs: asset.l3_refs.len() as u64,
+            root_dims: asset.header.root_dims,
+        },
+        bytes: Bytes {
+            topology,
+            atlas,
+            file: b.file_bytes,
+        },
+        bits_per_active_voxel: bpv(b.file_bytes),
+        bits_per_active_voxel_gpu: bpv(topology + atlas),
+        topology_bits_per_active_voxel: bpv(topology),
+        error: overall,
+        frame_errors,
+        clustering: b.clustering,
+        representations: Representations {
+            tile: b.tiles_made,
+            bc7: r0,
+            bc4: r1,
+            unorm8: r2,
+            f16: r3,
+            f32: r4,
+        },
+        max_error: shared,
+        max_error_source: b.budget_source[0].map(str::to_string),
+        max_bytes: b.size_search,
+        bc7_quality: b.bc7_quality.to_string(),
+        range: match b.range {
+            RangeMode::Brick => "brick",
+            RangeMode::Global => "global",
+        }
+        .to_string(),
+        peak_memory_bytes: peak_memory_bytes(),
+        seconds: b.seconds,
+        channels: if n == 1 { Vec::new() } else { channel_reports },
+        dropped_channels: Vec::new(),
+        lod: (asset.header.lod_levels > 0).then(|| {
+            let x = crate::lod::extra(asset);
+            let full = (topology + atlas).saturating_sub(x.topology + x.atlas);
+            LodReport {
+                levels: asset.header.lod_levels,
+                first: asset.header.lod_first,
+                l2_nodes: x.l2_nodes,
+                bricks: x.bricks,
+                topology_bytes: x.topology,
+                atlas_bytes: x.atlas,
+                share: (x.topology + x.atlas) as f64 / full.max(1) as f64,
+                max_abs: b.lod_max_abs,
+            }
+        }),
+    }
+}
+
+/// Peak resident memory of this process (Linux `VmHWM`), if known.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }

@@ -1,12 +1,12 @@
-//! The cooker as a library (issue 17): a program calls `vdbcook::cook::cook` with typed
-//! options, gets the typed report back, and receives progress and notes through its own
+//! The cooker as a library (issue 17, issue 31): a program calls `vdbcook_cook::cook_inputs` with
+//! typed options, gets the typed report back, and receives progress and notes through its own
 //! `ProgressSink` — nothing is printed, nothing is written.
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use vdbcook::cook::{self, Args};
-use vdbcook::progress::ProgressSink;
+use vdbcook_asset::PayloadFormat;
+use vdbcook_cook::{Clustering, Context, CookOptions, ProgressSink};
 
 #[derive(Default)]
 struct Collect {
@@ -30,7 +30,7 @@ impl ProgressSink for Collect {
 
 fn smoke5() -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/seq/smoke5")
+        .join("../../fixtures/seq/smoke5")
         .to_string_lossy()
         .into_owned()
 }
@@ -39,14 +39,18 @@ fn smoke5() -> String {
 fn a_program_cooks_in_memory_with_its_own_progress_sink() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("never-written.vdbc");
-    let mut a = Args::defaults(vec![smoke5()], out.clone());
-    a.format = Some("bc7".into());
-    // More clusters than candidate bricks: the cook caps k and says so (a note).
-    a.clusters = Some(100_000);
-    a.variance_threshold = Some(10.0);
+    let a = CookOptions {
+        format: Some(PayloadFormat::Bc7),
+        // More clusters than candidate bricks: the cook caps k and says so (a note).
+        clustering: Some(Clustering {
+            variance_threshold: 10.0,
+            ..Clustering::new(100_000)
+        }),
+        ..Default::default()
+    };
     let sink = Arc::new(Collect::default());
-    a.progress = Some(sink.clone());
-    let cooked = cook::cook(&a).unwrap();
+    let cx = Context::with_sink(Some(sink.clone()));
+    let cooked = vdbcook_cook::cook_inputs(&[smoke5()], &a, &cx).unwrap();
     let ev = sink.events.lock().unwrap().clone();
     assert!(
         ev.contains(&"start read, build, dedup".to_string()),

@@ -1,9 +1,11 @@
-//! Dedup stage: frames are added in order; identical bricks (hash, then a full bitwise compare)
-//! are stored once, constant leaves and regions become tile values, and identical L2 nodes are
-//! shared across frames (a DAG over time). `finish` lays the per-frame roots out over the
-//! sequence's extent and encodes the payload.
+//! Pool stage: frames are added in order, all their channels at once; identical bricks (hash,
+//! then a full bitwise compare) are stored once whichever channel they come from, constant leaves
+//! and regions become tile values, and identical L2 nodes are shared across frames (a DAG over
+//! time). Several channels share one topology: the union of their active regions, with one ref
+//! per channel per leaf slot. The pool then lays out the roots, the nodes and their value ranges
+//! as the asset stores them.
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 
 use vdbcook_asset::*;
 
@@ -38,6 +40,8 @@ impl std::hash::BuildHasher for KeyIsHash {
 
 #[derive(Default)]
 pub struct Pool {
+    /// Channels per leaf slot (1 for a single grid).
+    pub channels: usize,
     /// Record `uses` (needed only when the payload is lossy, for error statistics).
     pub track_uses: bool,
     /// Unique bricks, 512 f32 each, in first-seen order.
@@ -52,14 +56,21 @@ pub struct Pool {
     l2_index: HashMap<u64, Vec<u32>, KeyIsHash>,
     /// Per frame: (region source origin, root entry).
     pub frames: Vec<Vec<([i32; 3], u32)>>,
+    /// Per pool brick: a bit per channel that reads it.
+    pub brick_channels: Vec<u8>,
+    /// Constant 128³ regions of a multi-channel frame: the node per tuple of channel refs.
+    tile_nodes: HashMap<Vec<u32>, u32>,
     /// Leaves that became bricks, over all frames, before dedup.
     pub source_bricks: u64,
     pub source_tiles: u64,
 }
 
 impl Pool {
-    pub fn new(track_uses: bool) -> Self {
+    /// An empty pool of `channels` refs per leaf slot; `track_uses` records every brick use (for
+    /// the error figures of a lossy cook).
+    pub fn new(channels: usize, track_uses: bool) -> Self {
         Pool {
+            channels,
             track_uses,
             ..Pool::default()
         }
@@ -76,16 +87,6 @@ impl Pool {
             self.tiles.push(v);
         }
         TILE_BIT | idx
-    }
-
-    fn brick(&mut self, values: &[f32; BRICK_VOXELS], hash: u64) -> u32 {
-        let b = self.brick_unrecorded(values, hash);
-        if self.track_uses {
-            if let Some(f) = self.uses.last_mut() {
-                f.push(b);
-            }
-        }
-        b
     }
 
     /// The pool index of a brick with these values (added if new), without recording a use.
@@ -131,39 +132,116 @@ impl Pool {
         n
     }
 
-    /// Adds the next frame (frames must come in sequence order).
-    pub fn add_frame(&mut self, mut f: BuiltFrame) {
+    /// Adds the next frame's channels (frames in sequence order; `None`: the channel's grid is
+    /// missing, cooked as its background). Per 128³ region of the union of the channels'
+    /// regions, an L2 node over the union of their leaf slots with one ref per channel per slot
+    /// (`EMPTY` where a channel is its own background there); `uses` gains one list per channel
+    /// (channel `c` of frame `f` at `f·channels + c`) and every brick records the channels that
+    /// read it. With one channel a constant region is a tile in the root, not a node: a
+    /// single-grid asset is laid out as it always was.
+    pub fn add_frame(&mut self, built: &[Option<BuiltFrame>]) {
+        let n = self.channels;
+        assert_eq!(built.len(), n, "one entry per channel");
         if self.track_uses {
-            self.uses.push(Vec::new());
+            self.uses.extend((0..n).map(|_| Vec::new()));
         }
-        let mut entries = Vec::with_capacity(f.regions.len());
-        let regions = std::mem::take(&mut f.regions);
-        for (origin, region) in regions {
-            let entry = match region {
-                Region::Tile(v) => self.tile(v),
-                Region::Leaves(leaves) => {
-                    let mut mask = [0u64; L2_WORDS];
-                    let mut refs = Vec::with_capacity(leaves.len());
-                    for l in leaves {
-                        mask[l.slot as usize >> 6] |= 1 << (l.slot & 63);
-                        refs.push(match l.content {
-                            LeafContent::Tile(v) => {
-                                self.source_tiles += 1;
-                                self.tile(v)
-                            }
-                            LeafContent::Brick { index, hash } => {
-                                self.source_bricks += 1;
-                                let i = index as usize * BRICK_VOXELS;
-                                let values: &[f32; BRICK_VOXELS] =
-                                    f.bricks[i..i + BRICK_VOXELS].try_into().expect("512");
-                                self.brick(values, hash)
-                            }
-                        });
+        let first_use = self.uses.len().saturating_sub(n);
+        let origins: BTreeSet<[i32; 3]> = built
+            .iter()
+            .flatten()
+            .flat_map(|b| b.regions.keys().copied())
+            .collect();
+        let mut entries = Vec::with_capacity(origins.len());
+        for o in origins {
+            let regs: Vec<Option<&Region>> = built
+                .iter()
+                .map(|b| b.as_ref().and_then(|b| b.regions.get(&o)))
+                .collect();
+            let has_leaves = regs.iter().any(|r| matches!(r, Some(Region::Leaves(_))));
+            // Per channel, the ref of a constant over the whole region (`EMPTY` otherwise).
+            let region_tile: Vec<u32> = regs
+                .iter()
+                .map(|r| match r {
+                    Some(Region::Tile(v)) => self.tile(*v),
+                    _ => EMPTY,
+                })
+                .collect();
+            if !has_leaves {
+                let node = if n == 1 {
+                    region_tile[0]
+                } else if let Some(&nd) = self.tile_nodes.get(&region_tile) {
+                    nd
+                } else {
+                    // Every channel is a constant (or its background) over the region: a full
+                    // node of tile refs, built once per tuple of values.
+                    let refs: Vec<u32> = region_tile
+                        .iter()
+                        .copied()
+                        .cycle()
+                        .take(L2_SLOTS * n)
+                        .collect();
+                    let nd = self.node([u64::MAX; L2_WORDS], refs);
+                    self.tile_nodes.insert(region_tile, nd);
+                    nd
+                };
+                entries.push((o, node));
+                continue;
+            }
+            let mut mask = [0u64; L2_WORDS];
+            for r in &regs {
+                match r {
+                    Some(Region::Tile(_)) => mask = [u64::MAX; L2_WORDS],
+                    Some(Region::Leaves(leaves)) => {
+                        for l in leaves {
+                            mask[l.slot as usize >> 6] |= 1 << (l.slot & 63);
+                        }
                     }
-                    self.node(mask, refs)
+                    None => {}
                 }
-            };
-            entries.push((origin, entry));
+            }
+            let slots: usize = mask.iter().map(|w| w.count_ones() as usize).sum();
+            let mut refs = Vec::with_capacity(slots * n);
+            let mut cursor = vec![0usize; n];
+            for s in 0..L2_SLOTS {
+                if mask[s >> 6] & (1 << (s & 63)) == 0 {
+                    continue;
+                }
+                for c in 0..n {
+                    let r = match regs[c] {
+                        None | Some(Region::Tile(_)) => region_tile[c],
+                        Some(Region::Leaves(leaves)) => match leaves.get(cursor[c]) {
+                            Some(l) if l.slot as usize == s => {
+                                cursor[c] += 1;
+                                match l.content {
+                                    LeafContent::Tile(v) => {
+                                        self.source_tiles += 1;
+                                        self.tile(v)
+                                    }
+                                    LeafContent::Brick { index, hash } => {
+                                        self.source_bricks += 1;
+                                        let bricks = &built[c].as_ref().expect("has leaves").bricks;
+                                        let i = index as usize * BRICK_VOXELS;
+                                        let values: &[f32; BRICK_VOXELS] =
+                                            bricks[i..i + BRICK_VOXELS].try_into().expect("512");
+                                        let b = self.brick_unrecorded(values, hash);
+                                        if self.track_uses {
+                                            self.uses[first_use + c].push(b);
+                                        }
+                                        if self.brick_channels.len() <= b as usize {
+                                            self.brick_channels.resize(b as usize + 1, 0);
+                                        }
+                                        self.brick_channels[b as usize] |= 1 << c;
+                                        b
+                                    }
+                                }
+                            }
+                            _ => EMPTY,
+                        },
+                    };
+                    refs.push(r);
+                }
+            }
+            entries.push((o, self.node(mask, refs)));
         }
         self.frames.push(entries);
     }
