@@ -410,3 +410,51 @@ fn concurrent_runs_share_one_cache() {
         }
     }
 }
+
+/// Levels of several grids serve the light volume as a single grid's do: the lit render of the
+/// fire cooked with three channels and `--lod all` is the lit render of its density grid cooked
+/// alone with `--lod all`, on the CPU and the GPU (the light volume reads channel 0 of the
+/// levels; the index of channel 1 or 2 would light another field).
+#[test]
+fn several_grids_with_levels_light_as_the_density_grid_alone() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n).to_string_lossy().into_owned();
+    let (three, one) = (p("three.vdbc"), p("one.vdbc"));
+    json(&[
+        "cook", "--json", FIRE, "--grids", GRIDS, "--lod", "all", "-o", &three,
+    ]);
+    json(&[
+        "cook", "--json", FIRE, "--grid", "density", "--lod", "all", "-o", &one,
+    ]);
+    for backend in ["cpu", "gpu"] {
+        let mut images = Vec::new();
+        for asset in [&three, &one] {
+            let out = p(&format!("{backend}-{}.pfm", images.len()));
+            let (code, _, err) = run(&[
+                "render",
+                asset,
+                "--mode",
+                "lit",
+                "--backend",
+                backend,
+                "--width",
+                "96",
+                "--height",
+                "54",
+                "-o",
+                &out,
+            ]);
+            if backend == "gpu" && code != 0 && !common::gpu_required() {
+                eprintln!("skipping the GPU: {err}");
+                return;
+            }
+            assert_eq!(code, 0, "{err}");
+            images.push(common::read_pfm(Path::new(&out)).2);
+        }
+        assert!(
+            images[0].iter().any(|&v| v > 0.01),
+            "{backend}: a black image"
+        );
+        assert_eq!(images[0], images[1], "{backend}");
+    }
+}

@@ -301,7 +301,7 @@ pub fn build(b: BuildInputs) -> CookReport {
         })
         .collect();
     let all = b.figures.errors.iter();
-    let total_sq: f64 = all.clone().map(|e| e.sum_sq).sum();
+    let total_sq = all.clone().fold(0.0f64, |a, e| a + e.sum_sq);
     let total_max = all.clone().fold(0.0f64, |m, e| m.max(e.max_abs));
     let total_gpu = all.fold(0.0f64, |m, e| m.max(e.gpu_bound));
     let mut overall = figures(total_sq, total_max, total_gpu, active, None);
