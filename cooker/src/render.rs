@@ -751,6 +751,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         OutFormat::Png => "PNG",
         OutFormat::Pfm => "PFM",
     };
+    crate::output::check_writable(&a.output, what)?;
     // The output must not replace the input (an asset, or a VDB file or frame set), the plate
     // or the depth.
     let input_str = a.input.to_string_lossy().into_owned();
@@ -962,6 +963,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "width": s.width,
             "height": s.height,
             "backend": backend,
+            // Which path drew: the CPU tracer, the runtime's full-screen tracer (`Renderer`)
+            // or the engine drawer (`VolumeDrawer`, over a plate or a depth).
+            "runtime_path": if composited { "drawer" } else if backend == "gpu" { "tracer" } else { "cpu" },
             "adapter": adapter,
             "seconds": seconds,
             "render_seconds": render_seconds,

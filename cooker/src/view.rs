@@ -629,6 +629,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 }]
             };
             crate::output::refuse_inputs(shot, &frames, &[input], "PNG")?;
+            crate::output::check_writable(shot, "PNG")?;
         }
         let (asset, _) =
             crate::render::load_input(&a.input, a.grid.clone(), a.allow_gaps, None, None)?;

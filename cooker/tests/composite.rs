@@ -167,6 +167,7 @@ fn composite_is_radiance_plus_transmittance_times_the_plate() {
         };
         let doc: Value = serde_json::from_str(&stdout).unwrap();
         assert_eq!(doc["backend"], "gpu");
+        assert_eq!(doc["runtime_path"], "drawer");
         let (a, b) = (read_pfm(&cpu).2, read_pfm(&gpu).2);
         let max = a
             .iter()

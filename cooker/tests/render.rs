@@ -100,6 +100,7 @@ fn render_json_reports_settings_camera_and_timing() {
     }
     assert_eq!(doc["mode"], "scatter");
     assert_eq!(doc["backend"], "cpu");
+    assert_eq!(doc["runtime_path"], "cpu");
     assert_eq!(
         (doc["width"].as_u64(), doc["height"].as_u64()),
         (Some(64), Some(48))
@@ -284,6 +285,10 @@ fn gpu_backend_draws_what_the_cpu_reference_draws() {
             assert_eq!(code, 0, "{mode} {backend}: {err}");
             let doc: Value = serde_json::from_str(&stdout).unwrap();
             assert_eq!(doc["backend"], backend);
+            assert_eq!(
+                doc["runtime_path"],
+                if backend == "gpu" { "tracer" } else { "cpu" }
+            );
             if backend == "gpu" {
                 assert!(doc["adapter"].is_string(), "{doc}");
             }

@@ -280,9 +280,21 @@ fn a_failed_write_leaves_nothing() {
     std::fs::create_dir(&folder).unwrap();
     refused(&["cook", FOG, "-o", &s(&folder)], 1, &["is a folder"]);
     assert!(folder.is_dir());
-    // The output's folder does not exist.
+    // The output's folder does not exist: said before any frame is read (no stage ran).
     let missing = d.join("nope").join("a.vdbc");
-    refused(&["cook", FOG, "-o", &s(&missing)], 1, &["cannot write"]);
+    let err = refused(
+        &["cook", FOG, "-o", &s(&missing)],
+        1,
+        &["cannot write", "nope"],
+    );
+    assert!(!err.contains("read, build"), "{err}");
+    // render checks before it cooks or traces, report before its cooks.
+    let err = refused(
+        &["render", FOG, "-o", &s(&d.join("nope").join("a.png"))],
+        1,
+        &["cannot write", "nope"],
+    );
+    assert!(!err.contains("wrote"), "{err}");
     no_partials(d);
     assert_eq!(names(d), vec!["out.vdbc".to_string()]);
 }

@@ -58,6 +58,14 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
         )));
     }
     let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
+    // The folder takes files before minutes of cooks and traces go into it.
+    std::fs::create_dir_all(&a.output).map_err(|e| {
+        other(format!(
+            "{}: cannot create the report folder: {e}",
+            a.output.display()
+        ))
+    })?;
+    crate::output::check_writable(&a.output.join("report.json"), "report")?;
     if a.frame >= frames.len() {
         return Err(other(format!(
             "--frame {} is out of range: the input has {} frame(s)",
