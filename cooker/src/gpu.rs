@@ -8,7 +8,7 @@
 //! Built with the `gpu` feature (on by default); without it `open` says so.
 
 use vdbcook_asset::Asset;
-use vdbcook_trace::{Camera, Image, RenderSettings};
+use vdbcook_trace::{Camera, Image, Integrator, RenderSettings};
 
 /// One rendered image and its times (one entry per timed run, after one warm-up).
 pub struct GpuRender {
@@ -211,7 +211,7 @@ mod imp {
             settings: &RenderSettings,
             runs: usize,
         ) -> Result<GpuRender, String> {
-            let (w, h) = (settings.width, settings.height);
+            let (w, h) = (settings.output.width, settings.output.height);
             let target = up
                 .renderer
                 .buffer_target(&self.device, w, h)
@@ -234,7 +234,7 @@ mod imp {
                             &self.queue,
                             &mut encoder,
                             &target,
-                            settings.frame,
+                            settings.output.frame,
                             camera,
                             batch,
                         )
@@ -252,7 +252,8 @@ mod imp {
                         .map(|(a, b)| a + b);
                     if run == runs {
                         let r = target.read(&self.device, &self.queue);
-                        let weight = batch.spp as f32 / settings.spp.max(1) as f32;
+                        let weight =
+                            batch.integrator.spp as f32 / settings.integrator.spp.max(1) as f32;
                         let img = Image {
                             width: r.width,
                             height: r.height,
@@ -305,14 +306,19 @@ pub const SAMPLES_PER_DISPATCH: u32 = 64;
 /// `settings` split into progressive batches (`first_sample`, `spp`) of at most
 /// [`SAMPLES_PER_DISPATCH`] samples for delta tracking; any other mode as it is.
 pub fn sample_batches(settings: &RenderSettings) -> Vec<RenderSettings> {
-    if settings.mode != vdbcook_trace::Mode::DeltaTracking || settings.spp <= SAMPLES_PER_DISPATCH {
+    if settings.integrator.mode != vdbcook_trace::Mode::DeltaTracking
+        || settings.integrator.spp <= SAMPLES_PER_DISPATCH
+    {
         return vec![settings.clone()];
     }
-    (0..settings.spp)
+    (0..settings.integrator.spp)
         .step_by(SAMPLES_PER_DISPATCH as usize)
         .map(|k| RenderSettings {
-            first_sample: settings.first_sample.wrapping_add(k),
-            spp: SAMPLES_PER_DISPATCH.min(settings.spp - k),
+            integrator: Integrator {
+                first_sample: settings.integrator.first_sample.wrapping_add(k),
+                spp: SAMPLES_PER_DISPATCH.min(settings.integrator.spp - k),
+                ..settings.integrator.clone()
+            },
             ..settings.clone()
         })
         .collect()

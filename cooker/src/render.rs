@@ -13,8 +13,8 @@ use std::time::Instant;
 use serde_json::json;
 use vdbcook_asset::Asset;
 use vdbcook_trace::{
-    Camera, Emission, Filter, Image, LengthUnit, March, Mode, MsModel, RenderSettings, Scratch,
-    Tracer,
+    Camera, Emission, Filter, Image, Integrator, LengthUnit, Lighting, March, Medium, Mode,
+    MsModel, Output, RenderSettings, Scratch, Tracer,
 };
 
 use crate::errors::CliError;
@@ -311,41 +311,49 @@ fn settings(a: &Args) -> Result<RenderSettings, CliError> {
         }
     };
     Ok(RenderSettings {
-        width: a.width,
-        height: a.height,
-        mode: Mode::parse(&a.mode).expect("clap checked"),
-        frame: a.frame,
-        absorb: a.absorb,
-        scatter: a.scatter,
-        light_dir: [dir[0] as f32, dir[1] as f32, dir[2] as f32],
-        light_color: color,
-        step: a.step,
-        shadow_step: a.shadow_step,
-        cutoff: a.cutoff,
-        gain: a.gain,
-        spp: a.spp,
-        first_sample: 0,
-        seed: a.seed,
-        unit: if a.units == "world" {
-            LengthUnit::World
-        } else {
-            LengthUnit::Voxel
+        output: Output {
+            width: a.width,
+            height: a.height,
+            frame: a.frame,
         },
-        sky,
-        phase_g,
-        phase_w,
-        bounces: a.bounces,
-        emission,
-        light_res: a.light_res,
-        ms_octaves: a.ms_octaves,
-        ms,
-        ms_sky: a.ms_sky.unwrap_or(ms_model.default_ms_sky()),
-        ms_model,
-        filter: Filter::parse(&a.filter).expect("clap checked"),
-        march: March::parse(&a.march).expect("clap checked"),
-        sun_near: a.sun_near,
-        near_scatter: a.near_scatter,
-        primary_lod: a.primary_lod,
+        medium: Medium {
+            absorb: a.absorb,
+            scatter: a.scatter,
+            unit: if a.units == "world" {
+                LengthUnit::World
+            } else {
+                LengthUnit::Voxel
+            },
+            phase_g,
+            phase_w,
+            emission,
+        },
+        lighting: Lighting {
+            light_dir: [dir[0] as f32, dir[1] as f32, dir[2] as f32],
+            light_color: color,
+            sky,
+            light_res: a.light_res,
+            ms_octaves: a.ms_octaves,
+            ms,
+            ms_sky: a.ms_sky.unwrap_or(ms_model.default_ms_sky()),
+            ms_model,
+            sun_near: a.sun_near,
+            near_scatter: a.near_scatter,
+        },
+        integrator: Integrator {
+            mode: Mode::parse(&a.mode).expect("clap checked"),
+            step: a.step,
+            shadow_step: a.shadow_step,
+            cutoff: a.cutoff,
+            gain: a.gain,
+            spp: a.spp,
+            first_sample: 0,
+            seed: a.seed,
+            bounces: a.bounces,
+            filter: Filter::parse(&a.filter).expect("clap checked"),
+            march: March::parse(&a.march).expect("clap checked"),
+            primary_lod: a.primary_lod,
+        },
     })
 }
 
@@ -576,7 +584,7 @@ fn render_clipped(
 ) -> Result<Image, vdbcook_trace::TraceError> {
     use rayon::prelude::*;
     let tracer = Tracer::new(asset, camera, s)?;
-    let (w, h) = (s.width, s.height);
+    let (w, h) = (s.output.width, s.output.height);
     let b = camera.basis(w, h)?;
     let mut rgba = vec![0.0f32; w as usize * h as usize * 4];
     let mut value = vec![0.0f32; w as usize * h as usize];
@@ -592,7 +600,7 @@ fn render_clipped(
                 let dir = d.map(|c| c / len);
                 let cos = (0..3).map(|a| dir[a] * b.forward[a]).sum::<f64>();
                 let t_max = depth_to_t(depth[j * w as usize + i], cos);
-                if s.mode == Mode::Lit {
+                if s.integrator.mode == Mode::Lit {
                     let px = tracer.trace_until(
                         camera.eye,
                         dir,
@@ -605,7 +613,7 @@ fn render_clipped(
                     continue;
                 }
                 let tau = tracer.optical_depth(camera.eye, dir, t_max, scratch);
-                let t = (-(s.absorb as f64) * tau).exp() as f32;
+                let t = (-(s.medium.absorb as f64) * tau).exp() as f32;
                 let g = 1.0 - t;
                 row[4 * i..4 * i + 4].copy_from_slice(&[g, g, g, 1.0]);
                 vrow[i] = t;
@@ -772,28 +780,28 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], what)?;
     let s = settings(a)?;
-    if a.depth.is_some() && s.emission.is_some() {
+    if a.depth.is_some() && s.medium.emission.is_some() {
         return Err(CliError::Usage(
             "--depth with --emission: the depth-cut march and the engine drawer do not draw \
              emission yet; drop one of them"
                 .into(),
         ));
     }
-    if a.depth.is_some() && !matches!(s.mode, Mode::Density | Mode::Lit) {
+    if a.depth.is_some() && !matches!(s.integrator.mode, Mode::Density | Mode::Lit) {
         return Err(CliError::Usage(format!(
             "--depth cuts the density and lit modes only (the other modes do not stop at a \
              depth yet), not --mode {}",
-            s.mode.name()
+            s.integrator.mode.name()
         )));
     }
     // The scene (plate, depth) is read and checked before any cooking or rendering.
     let size_check = |path: &Path, what: &str, w: u32, h: u32| {
-        if (w, h) != (s.width, s.height) {
+        if (w, h) != (s.output.width, s.output.height) {
             Err(other(format!(
                 "{}: the {what} is {w}x{h}, the output {}x{} (--width, --height); they must match",
                 path.display(),
-                s.width,
-                s.height
+                s.output.width,
+                s.output.height
             )))
         } else {
             Ok(())
@@ -815,7 +823,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         None => None,
     };
-    if a.backend == "gpu" && s.mode == Mode::Reference {
+    if a.backend == "gpu" && s.integrator.mode == Mode::Reference {
         return Err(CliError::Usage(
             "--mode reference is the CPU path tracer: use --backend cpu (or auto)".into(),
         ));
@@ -824,7 +832,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let gpu = match a.backend.as_str() {
         "gpu" => Some(Gpu::open().map_err(other)?),
         // The reference path tracer is CPU only: `auto` takes the CPU for it.
-        "auto" if s.mode == Mode::Reference => None,
+        "auto" if s.integrator.mode == Mode::Reference => None,
         "auto" => Gpu::open().ok().filter(|g| !g.is_software()),
         _ => None,
     };
@@ -837,17 +845,17 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     )?;
     let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
     let mut s = s;
-    if let Some(e) = &mut s.emission {
+    if let Some(e) = &mut s.medium.emission {
         e.channel = emission_channel(&asset, a.emission_grid.as_deref()).map_err(|e| at(&e))?;
     }
     // Over a scene (a plate or a depth) the lit mode draws as the engine drawer does, which
     // steps (it does not walk the tree): `--march auto` steps there on both backends, so that
     // the two draw the same picture.
-    if s.mode == Mode::Lit
-        && s.march == March::Auto
+    if s.integrator.mode == Mode::Lit
+        && s.integrator.march == March::Auto
         && (a.background.is_some() || a.depth.is_some())
     {
-        s.march = March::Steps;
+        s.integrator.march = March::Steps;
     }
     let s = s;
     let camera = camera(
@@ -858,7 +866,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     )
     .map_err(|e| at(&e))?;
     let near = near_plane(&camera);
-    let (view_m, proj_m) = camera_matrices(&camera, s.width, s.height, near).map_err(|e| at(&e))?;
+    let (view_m, proj_m) =
+        camera_matrices(&camera, s.output.width, s.output.height, near).map_err(|e| at(&e))?;
     #[cfg(feature = "gpu")]
     let scene = plate.is_some() || depth.is_some();
     let t_render = Instant::now();
@@ -872,8 +881,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         // from the scene: the CPU's cut march draws it.
         Some(g)
             if scene
-                && s.emission.is_none()
-                && (s.mode == Mode::Density || (s.mode == Mode::Lit && plate.is_some())) =>
+                && s.medium.emission.is_none()
+                && (s.integrator.mode == Mode::Density
+                    || (s.integrator.mode == Mode::Lit && plate.is_some())) =>
         {
             s.validate(asset.frame_count()).map_err(|e| at(&e))?;
             let (image, gpu_ms) = drawer::composite(
@@ -889,14 +899,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             .map_err(|e| at(&e))?;
             (image, "gpu", Some(g.describe()), gpu_ms, true)
         }
-        Some(_) if s.mode == Mode::Lit && depth.is_some() => {
+        Some(_) if s.integrator.mode == Mode::Lit && depth.is_some() => {
             let image = render_clipped(&asset, &camera, &s, depth.as_deref().unwrap_or_default())
                 .map_err(|e| at(&e))?;
             (image, "cpu", None, None, false)
         }
         Some(g) => {
             let up = g
-                .upload_for(&asset, s.emission.is_some())
+                .upload_for(&asset, s.medium.emission.is_some())
                 .map_err(|e| at(&e))?;
             let r = g.render(&up, &camera, &s, 1).map_err(|e| at(&e))?;
             (
@@ -917,7 +927,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
     };
     if let (Some(p), false) = (&plate, composited) {
-        composite_over(&mut image, p, s.mode);
+        composite_over(&mut image, p, s.integrator.mode);
     }
     let render_seconds = t_render.elapsed().as_secs_f64();
     match format {
@@ -927,7 +937,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 .chunks_exact(4)
                 .flat_map(|p| [p[0], p[1], p[2]])
                 .collect();
-            crate::output::write(&a.output, &encode_pfm(s.width, s.height, &rgb), "PFM")?;
+            crate::output::write(
+                &a.output,
+                &encode_pfm(s.output.width, s.output.height, &rgb),
+                "PFM",
+            )?;
         }
         // Over a plate the PNG is sRGB-encoded (as the plate); alone, the mode's display
         // values are written as they are (no transfer curve), as always.
@@ -958,10 +972,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "background": path(&a.background),
             "depth": path(&a.depth),
             "cooked_in_memory_seconds": cooked_from,
-            "mode": s.mode.name(),
-            "frame": s.frame,
-            "width": s.width,
-            "height": s.height,
+            "mode": s.integrator.mode.name(),
+            "frame": s.output.frame,
+            "width": s.output.width,
+            "height": s.output.height,
             "backend": backend,
             // Which path drew: the CPU tracer, the runtime's full-screen tracer (`Renderer`)
             // or the engine drawer (`VolumeDrawer`, over a plate or a depth).
@@ -981,34 +995,34 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                                NDC z in [0, 1] = near / view-axis distance; row-major, column vectors",
             },
             "settings": {
-                "absorb": short(s.absorb), "scatter": short(s.scatter),
-                "light_dir": s.light_dir.map(short), "light_color": s.light_color.map(short),
-                "step": short(s.step), "shadow_step": short(s.shadow_step),
-                "cutoff": short(s.cutoff), "gain": short(s.gain), "spp": s.spp, "seed": s.seed,
+                "absorb": short(s.medium.absorb), "scatter": short(s.medium.scatter),
+                "light_dir": s.lighting.light_dir.map(short), "light_color": s.lighting.light_color.map(short),
+                "step": short(s.integrator.step), "shadow_step": short(s.integrator.shadow_step),
+                "cutoff": short(s.integrator.cutoff), "gain": short(s.integrator.gain), "spp": s.integrator.spp, "seed": s.integrator.seed,
                 "units": a.units,
-                "sky": s.sky.map(short), "phase_g": s.phase_g.map(short),
-                "phase_w": short(s.phase_w), "bounces": s.bounces,
-                "emission": s.emission.map(|e| json!({
+                "sky": s.lighting.sky.map(short), "phase_g": s.medium.phase_g.map(short),
+                "phase_w": short(s.medium.phase_w), "bounces": s.integrator.bounces,
+                "emission": s.medium.emission.map(|e| json!({
                     "range_kelvin": e.range.map(short), "intensity": short(e.intensity),
                 })),
             },
         });
         // The march the lit mode took (`March::resolve`; the engine drawer, which composites lit
         // over a plate on the GPU, always steps).
-        let march_used = (s.mode == Mode::Lit).then(|| {
+        let march_used = (s.integrator.mode == Mode::Lit).then(|| {
             if composited {
                 "steps"
             } else {
-                vdbcook_trace::March::resolve(&s, asset.frame_range(s.frame, 0)[1]).name()
+                vdbcook_trace::March::resolve(&s, asset.frame_range(s.output.frame, 0)[1]).name()
             }
         });
         // The lit mode's keys (one json! per object keeps the macro's recursion shallow).
         let lit = json!({
-            "light_res": s.light_res, "ms_octaves": s.ms_octaves, "ms": s.ms.map(short),
-            "ms_sky": short(s.ms_sky), "ms_model": s.ms_model.name(), "filter": s.filter.name(),
-            "march": a.march, "march_used": march_used, "sun_near": short(s.sun_near),
-            "near_scatter": short(s.near_scatter),
-            "primary_lod": s.primary_lod,
+            "light_res": s.lighting.light_res, "ms_octaves": s.lighting.ms_octaves, "ms": s.lighting.ms.map(short),
+            "ms_sky": short(s.lighting.ms_sky), "ms_model": s.lighting.ms_model.name(), "filter": s.integrator.filter.name(),
+            "march": a.march, "march_used": march_used, "sun_near": short(s.lighting.sun_near),
+            "near_scatter": short(s.lighting.near_scatter),
+            "primary_lod": s.integrator.primary_lod,
         });
         if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {
             settings.extend(lit.clone());
@@ -1031,10 +1045,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         println!(
             "wrote {} ({}x{}, {}, frame {}, {backend} backend{on}{over}) in {:.3} s (render {:.3} s)",
             a.output.display(),
-            s.width,
-            s.height,
-            s.mode.name(),
-            s.frame,
+            s.output.width,
+            s.output.height,
+            s.integrator.mode.name(),
+            s.output.frame,
             seconds,
             render_seconds
         );
@@ -1047,9 +1061,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 #[cfg(feature = "gpu")]
 mod drawer {
     use vdbcook_runtime::glam::Mat4;
-    use vdbcook_runtime::{
-        DrawTarget, GpuTimer, GpuVolume, Instance, Lighting, Medium, View, VolumeDrawer,
-    };
+    use vdbcook_runtime::{DrawTarget, GpuTimer, GpuVolume, Instance, View, VolumeDrawer};
 
     use super::*;
 
@@ -1105,7 +1117,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         plate: Option<&Plate>,
         depth: Option<&[f32]>,
     ) -> Result<(Image, Option<f64>), String> {
-        let (w, h) = (s.width, s.height);
+        let (w, h) = (s.output.width, s.output.height);
         let n = (w * h) as usize;
         let (device, queue) = (gpu.device(), gpu.queue());
         let volume = GpuVolume::upload(device, queue, asset).map_err(|e| e.to_string())?;
@@ -1284,7 +1296,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
             t.begin(&mut encoder);
         }
         let inst = Instance {
-            time: s.frame as f32,
+            time: s.output.frame as f32,
             ..Default::default()
         };
         drawer
@@ -1297,11 +1309,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
                 },
                 &view,
                 &[inst],
-                &Medium {
-                    absorb: s.absorb,
-                    unit: s.unit,
-                    lighting: (s.mode == Mode::Lit).then(|| Lighting::from_settings(s)),
-                },
+                &vdbcook_runtime::Shading::of_settings(s),
             )
             .map_err(|e| e.to_string())?;
         if let Some(t) = &timer {

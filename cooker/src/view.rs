@@ -104,8 +104,11 @@ fn base_settings(a: &Args) -> Result<vdbcook_trace::RenderSettings, CliError> {
         }
     };
     let s = vdbcook_trace::RenderSettings {
-        absorb: a.absorb,
-        emission,
+        medium: vdbcook_trace::Medium {
+            absorb: a.absorb,
+            emission,
+            ..Default::default()
+        },
         ..Default::default()
     };
     s.validate(1).map_err(|e| usage(e.to_string()))?;
@@ -170,8 +173,8 @@ mod imp {
 
     use serde_json::json;
     use vdbcook_runtime::{
-        wgpu, Asset, Camera, GpuTimer, GpuVolume, Mode, Renderer, Settings, TextureTarget,
-        OPTIONAL_FEATURES,
+        wgpu, Asset, Camera, GpuTimer, GpuVolume, Integrator, Medium, Mode, Renderer, Settings,
+        TextureTarget, OPTIONAL_FEATURES,
     };
     use winit::application::ApplicationHandler;
     use winit::dpi::PhysicalSize;
@@ -496,14 +499,20 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             };
             let mode = self.mode();
             let settings = Settings {
-                mode,
-                // Emission is drawn by the shaded modes.
-                emission: self.settings.emission.filter(|_| {
-                    matches!(
-                        mode,
-                        Mode::Density | Mode::SingleScatter | Mode::DeltaTracking | Mode::Lit
-                    )
-                }),
+                medium: Medium {
+                    // Emission is drawn by the shaded modes.
+                    emission: self.settings.medium.emission.filter(|_| {
+                        matches!(
+                            mode,
+                            Mode::Density | Mode::SingleScatter | Mode::DeltaTracking | Mode::Lit
+                        )
+                    }),
+                    ..self.settings.medium.clone()
+                },
+                integrator: Integrator {
+                    mode,
+                    ..self.settings.integrator.clone()
+                },
                 ..self.settings.clone()
             };
             self.renderer
@@ -852,7 +861,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 self.frame,
                 self.mode,
                 self.fps,
-                self.settings.emission.is_some(),
+                self.settings.medium.emission.is_some(),
             )?;
             state.settings = self.settings.clone();
             let adapter = describe(&adapter);

@@ -19,7 +19,7 @@ use std::process::Command;
 use common::{gpu_required, read_png};
 use serde_json::Value;
 use vdbcook_asset::Asset;
-use vdbcook_trace::{Camera, Mode, RenderSettings, Scratch, Tracer};
+use vdbcook_trace::{Camera, Integrator, Mode, Output, RenderSettings, Scratch, Tracer};
 
 fn fixture(name: &str) -> PathBuf {
     vdbcook_testkit::fixtures().join("vdb").join(name)
@@ -64,10 +64,16 @@ fn cpu_first_hit_matches_openvdb_voxel_centres_ray_by_ray() {
     let asset = Asset::load(cook(dir.path())).unwrap();
     let cam = camera(&t);
     let settings = RenderSettings {
-        mode: Mode::Depth,
-        cutoff: t["cutoff"].as_f64().unwrap() as f32,
-        width: t["width"].as_u64().unwrap() as u32,
-        height: t["height"].as_u64().unwrap() as u32,
+        output: Output {
+            width: t["width"].as_u64().unwrap() as u32,
+            height: t["height"].as_u64().unwrap() as u32,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Depth,
+            cutoff: t["cutoff"].as_f64().unwrap() as f32,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let tracer = Tracer::new(&asset, &cam, &settings).unwrap();

@@ -8,7 +8,9 @@
 mod common;
 
 use common::sample;
-use vdbcook_trace::{render, Camera, Image, Mode, MsModel, RenderSettings};
+use vdbcook_trace::{
+    render, Camera, Image, Integrator, Lighting, Mode, MsModel, Output, RenderSettings,
+};
 
 fn cook(input: &str) -> vdbcook_asset::Asset {
     let a = vdbcook_cook::CookOptions::default();
@@ -54,17 +56,26 @@ fn lit_scene(input: &str) -> (vdbcook_asset::Asset, Camera, RenderSettings, Imag
     let asset = cook(input);
     let cam = Camera::framing(&asset, 0, w as f64 / h as f64).unwrap();
     let s = RenderSettings {
-        width: w,
-        height: h,
-        mode: Mode::Lit,
+        output: Output {
+            width: w,
+            height: h,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Lit,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let truth = render(
         &asset,
         &cam,
         &RenderSettings {
-            mode: Mode::Reference,
-            spp: 1024,
+            integrator: Integrator {
+                mode: Mode::Reference,
+                spp: 1024,
+                ..s.integrator.clone()
+            },
             ..s.clone()
         },
     )
@@ -83,8 +94,11 @@ fn diffusion_is_closer_to_the_reference_than_the_octaves() {
         let (asset, cam, s, truth) = lit_scene(&input);
         let lit = |ms_model: MsModel| {
             let s = RenderSettings {
-                ms_model,
-                ms_sky: ms_model.default_ms_sky(),
+                lighting: Lighting {
+                    ms_model,
+                    ms_sky: ms_model.default_ms_sky(),
+                    ..s.lighting.clone()
+                },
                 ..s.clone()
             };
             error_of(&asset, &cam, &s, &truth)
@@ -128,7 +142,10 @@ fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
         let (asset, cam, s, truth) = lit_scene(&input);
         let lit = |near_scatter: f32| {
             let s = RenderSettings {
-                near_scatter,
+                lighting: Lighting {
+                    near_scatter,
+                    ..s.lighting.clone()
+                },
                 ..s.clone()
             };
             error_of(&asset, &cam, &s, &truth)

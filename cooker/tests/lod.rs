@@ -432,12 +432,21 @@ fn lod_bytes_on_the_wdas_cloud() {
 /// Mean over each light-volume cell of `max(v, 0)`, exactly (fractional voxel overlaps), from
 /// the dense source; against it, the density pass of the lit mode's light volume.
 fn light_density_error(asset: &Asset, src: &[f64], dims: [usize; 3], res: u32) -> (f64, f64, f64) {
-    use vdbcook_trace::{Camera, Mode, RenderSettings, Tracer};
+    use vdbcook_trace::{Camera, Integrator, Lighting, Mode, Output, RenderSettings, Tracer};
     let s = RenderSettings {
-        mode: Mode::Lit,
-        width: 8,
-        height: 8,
-        light_res: res,
+        output: Output {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        },
+        lighting: Lighting {
+            light_res: res,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Lit,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let cam = Camera::framing(asset, 0, 1.0).unwrap();
@@ -547,7 +556,7 @@ fn light_volume_cells_read_the_level_that_box_filters_them() {
 /// `docs/rendering.md`.
 #[test]
 fn primary_lod_is_brighter_than_the_pixel_area_mean() {
-    use vdbcook_trace::{render, Camera, Mode, RenderSettings};
+    use vdbcook_trace::{render, Camera, Integrator, Lighting, Mode, Output, RenderSettings};
     // The WDAS cloud only: at four voxels a pixel the smoke5 fixture (24 voxels across) covers
     // a dozen pixels, too few for a mean ratio (its sampling noise alone moved it by 25%).
     let Some(wdas) = sample("wdas-cloud/wdas_cloud_sixteenth.vdb") else {
@@ -573,11 +582,20 @@ fn primary_lod_is_brighter_than_the_pixel_area_mean() {
             ..near
         };
         let s = |width, height, primary_lod| RenderSettings {
-            width,
-            height,
-            mode: Mode::Lit,
-            light_res: 32,
-            primary_lod,
+            output: Output {
+                width,
+                height,
+                ..Default::default()
+            },
+            lighting: Lighting {
+                light_res: 32,
+                ..Default::default()
+            },
+            integrator: Integrator {
+                mode: Mode::Lit,
+                primary_lod,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let big = render(&lod, &cam, &s(w * f, h * f, false)).unwrap();

@@ -9,7 +9,7 @@
 //! `cargo bench -p vdbcook-runtime --bench engine [-- ASSET.vdbc]`; by default the wdas f32 asset
 //! that `crates/trace/benches/vs_vdb_render.rs` leaves in `target/vs-vdb-render/`.
 //! `VDBCOOK_BENCH_SIZES=small`: 640×360 only. `VDBCOOK_BENCH_LIGHTING=lit`: the instances drawn
-//! lit (`Medium::lighting` with the tracer's defaults; the translated copies share one light
+//! lit (`Shading::lighting` with the tracer's defaults; the translated copies share one light
 //! volume, built in the warm-up run), instead of flat; `VDBCOOK_BENCH_SUN_NEAR=CELLS` sets their
 //! near field toward the sun (`Lighting::sun_near`; 0: none).
 
@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
 use vdbcook_runtime::{
-    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Lighting, Medium, View, VolumeDrawer,
+    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Lighting, Shading, View, VolumeDrawer,
 };
 
 const RUNS: usize = 3;
@@ -116,7 +116,7 @@ fn main() {
         let sun_near = std::env::var("VDBCOOK_BENCH_SUN_NEAR")
             .ok()
             .and_then(|v| v.parse().ok());
-        let medium = Medium {
+        let medium = Shading {
             lighting: (std::env::var("VDBCOOK_BENCH_LIGHTING").as_deref() == Ok("lit")).then(
                 || {
                     let l = Lighting::default();

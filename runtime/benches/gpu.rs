@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use vdbcook_runtime::{
-    Asset, Camera, GpuTimer, GpuVolume, Layout, March, Mode, MsModel, Renderer, Settings,
-    UploadOptions,
+    Asset, Camera, GpuTimer, GpuVolume, Integrator, Layout, Lighting, March, Mode, MsModel,
+    Renderer, Settings, UploadOptions,
 };
 
 const RUNS: usize = 5;
@@ -178,11 +178,17 @@ fn main() {
                 let (mut gpu, mut wall) = (Vec::new(), Vec::new());
                 for run in 0..=RUNS {
                     let settings = Settings {
-                        mode,
-                        light_dir: [0.3, 0.3, if rebuild { 1e-3 * run as f32 } else { 0.0 }],
-                        ms_model,
-                        ms_sky: ms_model.default_ms_sky(),
-                        march,
+                        lighting: Lighting {
+                            light_dir: [0.3, 0.3, if rebuild { 1e-3 * run as f32 } else { 0.0 }],
+                            ms_model,
+                            ms_sky: ms_model.default_ms_sky(),
+                            ..Default::default()
+                        },
+                        integrator: Integrator {
+                            mode,
+                            march,
+                            ..Default::default()
+                        },
                         ..Default::default()
                     };
                     let start = Instant::now();

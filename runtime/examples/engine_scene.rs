@@ -17,7 +17,7 @@ use std::process::ExitCode;
 use vdbcook_runtime::glam::{Affine3A, Quat, Vec3};
 use vdbcook_runtime::wgpu::util::DeviceExt;
 use vdbcook_runtime::{
-    wgpu, Asset, DrawTarget, GpuVolume, Instance, Lighting, Medium, View, VolumeDrawer,
+    wgpu, Asset, DrawTarget, GpuVolume, Instance, Lighting, Shading, View, VolumeDrawer,
 };
 
 /// The colour target's format: 8-bit sRGB, as a swapchain (the drawer blends in linear space).
@@ -406,7 +406,7 @@ pub fn render_scene(
 
     // Lit by the scene's sun (the same direction its Lambert shading uses) and a bright sky:
     // the tracer's lit mode, per instance, through light volumes the drawer builds.
-    let medium = Medium {
+    let medium = Shading {
         lighting: Some(Lighting {
             light_dir: sun.to_array(),
             light_color: [2.6, 2.5, 2.3],

@@ -8,6 +8,7 @@
 pub use vdbcook_scene::{Camera, LengthUnit, Mode};
 
 use crate::RuntimeError;
+use vdbcook_scene::Output;
 
 /// Everything but the camera: `vdbcook_scene::RenderSettings`. The runtime ignores its `width`,
 /// `height` and `frame`: the target gives the image size and each render call the frame.
@@ -43,16 +44,18 @@ pub(crate) fn validate(
     frames: usize,
 ) -> Result<u32, RuntimeError> {
     Settings {
-        width,
-        height,
-        frame,
+        output: Output {
+            width,
+            height,
+            frame,
+        },
         ..settings.clone()
     }
     .validate(frames)?;
-    mode_code(settings.mode).ok_or_else(|| {
+    mode_code(settings.integrator.mode).ok_or_else(|| {
         RuntimeError::Unsupported(format!(
             "mode {:?} (GPU modes: {GPU_MODES:?})",
-            settings.mode
+            settings.integrator.mode
         ))
     })
 }

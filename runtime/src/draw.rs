@@ -26,7 +26,10 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
-use vdbcook_scene::{light_dirs, Affine, DiffusionInputs, LightGrid, MsModel, MAX_SIDE};
+use vdbcook_scene::{
+    light_dirs, Affine, DiffusionInputs, Integrator, LightGrid, Lighting, Medium, Mode, MsModel,
+    RenderSettings, MAX_SIDE,
+};
 
 use crate::light::{LightParams, LightPass};
 
@@ -382,133 +385,50 @@ impl Instance {
     }
 }
 
-/// The medium of a draw: absorption per length unit (`Voxel`: per voxel of the instance, as the
-/// CPU tracer's default; `World`: per world unit). Defaults: the CPU tracer's (0.1 per voxel).
-/// `lighting`: `None` draws the flat-lit density march; `Some` marches every instance as the
-/// tracer's lit mode (sun, sky, phase, multiple-scattering octaves through light volumes).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Medium {
-    pub absorb: f32,
-    pub unit: LengthUnit,
+/// How the drawer shades its instances, in the types the CPU tracer and the renderer take: the
+/// medium (absorption per length unit — `Voxel`: per voxel of the instance, `World`: per world
+/// unit — scattering, phase, emission), and with `lighting` the lit march (sun, sky, phase and
+/// multiple scattering through light volumes, as the tracer's lit mode) reading the
+/// integrator's `step`, `seed` and `filter`; `lighting: None` draws the flat-lit density march.
+/// An instance's extinction is `(absorb + scatter) · density_scale` per unit density, its albedo
+/// `scatter / (absorb + scatter)`; its radiance is `tint ⊙ L` with `L` the march's. Each lit
+/// instance gets a light volume per frame of its crossfade, in its own cell space
+/// (`light_res` cells along the frame's content box), rebuilt when the frame, the instance's
+/// rotation or scale, the light or the medium changes (`docs/engine.md`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Shading {
+    pub medium: Medium,
     pub lighting: Option<Lighting>,
+    pub integrator: Integrator,
 }
 
-impl Default for Medium {
-    fn default() -> Self {
-        let s = vdbcook_scene::RenderSettings::default();
-        Medium {
-            absorb: s.absorb,
-            unit: s.unit,
-            lighting: None,
-        }
-    }
-}
-
-/// The lit mode's light and medium for the drawer (the fields of `Settings` the lit mode reads,
-/// as the CPU tracer's `Mode::Lit` defines them): an instance's extinction is
-/// `(absorb + scatter) · density_scale` per unit density, its albedo `scatter / (absorb +
-/// scatter)`; its radiance is `tint ⊙ L` with `L` the lit march's. Each lit instance gets a light
-/// volume per frame of its crossfade, in its own cell space (`light_res` cells along the
-/// frame's content box), rebuilt when the frame, the instance's rotation or scale, the light or
-/// the medium changes (`docs/engine.md`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lighting {
-    pub scatter: f32,
-    /// World direction toward the sun.
-    pub light_dir: [f32; 3],
-    /// The sun's irradiance (linear RGB).
-    pub light_color: [f32; 3],
-    /// Constant sky radiance (linear RGB).
-    pub sky: [f32; 3],
-    pub phase_g: [f32; 2],
-    pub phase_w: f32,
-    /// March step, in the medium's length unit.
-    pub step: f32,
-    pub light_res: u32,
-    /// How the sun's multiple scattering is approximated (the tracer's `--ms-model`; the
-    /// octaves read `ms_octaves` and `ms`).
-    pub ms_model: vdbcook_scene::MsModel,
-    pub ms_octaves: u32,
-    pub ms: [f32; 3],
-    /// Seeds the per-pixel offset of the samples (change it per frame for temporal
-    /// anti-aliasing).
-    pub seed: u32,
-    /// Scale of the multiply scattered sky light's diffusion attenuation (`Settings::ms_sky`).
-    pub ms_sky: f32,
-    /// Nearest voxel or trilinear density (smooth up close; eight reads per sample).
-    pub filter: vdbcook_scene::Filter,
-    /// Light-volume cells toward the sun walked exactly from each sample before the light
-    /// volume's depth takes over, where a cell is optically thick (`Settings::sun_near`; 0: the
-    /// light volume alone, cheaper, a dense cloud's sunlit skin too dark).
-    pub sun_near: f32,
-    /// With the diffusion model, where the near field was walked: the scale of the
-    /// once-scattered sunlight the light volume's cells cannot hold (`Settings::near_scatter`;
-    /// 0.5 by default, 0: the cells' light alone, a dense cloud darker).
-    pub near_scatter: f32,
-    /// Blackbody emission of the density grid's values read as Kelvin (the tracer's
-    /// `--emission`), added by the lit march and absorbed like the rest of its light; a pure
-    /// glow with `scatter` 0, a black `light_color` and `sky`, and the medium's `absorb` small.
-    pub emission: Option<vdbcook_scene::Emission>,
-}
-
-impl Default for Lighting {
-    /// The CPU tracer's defaults.
-    fn default() -> Self {
-        Lighting::from_settings(&vdbcook_scene::RenderSettings::default())
-    }
-}
-
-impl Lighting {
-    /// The lighting fields of tracer settings.
-    pub fn from_settings(s: &vdbcook_scene::RenderSettings) -> Lighting {
-        Lighting {
-            scatter: s.scatter,
-            light_dir: s.light_dir,
-            light_color: s.light_color,
-            sky: s.sky,
-            phase_g: s.phase_g,
-            phase_w: s.phase_w,
-            step: s.step,
-            light_res: s.light_res,
-            ms_model: s.ms_model,
-            ms_octaves: s.ms_octaves,
-            ms: s.ms,
-            ms_sky: s.ms_sky,
-            seed: s.seed,
-            filter: s.filter,
-            sun_near: s.sun_near,
-            near_scatter: s.near_scatter,
-            emission: s.emission,
+impl Shading {
+    /// The shading of tracer settings: lit where the mode is.
+    pub fn of_settings(s: &RenderSettings) -> Shading {
+        Shading {
+            medium: s.medium.clone(),
+            lighting: (s.integrator.mode == Mode::Lit).then(|| s.lighting.clone()),
+            integrator: s.integrator.clone(),
         }
     }
 
-    /// The tracer settings of a lit render with this lighting and `medium` (what the CPU
-    /// tracer draws for the drawer's instances, and what is validated). The drawer marches in
-    /// steps (`March::Steps`): it reads the density by point lookups and has no voxel spans to
-    /// follow (only its near field toward the sun walks voxels).
-    pub fn settings(&self, medium: &Medium) -> vdbcook_scene::RenderSettings {
-        vdbcook_scene::RenderSettings {
-            mode: vdbcook_scene::Mode::Lit,
-            march: vdbcook_scene::March::Steps,
-            sun_near: self.sun_near,
-            near_scatter: self.near_scatter,
-            absorb: medium.absorb,
-            unit: medium.unit,
-            scatter: self.scatter,
-            light_dir: self.light_dir,
-            light_color: self.light_color,
-            sky: self.sky,
-            phase_g: self.phase_g,
-            phase_w: self.phase_w,
-            step: self.step,
-            light_res: self.light_res,
-            ms_model: self.ms_model,
-            ms_octaves: self.ms_octaves,
-            ms: self.ms,
-            ms_sky: self.ms_sky,
-            seed: self.seed,
-            filter: self.filter,
-            emission: self.emission,
+    /// The tracer settings of a render with this shading (what the CPU tracer draws for the
+    /// drawer's instances, and what is validated): the lit mode with `lighting`, else density.
+    /// The drawer marches in steps (`March::Steps`): it reads the density by point lookups and
+    /// has no voxel spans to follow (only its near field toward the sun walks voxels).
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
+            medium: self.medium.clone(),
+            lighting: self.lighting.clone().unwrap_or_default(),
+            integrator: Integrator {
+                mode: if self.lighting.is_some() {
+                    Mode::Lit
+                } else {
+                    Mode::Density
+                },
+                march: vdbcook_scene::March::Steps,
+                ..self.integrator.clone()
+            },
             ..Default::default()
         }
     }
@@ -877,14 +797,14 @@ impl VolumeDrawer {
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         instances: &[Instance],
-        medium: &Medium,
+        shading: &Shading,
     ) -> Result<SunShadows> {
-        if medium.lighting.is_none() {
+        if shading.lighting.is_none() {
             return Err(RuntimeError::Setting(
-                "sun shadows need Medium::lighting (the light volumes of the lit mode)".into(),
+                "sun shadows need Shading::lighting (the light volumes of the lit mode)".into(),
             ));
         }
-        let (draws, volumes) = self.instances(DVec3::ZERO, instances, medium)?;
+        let (draws, volumes) = self.instances(DVec3::ZERO, instances, shading)?;
         let (bases, pool) = if volumes.volumes.is_empty() {
             (Vec::new(), None)
         } else {
@@ -1053,10 +973,12 @@ impl VolumeDrawer {
         &self,
         eye: DVec3,
         instances: &[Instance],
-        medium: &Medium,
+        shading: &Shading,
     ) -> Result<(Vec<DrawInstance>, LitVolumes)> {
-        if let Some(l) = &medium.lighting {
-            l.settings(medium)
+        let medium = &shading.medium;
+        if shading.lighting.is_some() {
+            shading
+                .settings()
                 .validate(self.vol.frames())
                 .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
         }
@@ -1109,19 +1031,24 @@ impl VolumeDrawer {
                 lv_dims1: [1; 4],
                 lv_axis: [1.0, 1.0, 1.0, 0.0],
             };
-            if let Some(l) = &medium.lighting {
+            if let Some(l) = &shading.lighting {
                 // As `vdbcook_trace::Tracer::new`: in f64, then f32.
-                let k = medium.absorb as f64 + l.scatter as f64;
+                let k = medium.absorb as f64 + medium.scatter as f64;
                 let extinction = k * inst.density_scale as f64;
                 d.lit = 1;
-                let albedo = if k > 0.0 { l.scatter as f64 / k } else { 0.0 };
+                let albedo = if k > 0.0 {
+                    medium.scatter as f64 / k
+                } else {
+                    0.0
+                };
                 d.albedo = albedo as f32;
                 d.sky_k =
-                    vdbcook_scene::sky_diffusion(albedo, l.phase_g, l.phase_w, l.ms_sky) as f32;
+                    vdbcook_scene::sky_diffusion(albedo, medium.phase_g, medium.phase_w, l.ms_sky)
+                        as f32;
                 d.extinction = extinction as f32;
                 let (_, axis_len) = light_dirs(&xf, l.light_dir, medium.unit);
-                let w = l.phase_w as f64;
-                let mean_cos = w * l.phase_g[0] as f64 + (1.0 - w) * l.phase_g[1] as f64;
+                let w = medium.phase_w as f64;
+                let mean_cos = w * medium.phase_g[0] as f64 + (1.0 - w) * medium.phase_g[1] as f64;
                 d.lv_axis = [axis_len[0], axis_len[1], axis_len[2], mean_cos].map(|v| v as f32);
                 // A light volume per frame of the crossfade, in the instance's cell space;
                 // `lv_base*` hold their indices in `volumes` until `record` places them.
@@ -1145,7 +1072,7 @@ impl VolumeDrawer {
                                 light_dirs(&xf, l.light_dir, medium.unit),
                                 extinction,
                                 albedo,
-                                (l.phase_g, l.phase_w),
+                                (medium.phase_g, medium.phase_w),
                             )
                         }));
                         volumes.len() - 1
@@ -1182,9 +1109,10 @@ impl VolumeDrawer {
         target: &DrawTarget,
         view: &View,
         instances: &[Instance],
-        medium: &Medium,
+        shading: &Shading,
     ) -> Result<()> {
         let rays = view.rays()?;
+        let medium = &shading.medium;
         if !(medium.absorb >= 0.0 && medium.absorb.is_finite()) {
             return Err(RuntimeError::Setting(format!(
                 "absorb {} (finite, ≥ 0)",
@@ -1193,7 +1121,7 @@ impl VolumeDrawer {
         }
         let size = view.viewport;
         self.check_targets(target, size)?;
-        let (mut gpu_instances, volumes) = self.instances(rays.eye(), instances, medium)?;
+        let (mut gpu_instances, volumes) = self.instances(rays.eye(), instances, shading)?;
         if gpu_instances.is_empty() {
             return Ok(());
         }
@@ -1213,7 +1141,8 @@ impl VolumeDrawer {
             }
             group
         };
-        let lighting = medium.lighting.unwrap_or_default();
+        let lighting = shading.lighting.clone().unwrap_or_default();
+        let integ = &shading.integrator;
         let l = lighting.light_dir.map(|c| c as f64);
         let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
         let l = l.map(|c| (c / ln) as f32);
@@ -1234,7 +1163,7 @@ impl VolumeDrawer {
             instance_count: gpu_instances.len() as u32,
             has_depth: target.depth.is_some() as u32,
             voxel_units: (medium.unit == LengthUnit::Voxel) as u32,
-            light_dir: [l[0], l[1], l[2], lighting.step],
+            light_dir: [l[0], l[1], l[2], integ.step],
             light_color: [
                 lighting.light_color[0],
                 lighting.light_color[1],
@@ -1242,30 +1171,25 @@ impl VolumeDrawer {
                 lighting.near_scatter,
             ],
             sky: v3(lighting.sky),
-            phase: [
-                lighting.phase_g[0],
-                lighting.phase_g[1],
-                lighting.phase_w,
-                0.0,
-            ],
+            phase: [medium.phase_g[0], medium.phase_g[1], medium.phase_w, 0.0],
             ms: [
                 lighting.ms[0],
                 lighting.ms[1],
                 lighting.ms[2],
-                (lighting.filter == vdbcook_scene::Filter::Trilinear) as u32 as f32,
+                (integ.filter == vdbcook_scene::Filter::Trilinear) as u32 as f32,
             ],
             // 0: the diffusion model (`draw.wgsl`'s `draw_lit`).
             ms_octaves: match lighting.ms_model {
                 vdbcook_scene::MsModel::Octaves => lighting.ms_octaves,
                 vdbcook_scene::MsModel::Diffusion => 0,
             },
-            seed: lighting.seed,
+            seed: integ.seed,
             sun_near: lighting.sun_near,
             _pad1: 0,
-            emission: lighting
+            emission: medium
                 .emission
                 .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 1.0]),
-            emit_table: lighting
+            emit_table: medium
                 .emission
                 .map_or([[0.0; 4]; vdbcook_scene::BLACKBODY_TABLE_LEN], |e| {
                     vdbcook_scene::blackbody_table(e.range)
@@ -1311,10 +1235,10 @@ impl VolumeDrawer {
                 label: Some("vdbcook draw"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(match &medium.lighting {
+            pass.set_pipeline(match &shading.lighting {
                 None => &self.draw_pipeline,
                 Some(l) => {
-                    let trilinear = l.filter == vdbcook_scene::Filter::Trilinear;
+                    let trilinear = integ.filter == vdbcook_scene::Filter::Trilinear;
                     let near = l.sun_near > 0.0;
                     let (vol, layouts) = (&self.vol, [&self.draw_layout, &self.light.read_layout]);
                     self.lit_pipelines[trilinear as usize | (near as usize) << 1]

@@ -59,8 +59,8 @@ mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, Lighting, Medium, SunShadows, View, ViewRays, VolumeDrawer,
-    COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, Shading, SunShadows, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL,
+    DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
@@ -70,7 +70,9 @@ pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
 };
 pub use vdbcook_asset::Asset;
-pub use vdbcook_scene::{Filter, March, MsModel};
+pub use vdbcook_scene::{
+    Emission, Filter, Integrator, Lighting, March, Medium, MsModel, Output, RenderSettings,
+};
 pub use wgsl::{shadow_wgsl, volume_wgsl, world_to_index};
 /// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
 /// to be sure of matching versions.

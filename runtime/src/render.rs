@@ -535,18 +535,18 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<()> {
         let (params, grid) = self.params(width, height, out_flags, frame, camera, settings)?;
-        let light_group = if settings.mode == Mode::Lit {
-            let extinction = settings.absorb as f64 + settings.scatter as f64;
+        let light_group = if settings.integrator.mode == Mode::Lit {
+            let extinction = settings.medium.absorb as f64 + settings.medium.scatter as f64;
             let lp = LightParams::new(
                 &grid,
                 &self.xf,
-                settings.light_dir,
+                settings.lighting.light_dir,
                 extinction,
-                settings.unit,
+                settings.medium.unit,
                 params.frame_root,
                 self.vol.lod,
             );
-            let diffusion = (settings.ms_model == MsModel::Diffusion)
+            let diffusion = (settings.lighting.ms_model == MsModel::Diffusion)
                 .then(|| DiffusionInputs::of_settings(&grid, &self.xf, settings));
             self.light
                 .record(&self.device, encoder, &self.vol.group, &[lp], &[diffusion])?
@@ -559,8 +559,8 @@ impl Renderer {
             label: Some("vdbcook trace"),
             timestamp_writes: None,
         });
-        let variant = if settings.mode == Mode::Lit {
-            let trilinear = settings.filter == Filter::Trilinear;
+        let variant = if settings.integrator.mode == Mode::Lit {
+            let trilinear = settings.integrator.filter == Filter::Trilinear;
             LitVariant {
                 trilinear,
                 // As the march's per-sample test, at the frame's largest value (a margin for
@@ -608,7 +608,7 @@ impl Renderer {
         settings: &Settings,
     ) -> Result<(Params, LightGrid)> {
         let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
-        if settings.emission.is_some() && !self.emission {
+        if settings.medium.emission.is_some() && !self.emission {
             return Err(RuntimeError::Unsupported(
                 "emission: this renderer's pipeline was built without it; create it with \
                  Renderer::with_emission"
@@ -624,22 +624,25 @@ impl Renderer {
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let inv = self.xf.inv_a;
         // As `vdbcook_trace::Tracer::new`: the light in index space, extinction and albedo in f64.
-        let l = settings.light_dir.map(|c| c as f64);
+        let l = settings.lighting.light_dir.map(|c| c as f64);
         let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
         let light_index = self.xf.dir_to_index(l.map(|c| c / ln));
-        let extinction = settings.absorb as f64 + settings.scatter as f64;
+        let extinction = settings.medium.absorb as f64 + settings.medium.scatter as f64;
         let albedo = if extinction > 0.0 {
-            settings.scatter as f64 / extinction
+            settings.medium.scatter as f64 / extinction
         } else {
             0.0
         };
-        let c = settings.light_color;
-        let grid =
-            LightGrid::with_levels(self.vol.content[frame], settings.light_res, self.vol.lod.0);
+        let c = settings.lighting.light_color;
+        let grid = LightGrid::with_levels(
+            self.vol.content[frame],
+            settings.lighting.light_res,
+            self.vol.lod.0,
+        );
         // Emission from another channel: the modes' own emission is off (`emission.w = 0`) and
         // `channel_emission` draws it over the channel's box (as `vdbcook_trace::Tracer`).
         let mut emit_box = None;
-        let emit_channel = match settings.emission {
+        let emit_channel = match settings.medium.emission {
             Some(e) if e.channel > 0 => {
                 let Some(ch) = self.vol.channels.get(e.channel - 1) else {
                     return Err(RuntimeError::Setting(format!(
@@ -658,7 +661,7 @@ impl Renderer {
             _ => 0,
         };
         let lw = l.map(|c| (c / ln) as f32);
-        let (_, axis_len) = light_dirs(&self.xf, settings.light_dir, settings.unit);
+        let (_, axis_len) = light_dirs(&self.xf, settings.lighting.light_dir, settings.medium.unit);
         let params = Params {
             eye_index: v4(eye),
             forward: v4(basis.forward),
@@ -676,56 +679,62 @@ impl Renderer {
             height,
             mode,
             frame_root: (frame * self.vol.root_len) as u32,
-            absorb: settings.absorb,
-            cutoff: settings.cutoff,
+            absorb: settings.medium.absorb,
+            cutoff: settings.integrator.cutoff,
             near: near as f32,
             far: far as f32,
             value_max: if vmax > 0.0 { vmax } else { 1.0 },
-            voxel_units: (settings.unit == LengthUnit::Voxel) as u32,
+            voxel_units: (settings.medium.unit == LengthUnit::Voxel) as u32,
             out_flags,
             extinction: extinction as f32,
             albedo: albedo as f32,
-            step: settings.step,
-            shadow_step: settings.shadow_step,
-            gain: settings.gain,
-            spp: settings.spp,
-            first_sample: settings.first_sample,
-            seed: settings.seed,
+            step: settings.integrator.step,
+            shadow_step: settings.integrator.shadow_step,
+            gain: settings.integrator.gain,
+            spp: settings.integrator.spp,
+            first_sample: settings.integrator.first_sample,
+            seed: settings.integrator.seed,
             emit_channel,
             lv_lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
             lv_dims: [
                 grid.dims[0],
                 grid.dims[1],
                 grid.dims[2],
-                match settings.ms_model {
-                    MsModel::Octaves => settings.ms_octaves,
+                match settings.lighting.ms_model {
+                    MsModel::Octaves => settings.lighting.ms_octaves,
                     MsModel::Diffusion => 0,
                 },
             ],
             ms: [
-                settings.ms[0],
-                settings.ms[1],
-                settings.ms[2],
-                (settings.filter == Filter::Trilinear) as u32 as f32,
+                settings.lighting.ms[0],
+                settings.lighting.ms[1],
+                settings.lighting.ms[2],
+                (settings.integrator.filter == Filter::Trilinear) as u32 as f32,
             ],
             sky: [
-                settings.sky[0],
-                settings.sky[1],
-                settings.sky[2],
-                sky_diffusion(albedo, settings.phase_g, settings.phase_w, settings.ms_sky) as f32,
+                settings.lighting.sky[0],
+                settings.lighting.sky[1],
+                settings.lighting.sky[2],
+                sky_diffusion(
+                    albedo,
+                    settings.medium.phase_g,
+                    settings.medium.phase_w,
+                    settings.lighting.ms_sky,
+                ) as f32,
             ],
             phase: [
-                settings.phase_g[0],
-                settings.phase_g[1],
-                settings.phase_w,
+                settings.medium.phase_g[0],
+                settings.medium.phase_g[1],
+                settings.medium.phase_w,
                 0.0,
             ],
             light_world: [lw[0], lw[1], lw[2], 0.0],
-            emission: settings.emission.map_or([0.0; 4], |e| {
+            emission: settings.medium.emission.map_or([0.0; 4], |e| {
                 let own = (emit_channel == 0) as u32 as f32;
                 [e.range[0], e.range[1], e.intensity, own]
             }),
             emit_table: settings
+                .medium
                 .emission
                 .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
                     blackbody_table(e.range)
@@ -733,7 +742,7 @@ impl Renderer {
             emit_lo: emit_box.map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
             emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1)),
             lod: [
-                if settings.mode == Mode::Lit && settings.primary_lod {
+                if settings.integrator.mode == Mode::Lit && settings.integrator.primary_lod {
                     self.vol.lod.0.consecutive() as u32
                 } else {
                     1
@@ -744,10 +753,10 @@ impl Renderer {
                 (March::resolve(settings, vmax) == March::Voxels) as u32,
             ],
             lit: [
-                grid.near_voxels(settings.sun_near) as f32,
+                grid.near_voxels(settings.lighting.sun_near) as f32,
                 (axis_len.into_iter().fold(f64::INFINITY, f64::min) * grid.cell) as f32,
                 DiffusionInputs::of_settings(&grid, &self.xf, settings).mean_cos as f32,
-                settings.near_scatter,
+                settings.lighting.near_scatter,
             ],
             lv_axis: [axis_len[0], axis_len[1], axis_len[2], 0.0].map(|v| v as f32),
         };

@@ -15,10 +15,13 @@ use common::*;
 use vdbcook_asset::{Asset, PayloadFormat};
 use vdbcook_runtime::glam::{Affine3A, EulerRot, Mat4, Quat, Vec2, Vec3, Vec4};
 use vdbcook_runtime::{
-    DrawTarget, Filter, GpuVolume, Instance, Lighting, Medium, RuntimeError, View, ViewRays,
-    VolumeDrawer, DRAW_DEPTH_FORMATS,
+    DrawTarget, Filter, GpuVolume, Instance, RuntimeError, Shading, View, ViewRays, VolumeDrawer,
+    DRAW_DEPTH_FORMATS,
 };
-use vdbcook_trace::{Camera, LengthUnit, MsModel, RenderSettings, Scratch, Tracer};
+use vdbcook_trace::{
+    Camera, Integrator, LengthUnit, Lighting, Medium, MsModel, Output, RenderSettings, Scratch,
+    Tracer,
+};
 
 const W: u32 = 160;
 const H: u32 = 96;
@@ -174,7 +177,7 @@ impl Gpu {
         f: &Frame,
         view: &View,
         instances: &[Instance],
-        medium: &Medium,
+        medium: &Shading,
         bg: [f64; 3],
         depth: Option<f32>,
     ) -> Vec<f32> {
@@ -200,17 +203,23 @@ struct CpuInstance<'a> {
     tint: Vec3,
 }
 
-fn cpu_instance<'a>(moved: &'a Asset, inst: &Instance, medium: &Medium) -> CpuInstance<'a> {
+fn cpu_instance<'a>(moved: &'a Asset, inst: &Instance, shading: &Shading) -> CpuInstance<'a> {
     let (f0, f1, a) = inst.frames(moved.frame_count()).unwrap();
     let cam = Camera::framing(moved, 0, 1.0).unwrap();
+    let medium = &shading.medium;
     let absorb = medium.absorb * inst.density_scale;
     let tracer = |frame| {
         let s = RenderSettings {
-            width: 4,
-            height: 4,
-            frame,
-            absorb,
-            unit: medium.unit,
+            output: Output {
+                width: 4,
+                height: 4,
+                frame,
+            },
+            medium: Medium {
+                absorb,
+                unit: medium.unit,
+                ..Default::default()
+            },
             ..Default::default()
         };
         Tracer::new(moved, &cam, &s).unwrap()
@@ -342,7 +351,7 @@ fn depth_planes_in_front_beyond_and_through_the_cloud() {
     let (view, cam) = framing_view(&asset);
     let rays = view.rays().unwrap();
     let inst = [Instance::default()];
-    let medium = Medium::default();
+    let medium = Shading::default();
     let mid = centre_distance(&cam);
     // Both depth formats the drawer reads; Depth24Plus may quantize the stored depth to 24 bits,
     // which moves the cut by far less than a voxel here (the CPU cuts at the unquantized depth).
@@ -417,7 +426,7 @@ fn blend_is_radiance_plus_transmittance_times_scene() {
         tint: Vec3::new(1.0, 0.6, 0.3),
         ..Default::default()
     }];
-    let medium = Medium::default();
+    let medium = Shading::default();
     let (a, b) = ([0.9, 0.1, 0.4], [0.0, 0.8, 0.2]);
     let ga = gpu.draw(&mut drawer, &f, &view, &inst, &medium, a, None);
     let gb = gpu.draw(&mut drawer, &f, &view, &inst, &medium, b, None);
@@ -455,7 +464,7 @@ fn moved_and_jittered_instances_match_the_cpu() {
     let asset = cloud(PayloadFormat::F32);
     let (_vol, mut drawer) = setup(&gpu, &asset);
     let f = gpu.frame();
-    let medium = Medium::default();
+    let medium = Shading::default();
     let cases = [
         (
             "translated",
@@ -493,10 +502,13 @@ fn moved_and_jittered_instances_match_the_cpu() {
         assert!(cpu.iter().filter(|p| p[3] < 0.5).count() > 100, "{what}");
     }
     // World length units too.
-    let medium = Medium {
-        absorb: 0.2,
-        unit: LengthUnit::World,
-        lighting: None,
+    let medium = Shading {
+        medium: Medium {
+            absorb: 0.2,
+            unit: LengthUnit::World,
+            ..Default::default()
+        },
+        ..Default::default()
     };
     let (view, _) = framing_view(&asset);
     let g = gpu.draw(
@@ -533,8 +545,8 @@ fn lit_instances_match_the_cpu_lit_mode() {
         light_dir: [0.4, 0.8, -0.3],
         ..Default::default()
     };
-    let medium = Medium {
-        lighting: Some(lighting),
+    let medium = Shading {
+        lighting: Some(lighting.clone()),
         ..Default::default()
     };
     let rotated = Affine3A::from_scale_rotation_translation(
@@ -585,17 +597,22 @@ fn lit_instances_match_the_cpu_lit_mode() {
         } else {
             MsModel::Octaves
         };
-        let medium = Medium {
+        let medium = Shading {
             lighting: Some(Lighting {
-                filter,
-                emission,
                 ms_model,
                 ms_sky: ms_model.default_ms_sky(),
-                scatter: if glow { 0.0 } else { lighting.scatter },
-                ..lighting
+                ..lighting.clone()
             }),
-            absorb: if glow { 0.02 } else { medium.absorb },
-            ..medium
+            medium: Medium {
+                emission,
+                scatter: if glow { 0.0 } else { medium.medium.scatter },
+                absorb: if glow { 0.02 } else { medium.medium.absorb },
+                ..medium.medium.clone()
+            },
+            integrator: Integrator {
+                filter,
+                ..medium.integrator.clone()
+            },
         };
         let inst = Instance {
             density_scale: 1.7,
@@ -608,11 +625,17 @@ fn lit_instances_match_the_cpu_lit_mode() {
         view.jitter = Vec2::new(0.3, -0.45);
         let g = gpu.draw(&mut drawer, &f, &view, &[inst], &medium, BG, None);
         // The CPU: the lit mode on the moved asset, the medium scaled by the density.
-        let base = medium.lighting.expect("lit").settings(&medium);
+        let base = medium.settings();
         let s = RenderSettings {
-            frame: time as usize,
-            absorb: base.absorb * inst.density_scale,
-            scatter: base.scatter * inst.density_scale,
+            output: Output {
+                frame: time as usize,
+                ..base.output
+            },
+            medium: Medium {
+                absorb: base.medium.absorb * inst.density_scale,
+                scatter: base.medium.scatter * inst.density_scale,
+                ..base.medium
+            },
             ..base
         };
         let tracer = Tracer::new(&m, &cam, &s).unwrap();
@@ -660,7 +683,7 @@ fn lit_instances_match_the_cpu_lit_mode() {
         assert!(lit > 100, "{what}: the cloud is lit ({lit} pixels)");
     }
     // A lit setting out of range is refused, nothing recorded.
-    let bad = Medium {
+    let bad = Shading {
         lighting: Some(Lighting {
             ms_octaves: 0,
             ..lighting
@@ -708,7 +731,7 @@ fn overlapping_instances_in_one_draw_multiply_transmittances() {
     let asset = cloud(PayloadFormat::F32);
     let (_vol, mut drawer) = setup(&gpu, &asset);
     let f = gpu.frame();
-    let medium = Medium::default();
+    let medium = Shading::default();
     let insts = three_copies();
     let (view, cam) = framing_view(&moved(&asset, &insts[1]));
     let z = ndc_depth(&view.proj, 1.1 * centre_distance(&cam));
@@ -742,7 +765,7 @@ fn many_draws_in_one_encoder_equal_one_submission_each() {
     let b = cloud(PayloadFormat::Unorm8);
     let (_va, mut da) = setup(&gpu, &a);
     let (_vb, mut db) = setup(&gpu, &b);
-    let medium = Medium::default();
+    let medium = Shading::default();
     let (view, cam) = framing_view(&a);
     let z = Some(ndc_depth(&view.proj, centre_distance(&cam)));
     let draws: Vec<(bool, Instance)> = (0..4)
@@ -818,7 +841,7 @@ fn crossfades_lerp_the_densities() {
     let asset = cloud(PayloadFormat::F32);
     let (_vol, mut drawer) = setup(&gpu, &asset);
     let f = gpu.frame();
-    let medium = Medium::default();
+    let medium = Shading::default();
     let (view, _) = framing_view(&asset);
     let rays = view.rays().unwrap();
     let draw = |drawer: &mut VolumeDrawer, time: f32| {
@@ -851,7 +874,7 @@ fn standard_reversed_and_orthographic_projections() {
     let asset = cloud(PayloadFormat::F32);
     let (_vol, mut drawer) = setup(&gpu, &asset);
     let f = gpu.frame();
-    let medium = Medium::default();
+    let medium = Shading::default();
     let inst = [Instance::default()];
     let (base, cam) = framing_view(&asset);
     let mid = centre_distance(&cam);
@@ -942,7 +965,7 @@ fn bad_inputs_are_errors() {
     let (vol, mut drawer) = setup(&gpu, &asset);
     let f = gpu.frame();
     let (view, _) = framing_view(&asset);
-    let medium = Medium::default();
+    let medium = Shading::default();
     let inst = [Instance::default()];
     let tex = |w, h, format, usage| {
         gpu.device
@@ -1072,7 +1095,7 @@ fn srgb_8_bit_targets_blend_in_linear_space() {
     let format = wgpu::TextureFormat::Bgra8UnormSrgb;
     let mut drawer = VolumeDrawer::new(&gpu.device, &vol, format).expect("drawer");
     let (view, _) = framing_view(&asset);
-    let medium = Medium::default();
+    let medium = Shading::default();
     let inst = [Instance {
         tint: Vec3::new(1.0, 0.6, 0.3),
         ..Default::default()
@@ -1197,7 +1220,7 @@ fn sun_shadows_match_the_cpu() {
         light_dir: [0.3, 0.9, -0.2],
         ..Default::default()
     };
-    let medium = Medium {
+    let medium = Shading {
         lighting: Some(lighting),
         ..Default::default()
     };
@@ -1219,7 +1242,7 @@ fn sun_shadows_match_the_cpu() {
     // Without lighting: refused.
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     let e = drawer
-        .sun_shadows(&gpu.device, &mut enc, &instances, &Medium::default())
+        .sun_shadows(&gpu.device, &mut enc, &instances, &Shading::default())
         .err()
         .expect("no lighting, no shadows");
     assert!(matches!(e, RuntimeError::Setting(_)), "{e}");
@@ -1229,13 +1252,16 @@ fn sun_shadows_match_the_cpu() {
     for inst in &instances {
         let m = moved(&asset, inst);
         let (f0, f1, a) = inst.frames(asset.frame_count()).unwrap();
-        let base = lighting.settings(&medium);
+        let base = medium.settings();
         let s = RenderSettings {
-            absorb: base.absorb * inst.density_scale,
-            scatter: base.scatter * inst.density_scale,
+            medium: Medium {
+                absorb: base.medium.absorb * inst.density_scale,
+                scatter: base.medium.scatter * inst.density_scale,
+                ..base.medium
+            },
             ..base
         };
-        let ext = (s.absorb + s.scatter) as f64;
+        let ext = (s.medium.absorb + s.medium.scatter) as f64;
         tracers.push((m, [f0, f1], a as f64, s, ext));
     }
     // World points: a lattice over the instances' world boxes, grown by half.
@@ -1266,7 +1292,20 @@ fn sun_shadows_match_the_cpu() {
             let cam = Camera::framing(m, 0, 1.0).unwrap();
             let t = frames
                 .iter()
-                .map(|&frame| Tracer::new(m, &cam, &RenderSettings { frame, ..s.clone() }).unwrap())
+                .map(|&frame| {
+                    Tracer::new(
+                        m,
+                        &cam,
+                        &RenderSettings {
+                            output: Output {
+                                frame,
+                                ..s.output.clone()
+                            },
+                            ..s.clone()
+                        },
+                    )
+                    .unwrap()
+                })
                 .collect();
             (t, *a, *ext)
         })

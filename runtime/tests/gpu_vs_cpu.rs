@@ -32,7 +32,9 @@ use vdbcook_runtime::{
     GpuTimer, GpuVolume, Layout, Readback, Renderer, RuntimeError, UploadOptions, GPU_MODES,
     OPTIONAL_FEATURES,
 };
-use vdbcook_trace::{Image, March, Mode, MsModel, RenderSettings};
+use vdbcook_trace::{
+    Image, Integrator, Lighting, March, Medium, Mode, MsModel, Output, RenderSettings,
+};
 
 const W: u32 = 160;
 const H: u32 = 90;
@@ -81,7 +83,7 @@ impl Gpu {
         s: &RenderSettings,
     ) -> Result<Readback, RuntimeError> {
         let mut enc = self.device.create_command_encoder(&Default::default());
-        r.render_to_buffer(&self.queue, &mut enc, target, s.frame, cam, s)?;
+        r.render_to_buffer(&self.queue, &mut enc, target, s.output.frame, cam, s)?;
         self.queue.submit([enc.finish()]);
         Ok(target.read(&self.device, &self.queue))
     }
@@ -89,12 +91,20 @@ impl Gpu {
 
 fn small(mode: Mode, frame: usize) -> RenderSettings {
     RenderSettings {
-        width: W,
-        height: H,
-        mode,
-        frame,
-        // A light volume of 24 cells along the longest side: the CPU builds it per render.
-        light_res: 24,
+        output: Output {
+            width: W,
+            height: H,
+            frame,
+        },
+        lighting: Lighting {
+            // A light volume of 24 cells along the longest side: the CPU builds it per render.
+            light_res: 24,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -249,9 +259,9 @@ fn random_bricks_tiles_and_negative_values_match() {
         check_modes(&gpu, &asset, format.name(), 1, |_| {});
         // World length units and a nonzero cutoff on the same asset.
         check_modes(&gpu, &asset, "world units", 0, |s| {
-            s.unit = vdbcook_trace::LengthUnit::World;
-            s.cutoff = 0.5;
-            s.absorb = 0.3;
+            s.medium.unit = vdbcook_trace::LengthUnit::World;
+            s.integrator.cutoff = 0.5;
+            s.medium.absorb = 0.3;
         });
     }
 }
@@ -445,11 +455,11 @@ fn volume_fills_the_frame_frames_switch_and_bad_frame_is_an_error() {
     assert!(matches!(e, RuntimeError::Unsupported(_)), "{e}");
     for mode in GPU_MODES {
         let mut s = small(mode, 0);
-        s.spp = 1;
+        s.integrator.spp = 1;
         gpu.render(&r, &target, &cam, &s).unwrap();
     }
     let mut bad = small(Mode::Density, 0);
-    bad.absorb = f32::NAN;
+    bad.medium.absorb = f32::NAN;
     assert!(matches!(
         gpu.render(&r, &target, &cam, &bad).unwrap_err(),
         RuntimeError::Setting(_)
@@ -545,8 +555,8 @@ fn check_delta(gpu: &Gpu, asset: &Asset, what: &str, frame: usize, s: &RenderSet
         "{what}: NaN or infinite pixel on the GPU"
     );
     let n = cpu.value.len();
-    let spp = s.spp as f64;
-    let lc = s.light_color[0] as f64;
+    let spp = s.integrator.spp as f64;
+    let lc = s.lighting.light_color[0] as f64;
     let (mut bad, mut z_max, mut equal) = (0, 0.0f64, 0);
     let (mut sums_c, mut sums_g) = ([0.0f64; 2], [0.0f64; 2]);
     for p in 0..n {
@@ -602,10 +612,16 @@ fn delta_tracking_matches_the_cpu_statistically() {
     };
     let asset = blob_asset(PayloadFormat::F32);
     for frame in 0..2 {
-        let s = RenderSettings {
-            spp: 64,
-            seed: 7,
-            ..small(Mode::DeltaTracking, frame)
+        let s = {
+            let base = small(Mode::DeltaTracking, frame);
+            RenderSettings {
+                integrator: Integrator {
+                    spp: 64,
+                    seed: 7,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
         check_delta(
             &gpu,
@@ -625,13 +641,22 @@ fn delta_tracking_matches_the_cpu_statistically() {
         &frames,
         PayloadFormat::Bc4,
     );
-    let s = RenderSettings {
-        spp: 64,
-        seed: 123,
-        first_sample: 64,
-        unit: vdbcook_trace::LengthUnit::World,
-        absorb: 0.3,
-        ..small(Mode::DeltaTracking, 1)
+    let s = {
+        let base = small(Mode::DeltaTracking, 1);
+        RenderSettings {
+            medium: Medium {
+                unit: vdbcook_trace::LengthUnit::World,
+                absorb: 0.3,
+                ..base.medium
+            },
+            integrator: Integrator {
+                spp: 64,
+                seed: 123,
+                first_sample: 64,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     check_delta(&gpu, &asset, "delta random world units", 1, &s);
 }
@@ -645,22 +670,28 @@ fn dense_media_match() {
     // cross much density; delta paths collide often and ratio tracking hits its weight floor.
     let asset = blob_asset(PayloadFormat::F32);
     let dense = |s: &mut RenderSettings| {
-        s.absorb = 0.5;
-        s.scatter = 6.0;
-        s.gain = 0.05;
-        s.step = 0.5;
-        s.shadow_step = 1.25;
-        s.light_dir = [-0.4, 0.8, 0.3];
+        s.medium.absorb = 0.5;
+        s.medium.scatter = 6.0;
+        s.integrator.gain = 0.05;
+        s.integrator.step = 0.5;
+        s.integrator.shadow_step = 1.25;
+        s.lighting.light_dir = [-0.4, 0.8, 0.3];
     };
     check_modes(&gpu, &asset, "dense", 1, dense);
     // 16 spp, not 64: lavapipe (llvmpipe) ends every loop once an invocation has run 65535 loop
     // iterations in all (`LP_MAX_TGSI_LOOP_ITERATIONS`, counted over the whole shader), and 64
     // dense paths of a pixel (with their walks and shadow rays) pass that, which silently cuts
     // the sample loop short there. Hardware drivers have no such limit.
-    let mut s = RenderSettings {
-        spp: 16,
-        seed: 99,
-        ..small(Mode::DeltaTracking, 1)
+    let mut s = {
+        let base = small(Mode::DeltaTracking, 1);
+        RenderSettings {
+            integrator: Integrator {
+                spp: 16,
+                seed: 99,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     dense(&mut s);
     check_delta(&gpu, &asset, "delta dense", 1, &s);
@@ -1210,13 +1241,19 @@ fn emission_matches_the_cpu() {
     let (vol, plain) = gpu.setup(&asset);
     // Emission is compiled out of `Renderer::new`'s pipeline: refused there.
     let cam0 = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
-    let probe = RenderSettings {
-        emission: Some(vdbcook_trace::Emission {
-            range: [800.0, 2500.0],
-            intensity: 0.5,
-            channel: 0,
-        }),
-        ..small(Mode::Density, 0)
+    let probe = {
+        let base = small(Mode::Density, 0);
+        RenderSettings {
+            medium: Medium {
+                emission: Some(vdbcook_trace::Emission {
+                    range: [800.0, 2500.0],
+                    intensity: 0.5,
+                    channel: 0,
+                }),
+                ..base.medium
+            },
+            ..base
+        }
     };
     let t0 = plain.buffer_target(&gpu.device, W, H).unwrap();
     let e = gpu.render(&plain, &t0, &cam0, &probe).unwrap_err();
@@ -1229,14 +1266,20 @@ fn emission_matches_the_cpu() {
     .unwrap();
     let target = r.buffer_target(&gpu.device, W, H).unwrap();
     let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
-    let s = RenderSettings {
-        absorb: 2e-5,
-        emission: Some(vdbcook_trace::Emission {
-            range: [800.0, 2500.0],
-            intensity: 0.5,
-            channel: 0,
-        }),
-        ..small(Mode::Density, 0)
+    let s = {
+        let base = small(Mode::Density, 0);
+        RenderSettings {
+            medium: Medium {
+                absorb: 2e-5,
+                emission: Some(vdbcook_trace::Emission {
+                    range: [800.0, 2500.0],
+                    intensity: 0.5,
+                    channel: 0,
+                }),
+                ..base.medium
+            },
+            ..base
+        }
     };
     let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
     let g = gpu.render(&r, &target, &cam, &s).unwrap();
@@ -1246,9 +1289,15 @@ fn emission_matches_the_cpu() {
     // The scatter mode's emission at its samples, lit by the light too (f32 on the GPU: the
     // scatter mode's tolerance).
     let sc = RenderSettings {
-        mode: Mode::SingleScatter,
-        absorb: 1e-5,
-        scatter: 1e-5,
+        medium: Medium {
+            absorb: 1e-5,
+            scatter: 1e-5,
+            ..s.medium.clone()
+        },
+        integrator: Integrator {
+            mode: Mode::SingleScatter,
+            ..s.integrator.clone()
+        },
         ..s.clone()
     };
     let cpu_sc = vdbcook_trace::render(&asset, &cam, &sc).unwrap();
@@ -1271,7 +1320,10 @@ fn emission_matches_the_cpu() {
     );
     // The lit mode's emission at its samples, over its light volume.
     let lit = RenderSettings {
-        mode: Mode::Lit,
+        integrator: Integrator {
+            mode: Mode::Lit,
+            ..sc.integrator.clone()
+        },
         ..sc.clone()
     };
     let cpu_lit = vdbcook_trace::render(&asset, &cam, &lit).unwrap();
@@ -1295,10 +1347,19 @@ fn emission_matches_the_cpu() {
     // Delta tracking's collision estimator (f32 free flights on the GPU draw other tentative
     // collisions than the CPU's f64 ones): the image means per channel within 2%.
     let dl = RenderSettings {
-        mode: Mode::DeltaTracking,
-        scatter: 0.0,
-        light_color: [0.0; 3],
-        spp: 32,
+        medium: Medium {
+            scatter: 0.0,
+            ..sc.medium.clone()
+        },
+        lighting: Lighting {
+            light_color: [0.0; 3],
+            ..sc.lighting.clone()
+        },
+        integrator: Integrator {
+            mode: Mode::DeltaTracking,
+            spp: 32,
+            ..sc.integrator.clone()
+        },
         ..sc.clone()
     };
     let cpu_dl = vdbcook_trace::render(&asset, &cam, &dl).unwrap();
@@ -1344,10 +1405,19 @@ fn lit_light_volume_follows_the_frame_and_the_light() {
         (1, sun_b, 0.5),
         (0, sun_a, 1.5),
     ] {
-        let s = RenderSettings {
-            light_dir: sun,
-            scatter,
-            ..small(Mode::Lit, frame)
+        let s = {
+            let base = small(Mode::Lit, frame);
+            RenderSettings {
+                medium: Medium {
+                    scatter,
+                    ..base.medium
+                },
+                lighting: Lighting {
+                    light_dir: sun,
+                    ..base.lighting
+                },
+                ..base
+            }
         };
         let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
         let g = gpu.render(&r, &target, &cam, &s).unwrap();
@@ -1390,11 +1460,17 @@ fn lit_diffusion_matches_the_cpu() {
         (MsModel::Diffusion, 1, [-0.5, 0.2, 0.6]),
         (MsModel::Octaves, 1, [-0.5, 0.2, 0.6]),
     ] {
-        let s = RenderSettings {
-            light_dir: sun,
-            ms_model: model,
-            ms_sky: model.default_ms_sky(),
-            ..small(Mode::Lit, frame)
+        let s = {
+            let base = small(Mode::Lit, frame);
+            RenderSettings {
+                lighting: Lighting {
+                    light_dir: sun,
+                    ms_model: model,
+                    ms_sky: model.default_ms_sky(),
+                    ..base.lighting
+                },
+                ..base
+            }
         };
         let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
         let g = gpu.render(&r, &target, &cam, &s).unwrap();
@@ -1418,11 +1494,17 @@ fn lit_diffusion_matches_the_cpu() {
     // and field, `ms_store_main`) carries a visible share of the image: a read that mixes up
     // their order differs from the CPU on many pixels.
     for (light_color, sky) in [([6.0f32; 3], [0.0f32; 3]), ([0.0; 3], [2.0; 3])] {
-        let s = RenderSettings {
-            light_dir: [-0.5, 0.2, 0.6],
-            light_color,
-            sky,
-            ..small(Mode::Lit, 1)
+        let s = {
+            let base = small(Mode::Lit, 1);
+            RenderSettings {
+                lighting: Lighting {
+                    light_dir: [-0.5, 0.2, 0.6],
+                    light_color,
+                    sky,
+                    ..base.lighting
+                },
+                ..base
+            }
         };
         let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
         let g = gpu.render(&r, &target, &cam, &s).unwrap();
@@ -1468,10 +1550,16 @@ fn lit_marches_match_the_cpu() {
             (March::Voxels, 0.4),
             (March::Steps, 1.0),
         ] {
-            let s = RenderSettings {
-                march,
-                step,
-                ..small(Mode::Lit, 0)
+            let s = {
+                let base = small(Mode::Lit, 0);
+                RenderSettings {
+                    integrator: Integrator {
+                        march,
+                        step,
+                        ..base.integrator
+                    },
+                    ..base
+                }
             };
             let label = format!("{what}, {march:?} step {step}");
             images.push(lit_matches_cpu(&gpu, &r, &target, asset, &cam, &s, &label));
@@ -1534,11 +1622,20 @@ fn lit_near_field_matches_the_cpu() {
         // The default; the near field without the once-scattered light below the cells
         // (`near_scatter`); no near field.
         for (sun_near, near_scatter) in [(3.0f32, 0.5f32), (3.0, 0.0), (0.0, 0.5)] {
-            let s = RenderSettings {
-                march,
-                sun_near,
-                near_scatter,
-                ..small(Mode::Lit, 0)
+            let s = {
+                let base = small(Mode::Lit, 0);
+                RenderSettings {
+                    lighting: Lighting {
+                        sun_near,
+                        near_scatter,
+                        ..base.lighting
+                    },
+                    integrator: Integrator {
+                        march,
+                        ..base.integrator
+                    },
+                    ..base
+                }
             };
             let label = format!("{march:?} sun_near {sun_near} near_scatter {near_scatter}");
             images.push(lit_matches_cpu(&gpu, &r, &target, &asset, &cam, &s, &label));
@@ -1555,12 +1652,24 @@ fn lit_near_field_matches_the_cpu() {
     // is blurred between cell centres as well): the second frame, the denser blob without a
     // tile, at 128 cells, forty times denser (optical depth up to 160 per voxel: the cells
     // walk from an optical depth of 2, `LIT_NEAR_DEPTH_FINE`).
-    let fine = RenderSettings {
-        light_res: 128,
-        absorb: 4.0,
-        scatter: 60.0,
-        march: March::Voxels,
-        ..small(Mode::Lit, 1)
+    let fine = {
+        let base = small(Mode::Lit, 1);
+        RenderSettings {
+            medium: Medium {
+                absorb: 4.0,
+                scatter: 60.0,
+                ..base.medium
+            },
+            lighting: Lighting {
+                light_res: 128,
+                ..base.lighting
+            },
+            integrator: Integrator {
+                march: March::Voxels,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     let cam = vdbcook_trace::Camera::framing(&asset, 1, W as f64 / H as f64).unwrap();
     let grid = vdbcook_trace::LightGrid::new(vdbcook_trace::content_box(&asset, 1), 128);
@@ -1568,7 +1677,10 @@ fn lit_near_field_matches_the_cpu() {
     let mut images = Vec::new();
     for sun_near in [3.0f32, 0.0] {
         let s = RenderSettings {
-            sun_near,
+            lighting: Lighting {
+                sun_near,
+                ..fine.lighting.clone()
+            },
             ..fine.clone()
         };
         let label = format!("cells of {:.2} voxels, sun_near {sun_near}", grid.cell);
@@ -1599,13 +1711,19 @@ fn lit_reads_the_level_of_detail_like_the_cpu() {
         let mut lod = second_frame_as_level(plain.clone());
         lod.header.lod_first = first;
         lod.validate().unwrap();
-        let s = RenderSettings {
-            light_res,
-            ..small(Mode::Lit, 0)
+        let s = {
+            let base = small(Mode::Lit, 0);
+            RenderSettings {
+                lighting: Lighting {
+                    light_res,
+                    ..base.lighting
+                },
+                ..base
+            }
         };
         let content = vdbcook_trace::content_box(&lod, 0);
         let chain = vdbcook_trace::LevelChain::of(&lod);
-        let grid = vdbcook_trace::LightGrid::with_levels(content, s.light_res, chain);
+        let grid = vdbcook_trace::LightGrid::with_levels(content, s.lighting.light_res, chain);
         let (level, shift, _) = grid.density_level(chain);
         assert_eq!(
             (level, shift),
@@ -1669,13 +1787,25 @@ fn lit_primary_lod_matches_the_cpu() {
     ] {
         let mut images = Vec::new();
         for primary_lod in [false, true] {
-            let s = RenderSettings {
-                light_res: 6,
-                filter,
-                primary_lod,
-                width: w,
-                height: h,
-                ..small(Mode::Lit, 0)
+            let s = {
+                let base = small(Mode::Lit, 0);
+                RenderSettings {
+                    output: Output {
+                        width: w,
+                        height: h,
+                        ..base.output
+                    },
+                    lighting: Lighting {
+                        light_res: 6,
+                        ..base.lighting
+                    },
+                    integrator: Integrator {
+                        filter,
+                        primary_lod,
+                        ..base.integrator
+                    },
+                    ..base
+                }
             };
             let cpu = vdbcook_trace::render(&lod, &cam, &s).unwrap();
             let g = gpu.render(&r, &target, &cam, &s).unwrap();
@@ -1734,9 +1864,15 @@ fn lit_trilinear_matches_the_cpu() {
         let slack = if vol.exact() { 0.0 } else { BC4_IMAGE_SLACK };
         let target = r.buffer_target(&gpu.device, W, H).unwrap();
         let cam = vdbcook_trace::Camera::framing(asset, 1, W as f64 / H as f64).unwrap();
-        let s = RenderSettings {
-            filter: vdbcook_trace::Filter::Trilinear,
-            ..small(Mode::Lit, 1)
+        let s = {
+            let base = small(Mode::Lit, 1);
+            RenderSettings {
+                integrator: Integrator {
+                    filter: vdbcook_trace::Filter::Trilinear,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
         let cpu = vdbcook_trace::render(asset, &cam, &s).unwrap();
         let g = gpu.render(&r, &target, &cam, &s).unwrap();
@@ -1763,13 +1899,23 @@ fn a_light_volume_over_the_binding_limit_is_an_error() {
     let (_vol, r) = gpu.setup(&asset);
     let target = r.buffer_target(&gpu.device, 16, 9).unwrap();
     let cam = vdbcook_trace::Camera::framing(&asset, 0, 16.0 / 9.0).unwrap();
-    let mut s = RenderSettings {
-        light_res: vdbcook_trace::MAX_LIGHT_RES,
-        width: 16,
-        height: 9,
-        ..small(Mode::Lit, 0)
+    let mut s = {
+        let base = small(Mode::Lit, 0);
+        RenderSettings {
+            output: Output {
+                width: 16,
+                height: 9,
+                ..base.output
+            },
+            lighting: Lighting {
+                light_res: vdbcook_trace::MAX_LIGHT_RES,
+                ..base.lighting
+            },
+            ..base
+        }
     };
-    let grid = vdbcook_trace::LightGrid::new(vdbcook_trace::content_box(&asset, 0), s.light_res);
+    let grid =
+        vdbcook_trace::LightGrid::new(vdbcook_trace::content_box(&asset, 0), s.lighting.light_res);
     let limits = gpu.device.limits();
     let most = limits
         .max_storage_buffer_binding_size
@@ -1788,7 +1934,7 @@ fn a_light_volume_over_the_binding_limit_is_an_error() {
         (MsModel::Octaves, pool),
         (MsModel::Diffusion, pool.max(scratch)),
     ] {
-        s.ms_model = model;
+        s.lighting.ms_model = model;
         match gpu.render(&r, &target, &cam, &s) {
             Err(RuntimeError::Limits(m)) => {
                 assert!(
@@ -1804,6 +1950,12 @@ fn a_light_volume_over_the_binding_limit_is_an_error() {
         }
     }
     // The renderer still works at a resolution that fits.
-    let ok = RenderSettings { light_res: 24, ..s };
+    let ok = RenderSettings {
+        lighting: Lighting {
+            light_res: 24,
+            ..s.lighting
+        },
+        ..s
+    };
     gpu.render(&r, &target, &cam, &ok).unwrap();
 }

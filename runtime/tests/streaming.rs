@@ -16,7 +16,7 @@ use vdbcook_runtime::{
     GpuVolume, Layout, Readback, Renderer, RuntimeError, StreamingVolume, UploadOptions,
     VolumeDrawer,
 };
-use vdbcook_trace::{Mode, RenderSettings};
+use vdbcook_trace::{Integrator, Mode, Output, RenderSettings};
 
 const W: u32 = 96;
 const H: u32 = 64;
@@ -137,10 +137,15 @@ fn render_with(
 
 fn settings(frame: usize) -> RenderSettings {
     RenderSettings {
-        width: W,
-        height: H,
-        mode: Mode::Density,
-        frame,
+        output: Output {
+            width: W,
+            height: H,
+            frame,
+        },
+        integrator: Integrator {
+            mode: Mode::Density,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }

@@ -58,14 +58,13 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
         )));
     }
     let frames = sequence::resolve_inputs(&a.inputs, a.allow_gaps)?;
-    // The folder takes files before minutes of cooks and traces go into it.
-    std::fs::create_dir_all(&a.output).map_err(|e| {
-        other(format!(
-            "{}: cannot create the report folder: {e}",
-            a.output.display()
-        ))
-    })?;
-    crate::output::check_writable(&a.output.join("report.json"), "report")?;
+    // The folder takes files (or can be made where it is missing) before minutes of cooks and
+    // traces go into it; nothing is created until they succeed.
+    if a.output.is_dir() {
+        crate::output::check_writable(&a.output.join("report.json"), "report")?;
+    } else {
+        crate::output::check_writable(&a.output, "report folder")?;
+    }
     if a.frame >= frames.len() {
         return Err(other(format!(
             "--frame {} is out of range: the input has {} frame(s)",
@@ -75,10 +74,15 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
     }
     let mode = Mode::parse(&a.mode).expect("clap checked");
     let settings = RenderSettings {
-        width: w,
-        height: h,
-        mode,
-        frame: a.frame,
+        output: Output {
+            width: w,
+            height: h,
+            frame: a.frame,
+        },
+        integrator: Integrator {
+            mode,
+            ..Default::default()
+        },
         ..Default::default()
     };
     settings

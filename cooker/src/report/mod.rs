@@ -22,7 +22,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use serde_json::{json, Value};
-use vdbcook_trace::{Camera, Image, Mode, RenderSettings};
+use vdbcook_trace::{Camera, Image, Integrator, Mode, Output, RenderSettings};
 use vdbcook_vdb::sequence;
 
 use crate::errors::CliError;

@@ -79,18 +79,18 @@ impl DiffusionInputs {
     /// `absorb + scatter`, albedo `scatter / extinction`, 0 without extinction): what the CPU
     /// tracer and the GPU renderer solve alike.
     pub fn of_settings(grid: &LightGrid, xf: &Affine, s: &RenderSettings) -> DiffusionInputs {
-        let extinction = s.absorb as f64 + s.scatter as f64;
+        let extinction = s.medium.absorb as f64 + s.medium.scatter as f64;
         let albedo = if extinction > 0.0 {
-            s.scatter as f64 / extinction
+            s.medium.scatter as f64 / extinction
         } else {
             0.0
         };
         DiffusionInputs::new(
             grid,
-            light_dirs(xf, s.light_dir, s.unit),
+            light_dirs(xf, s.lighting.light_dir, s.medium.unit),
             extinction,
             albedo,
-            (s.phase_g, s.phase_w),
+            (s.medium.phase_g, s.medium.phase_w),
         )
     }
 

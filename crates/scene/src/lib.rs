@@ -34,8 +34,9 @@ pub use light::{
     LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
-    Filter, LengthUnit, March, Mode, MsModel, RenderSettings, TraceError, DEFAULT_NEAR_SCATTER,
-    DEFAULT_SUN_NEAR, LIT_VOXEL_DEPTH, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY,
-    MAX_PHASE_G, MAX_SIDE, MAX_SPP, MAX_SUN_NEAR, MIN_STEP,
+    Filter, Integrator, LengthUnit, Lighting, March, Medium, Mode, MsModel, Output, RenderSettings,
+    TraceError, DEFAULT_NEAR_SCATTER, DEFAULT_SUN_NEAR, LIT_VOXEL_DEPTH, MAX_BOUNCES,
+    MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MAX_SUN_NEAR,
+    MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

@@ -1,6 +1,8 @@
-//! What a render is asked to do: the mode, the image size, the medium and light parameters (named
-//! after OpenVDB's `vdb_render` so images can be compared), and the checks that refuse settings
-//! which would make a loop unbounded or a pixel NaN.
+//! What a render is asked to do, by what each setting is: the image (`Output`), what the volume
+//! is made of (`Medium`: named after OpenVDB's `vdb_render` so images can be compared), the light
+//! (`Lighting`: one definition for the CPU tracer, the GPU renderer and the engine drawer) and how
+//! a pixel is computed (`Integrator`); and the checks that refuse settings which would make a
+//! loop unbounded or a pixel NaN.
 
 use std::fmt;
 
@@ -163,14 +165,15 @@ impl March {
     /// (`Steps` or `Voxels`; trilinear density always steps). The CPU tracer and the GPU
     /// renderer decide alike, in f64 from the same f32 settings and frame range.
     pub fn resolve(s: &RenderSettings, frame_max: f32) -> March {
-        if s.filter == Filter::Trilinear {
+        let (m, i) = (&s.medium, &s.integrator);
+        if i.filter == Filter::Trilinear {
             return March::Steps;
         }
-        match s.march {
+        match i.march {
             March::Auto => {
-                let step_depth = (s.absorb as f64 + s.scatter as f64)
+                let step_depth = (m.absorb as f64 + m.scatter as f64)
                     * frame_max.max(0.0) as f64
-                    * s.step as f64;
+                    * i.step as f64;
                 if step_depth >= LIT_VOXEL_DEPTH {
                     March::Voxels
                 } else {
@@ -199,53 +202,73 @@ pub enum LengthUnit {
     World,
 }
 
-/// Everything but the camera.
+/// The image a render writes: its size and the frame it shows.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RenderSettings {
+pub struct Output {
     pub width: u32,
     pub height: u32,
-    pub mode: Mode,
     /// Frame index (0-based, into `asset.header.frames`).
     pub frame: usize,
+}
+
+impl Default for Output {
+    /// 640×360, frame 0.
+    fn default() -> Self {
+        Output {
+            width: 640,
+            height: 360,
+            frame: 0,
+        }
+    }
+}
+
+/// What the volume is made of: how its values absorb, scatter and glow. Named after OpenVDB's
+/// `vdb_render` so images can be compared.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Medium {
     /// Absorption coefficient per unit density per unit length.
     pub absorb: f32,
     /// Scattering coefficient per unit density per unit length.
     pub scatter: f32,
+    /// The length `absorb`, `scatter` and the integrator's steps and `gain` are measured in.
+    pub unit: LengthUnit,
+    /// Dual-lobe Henyey–Greenstein phase: `w·HG(g₀) + (1 − w)·HG(g₁)`, each `g` in
+    /// `[−MAX_PHASE_G, MAX_PHASE_G]` (positive: forward), `w = phase_w ∈ [0, 1]`.
+    pub phase_g: [f32; 2],
+    pub phase_w: f32,
+    /// Blackbody emission of a channel read as Kelvin (the shaded modes: `Density`,
+    /// `SingleScatter`, `DeltaTracking`, `Reference`, `Lit`).
+    pub emission: Option<crate::Emission>,
+}
+
+impl Default for Medium {
+    /// `vdb_render`'s absorption and scattering per voxel, a forward-scattering dual lobe.
+    fn default() -> Self {
+        Medium {
+            absorb: 0.1,
+            scatter: 1.5,
+            unit: LengthUnit::Voxel,
+            phase_g: [0.6, -0.3],
+            phase_w: 0.8,
+            emission: None,
+        }
+    }
+}
+
+/// The light: a sun, a constant sky, and how the lit mode approximates their multiple
+/// scattering. One definition for the CPU tracer, the GPU renderer and the engine drawer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lighting {
     /// Direction *toward* the light (world space; normalized when used).
     pub light_dir: [f32; 3],
     pub light_color: [f32; 3],
-    /// Primary-ray step of `SingleScatter`, in `unit`.
-    pub step: f32,
-    /// Shadow-ray step of `SingleScatter`, in `unit`.
-    pub shadow_step: f32,
-    /// Density below which `SingleScatter` ignores a sample, and transmittance (squared, times
-    /// three) below which it stops a ray; the first-hit threshold of the hit modes.
-    pub cutoff: f32,
-    /// Shadow attenuation falloff: shadow extinction at distance `s` is divided by `1 + gain·s`.
-    pub gain: f32,
-    /// Samples per pixel of `DeltaTracking`.
-    pub spp: u32,
-    /// Index of the first sample (progressive rendering: batches `[k, k + spp)` average to the
-    /// image with `first_sample = 0` and the summed spp).
-    pub first_sample: u32,
-    pub seed: u32,
-    pub unit: LengthUnit,
     /// Constant sky radiance (linear RGB) seen by paths that scatter and then leave the volume
-    /// (`Reference`; a primary ray that leaves unscattered counts in the transmittance instead,
-    /// so the image composites as `L + T·background`).
+    /// (a primary ray that leaves unscattered counts in the transmittance instead, so the image
+    /// composites as `L + T·background`).
     pub sky: [f32; 3],
-    /// Dual-lobe Henyey–Greenstein phase of `Reference`: `w·HG(g₀) + (1 − w)·HG(g₁)`, each
-    /// `g` in `[−MAX_PHASE_G, MAX_PHASE_G]` (positive: forward), `w = phase_w ∈ [0, 1]`.
-    pub phase_g: [f32; 2],
-    pub phase_w: f32,
-    /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
-    pub bounces: u32,
-    /// Blackbody emission of the rendered grid read as Kelvin (the shaded modes: `Density`,
-    /// `SingleScatter`, `DeltaTracking`, `Reference`).
-    pub emission: Option<crate::Emission>,
-    /// Light-volume resolution of `Lit`: cells along the longest side of the frame's content
-    /// box (cubic cells; the other sides in proportion).
-    pub light_res: u32,
+    /// How `Lit` approximates the sun's multiple scattering (`ms_octaves` and `ms` are the
+    /// octaves model's).
+    pub ms_model: MsModel,
     /// Multiple-scattering octaves of `Lit` (1: single scattering through the light volume).
     pub ms_octaves: u32,
     /// Octave `i` of `Lit`'s sun scales the scattering by `a^i`, the extinction toward the sun
@@ -256,13 +279,9 @@ pub struct RenderSettings {
     /// (`vdbcook_scene::sky_source`), in `[0, MAX_MS_SKY]`: 0 keeps all the sky light the medium
     /// scatters, 1 is diffusion theory's `√(3(1 − α)(1 − ḡα))`.
     pub ms_sky: f32,
-    /// How `Lit` approximates the sun's multiple scattering (`ms_octaves` and `ms` are the
-    /// octaves model's).
-    pub ms_model: MsModel,
-    /// How `Lit` reads the density (the other modes read the nearest voxel).
-    pub filter: Filter,
-    /// Where `Lit`'s nearest-voxel march takes its samples.
-    pub march: March,
+    /// Light-volume resolution of `Lit`: cells along the longest side of the frame's content
+    /// box (cubic cells; the other sides in proportion).
+    pub light_res: u32,
     /// `Lit`'s near field toward the sun, in light-volume cells: from each sample the voxels
     /// of the first `sun_near` cells toward the sun are walked exactly (a voxel DDA through
     /// the tree), and only the depth beyond is looked up in the light volume, whose cells blur
@@ -279,26 +298,68 @@ pub struct RenderSettings {
     /// (`DEFAULT_NEAR_SCATTER`); in `[0, 1]`, 0 reads the cells' light alone
     /// (`docs/rendering.md`).
     pub near_scatter: f32,
+}
+
+impl Default for Lighting {
+    /// `vdb_render`'s light, a pale sky, and the lit mode's measured defaults.
+    fn default() -> Self {
+        Lighting {
+            light_dir: [0.3, 0.3, 0.0],
+            light_color: [0.7, 0.7, 0.7],
+            sky: [0.04, 0.05, 0.065],
+            ms_model: MsModel::Diffusion,
+            // Fitted against the reference (issue 13, `docs/rendering.md`): the worst relative
+            // RMSE over the WDAS cloud, a stormscape frame and a generated smoke.
+            ms_octaves: 8,
+            ms: [0.98, 0.9, 0.6],
+            ms_sky: MsModel::Diffusion.default_ms_sky(),
+            light_res: 64,
+            sun_near: DEFAULT_SUN_NEAR,
+            near_scatter: DEFAULT_NEAR_SCATTER,
+        }
+    }
+}
+
+/// How a pixel is computed: the mode and how it samples.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Integrator {
+    pub mode: Mode,
+    /// Primary-ray step of the marches (`SingleScatter`, `Lit`; the emission majorant of
+    /// `DeltaTracking` and `Reference`), in the medium's `unit`.
+    pub step: f32,
+    /// Shadow-ray step of `SingleScatter`, in the medium's `unit`.
+    pub shadow_step: f32,
+    /// Density below which `SingleScatter` ignores a sample, and transmittance (squared, times
+    /// three) below which it stops a ray; the first-hit threshold of the hit modes.
+    pub cutoff: f32,
+    /// Shadow attenuation falloff: shadow extinction at distance `s` is divided by `1 + gain·s`.
+    pub gain: f32,
+    /// Samples per pixel of `DeltaTracking` and `Reference`.
+    pub spp: u32,
+    /// Index of the first sample (progressive rendering: batches `[k, k + spp)` average to the
+    /// image with `first_sample = 0` and the summed spp).
+    pub first_sample: u32,
+    pub seed: u32,
+    /// Most scattering events of one `Reference` path (more is absorbed: the only bias).
+    pub bounces: u32,
+    /// How `Lit` reads the density (the other modes read the nearest voxel).
+    pub filter: Filter,
+    /// Where `Lit`'s nearest-voxel march takes its samples.
+    pub march: March,
     /// Whether `Lit`'s primary rays read coarser levels of detail (an asset cooked with
     /// `--lod`) where a pixel spans more voxels (`crate::level_start`): level `k` where it
     /// spans `2^k` or more, with the step `2^k` times longer. No effect on an asset without
-    /// levels or with levels from `K > 1` only (`LevelChain::consecutive`). Off by default: the mean density of a level makes a far pixel more opaque than
-    /// the mean over the pixel of the full resolution's transmittance (Jensen's inequality).
+    /// levels or with levels from `K > 1` only (`LevelChain::consecutive`). Off by default: the
+    /// mean density of a level makes a far pixel more opaque than the mean over the pixel of
+    /// the full resolution's transmittance (Jensen's inequality).
     pub primary_lod: bool,
 }
 
-impl Default for RenderSettings {
-    /// 640×360 density, with `vdb_render`'s defaults for the medium and the light.
+impl Default for Integrator {
+    /// Density, with `vdb_render`'s steps, cutoff and gain.
     fn default() -> Self {
-        RenderSettings {
-            width: 640,
-            height: 360,
+        Integrator {
             mode: Mode::Density,
-            frame: 0,
-            absorb: 0.1,
-            scatter: 1.5,
-            light_dir: [0.3, 0.3, 0.0],
-            light_color: [0.7, 0.7, 0.7],
             step: 1.0,
             shadow_step: 3.0,
             cutoff: 0.005,
@@ -306,26 +367,22 @@ impl Default for RenderSettings {
             spp: 16,
             first_sample: 0,
             seed: 1,
-            unit: LengthUnit::Voxel,
-            sky: [0.04, 0.05, 0.065],
-            phase_g: [0.6, -0.3],
-            phase_w: 0.8,
             bounces: 256,
-            emission: None,
-            light_res: 64,
-            // Fitted against the reference (issue 13, `docs/rendering.md`): the worst relative
-            // RMSE over the WDAS cloud, a stormscape frame and a generated smoke.
-            ms_octaves: 8,
-            ms: [0.98, 0.9, 0.6],
-            ms_sky: MsModel::Diffusion.default_ms_sky(),
-            ms_model: MsModel::Diffusion,
             filter: Filter::Nearest,
             march: March::Auto,
-            sun_near: DEFAULT_SUN_NEAR,
-            near_scatter: DEFAULT_NEAR_SCATTER,
             primary_lod: false,
         }
     }
+}
+
+/// Everything but the camera, by what each setting is: the image, the medium, the light and the
+/// integrator.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RenderSettings {
+    pub output: Output,
+    pub medium: Medium,
+    pub lighting: Lighting,
+    pub integrator: Integrator,
 }
 
 /// Largest image side accepted.
@@ -388,10 +445,13 @@ impl fmt::Display for TraceError {
 
 impl std::error::Error for TraceError {}
 
-impl RenderSettings {
-    /// Refuses settings that would leave a loop unbounded or put NaN into a pixel.
+fn bad<T>(m: String) -> Result<T, TraceError> {
+    Err(TraceError::Setting(m))
+}
+
+impl Output {
+    /// Refuses an empty or oversized image, or a frame the asset lacks.
     pub fn validate(&self, frames: usize) -> Result<(), TraceError> {
-        let bad = |m: String| Err(TraceError::Setting(m));
         if self.frame >= frames {
             return Err(TraceError::Frame {
                 frame: self.frame,
@@ -404,22 +464,48 @@ impl RenderSettings {
                 self.width, self.height
             ));
         }
-        let nonneg = [
-            ("absorb", self.absorb),
-            ("scatter", self.scatter),
-            ("cutoff", self.cutoff),
-            ("gain", self.gain),
-        ];
-        for (name, v) in nonneg {
+        Ok(())
+    }
+}
+
+impl Medium {
+    /// Refuses coefficients, a phase or an emission that would put NaN into a pixel.
+    pub fn validate(&self) -> Result<(), TraceError> {
+        for (name, v) in [("absorb", self.absorb), ("scatter", self.scatter)] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{name} = {v} (must be finite and ≥ 0)"));
             }
         }
-        for (name, v) in [("step", self.step), ("shadow-step", self.shadow_step)] {
-            if !(v.is_finite() && v >= MIN_STEP) {
-                return bad(format!("{name} = {v} (must be ≥ {MIN_STEP})"));
+        if self.phase_g.iter().any(|g| !(g.abs() <= MAX_PHASE_G)) {
+            return bad(format!(
+                "phase g {:?} (each in -{MAX_PHASE_G}..={MAX_PHASE_G})",
+                self.phase_g
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.phase_w) {
+            return bad(format!("phase weight {} (0..=1)", self.phase_w));
+        }
+        if let Some(e) = self.emission {
+            let [lo, hi] = e.range;
+            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
+                return bad(format!(
+                    "emission range {lo},{hi} (Kelvin: 0 ≤ lo < hi, finite)"
+                ));
+            }
+            if !(e.intensity.is_finite() && e.intensity >= 0.0) {
+                return bad(format!(
+                    "emission intensity {} (finite and ≥ 0)",
+                    e.intensity
+                ));
             }
         }
+        Ok(())
+    }
+}
+
+impl Lighting {
+    /// Refuses a light without a direction, negative light, or approximation knobs out of range.
+    pub fn validate(&self) -> Result<(), TraceError> {
         if self
             .light_color
             .iter()
@@ -434,18 +520,6 @@ impl RenderSettings {
         }
         if self.sky.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
             return bad(format!("sky {:?} (finite and ≥ 0)", self.sky));
-        }
-        if self.phase_g.iter().any(|g| !(g.abs() <= MAX_PHASE_G)) {
-            return bad(format!(
-                "phase g {:?} (each in -{MAX_PHASE_G}..={MAX_PHASE_G})",
-                self.phase_g
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.phase_w) {
-            return bad(format!("phase weight {} (0..=1)", self.phase_w));
-        }
-        if self.bounces == 0 || self.bounces > MAX_BOUNCES {
-            return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
         }
         if !(2..=MAX_LIGHT_RES).contains(&self.light_res) {
             return bad(format!(
@@ -474,35 +548,56 @@ impl RenderSettings {
         if !(0.0..=1.0).contains(&self.near_scatter) {
             return bad(format!("near-scatter = {} (0..=1)", self.near_scatter));
         }
-        if let Some(e) = self.emission {
-            if !matches!(
-                self.mode,
+        Ok(())
+    }
+}
+
+impl Integrator {
+    /// Refuses steps, samples or thresholds that would leave a loop unbounded.
+    pub fn validate(&self) -> Result<(), TraceError> {
+        for (name, v) in [("cutoff", self.cutoff), ("gain", self.gain)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} = {v} (must be finite and ≥ 0)"));
+            }
+        }
+        for (name, v) in [("step", self.step), ("shadow-step", self.shadow_step)] {
+            if !(v.is_finite() && v >= MIN_STEP) {
+                return bad(format!("{name} = {v} (must be ≥ {MIN_STEP})"));
+            }
+        }
+        if self.bounces == 0 || self.bounces > MAX_BOUNCES {
+            return bad(format!("bounces = {} (1..={MAX_BOUNCES})", self.bounces));
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return bad(format!("spp = {} (1..={MAX_SPP})", self.spp));
+        }
+        Ok(())
+    }
+}
+
+impl RenderSettings {
+    /// Refuses settings that would leave a loop unbounded or put NaN into a pixel: each group's
+    /// own checks, then what crosses groups (emission is drawn by the shaded modes).
+    pub fn validate(&self, frames: usize) -> Result<(), TraceError> {
+        self.output.validate(frames)?;
+        self.medium.validate()?;
+        self.lighting.validate()?;
+        self.integrator.validate()?;
+        let mode = self.integrator.mode;
+        if self.medium.emission.is_some()
+            && !matches!(
+                mode,
                 Mode::Density
                     | Mode::SingleScatter
                     | Mode::DeltaTracking
                     | Mode::Reference
                     | Mode::Lit
-            ) {
-                return bad(format!(
-                    "emission is drawn by the shaded modes (density, scatter, delta, reference, lit), not {}",
-                    self.mode.name()
-                ));
-            }
-            let [lo, hi] = e.range;
-            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
-                return bad(format!(
-                    "emission range {lo},{hi} (Kelvin: 0 ≤ lo < hi, finite)"
-                ));
-            }
-            if !(e.intensity.is_finite() && e.intensity >= 0.0) {
-                return bad(format!(
-                    "emission intensity {} (finite and ≥ 0)",
-                    e.intensity
-                ));
-            }
-        }
-        if self.spp == 0 || self.spp > MAX_SPP {
-            return bad(format!("spp = {} (1..={MAX_SPP})", self.spp));
+            )
+        {
+            return bad(format!(
+                "emission is drawn by the shaded modes (density, scatter, delta, reference, lit), not {}",
+                mode.name()
+            ));
         }
         Ok(())
     }
@@ -523,22 +618,34 @@ mod tests {
         assert_eq!(March::resolve(&s, 0.6), March::Steps); // depth 0.96
         assert_eq!(March::resolve(&s, -3.0), March::Steps);
         let half = RenderSettings {
-            step: 0.5,
+            integrator: Integrator {
+                step: 0.5,
+                ..s.integrator.clone()
+            },
             ..s.clone()
         };
         assert_eq!(March::resolve(&half, 1.0), March::Steps); // depth 0.8
         let voxels = RenderSettings {
-            march: March::Voxels,
+            integrator: Integrator {
+                march: March::Voxels,
+                ..s.integrator.clone()
+            },
             ..s.clone()
         };
         assert_eq!(March::resolve(&voxels, 0.0), March::Voxels);
         let steps = RenderSettings {
-            march: March::Steps,
+            integrator: Integrator {
+                march: March::Steps,
+                ..s.integrator.clone()
+            },
             ..s.clone()
         };
         assert_eq!(March::resolve(&steps, 1.0), March::Steps);
         let trilinear = RenderSettings {
-            filter: Filter::Trilinear,
+            integrator: Integrator {
+                filter: Filter::Trilinear,
+                ..voxels.integrator
+            },
             ..voxels
         };
         assert_eq!(March::resolve(&trilinear, 1.0), March::Steps);

@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use vdbcook_asset::Asset;
-use vdbcook_trace::{render, Camera, Mode, RenderSettings};
+use vdbcook_trace::{render, Camera, Integrator, Mode, Output, RenderSettings};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
@@ -43,11 +43,16 @@ fn main() {
     );
     for mode in Mode::ALL {
         let s = RenderSettings {
-            width: w,
-            height: h,
-            mode,
-            frame,
-            spp: 16,
+            output: Output {
+                width: w,
+                height: h,
+                frame,
+            },
+            integrator: Integrator {
+                mode,
+                spp: 16,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let _ = render(&asset, &camera, &s).expect("render");
@@ -62,7 +67,7 @@ fn main() {
         let t = median(times);
         let rays = (w * h) as f64
             * if matches!(mode, Mode::DeltaTracking | Mode::Reference) {
-                s.spp as f64 // one primary path per sample
+                s.integrator.spp as f64 // one primary path per sample
             } else {
                 1.0
             };

@@ -24,7 +24,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use vdbcook_asset::Asset;
-use vdbcook_trace::{render, vdb_render, Camera, Image, Mode, RenderSettings};
+use vdbcook_trace::{render, vdb_render, Camera, Image, Integrator, Mode, Output, RenderSettings};
 
 const RUNS: usize = 3;
 const SIZES: [(u32, u32); 2] = [(640, 360), (1920, 1080)];
@@ -187,13 +187,18 @@ fn main() {
         for (w, h) in SIZES {
             let camera = Camera::framing(&f32_asset, 0, w as f64 / h as f64).expect("camera");
             let base = RenderSettings {
-                width: w,
-                height: h,
-                frame: 0,
+                output: Output {
+                    width: w,
+                    height: h,
+                    frame: 0,
+                },
                 ..Default::default()
             };
             let scatter = RenderSettings {
-                mode: Mode::SingleScatter,
+                integrator: Integrator {
+                    mode: Mode::SingleScatter,
+                    ..base.integrator.clone()
+                },
                 ..base.clone()
             };
             // (2) the tracer on the f32 asset.
@@ -247,7 +252,10 @@ fn main() {
             // (3) image-space error of each lossy asset against the f32 asset.
             for mode in [Mode::Density, Mode::FirstHitDensity] {
                 let s = RenderSettings {
-                    mode,
+                    integrator: Integrator {
+                        mode,
+                        ..base.integrator.clone()
+                    },
                     ..base.clone()
                 };
                 let reference = render(&f32_asset, &camera, &s).expect("render");

@@ -73,6 +73,7 @@ impl Path<'_, '_> {
     fn emits(&self, max: f32) -> bool {
         self.tracer
             .settings
+            .medium
             .emission
             .is_some_and(|e| max > e.range[0])
     }
@@ -80,9 +81,14 @@ impl Path<'_, '_> {
     fn flight(&mut self, ta: f64, tb: f64, max: f32, value: impl Fn([f64; 3]) -> f32) -> Flow {
         let ext = self.tracer.extinction;
         let base = ext * max as f64;
-        let emission = self.tracer.settings.emission.filter(|_| self.emits(max));
+        let emission = self
+            .tracer
+            .settings
+            .medium
+            .emission
+            .filter(|_| self.emits(max));
         let mu_bar = match emission {
-            Some(_) => base.max(1.0 / self.tracer.settings.step as f64),
+            Some(_) => base.max(1.0 / self.tracer.settings.integrator.step as f64),
             None => base,
         };
         let boosted = mu_bar != base;
@@ -113,7 +119,7 @@ impl Path<'_, '_> {
             }
             end_t = s / ray.per_t;
             if rng.uniform() < tracer.albedo {
-                lum = tracer.ratio_shadow(p, tracer.settings.gain as f64, rng, cache);
+                lum = tracer.ratio_shadow(p, tracer.settings.integrator.gain as f64, rng, cache);
             }
             Flow::Stop
         });

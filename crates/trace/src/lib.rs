@@ -142,9 +142,10 @@ pub use walk::Holder;
 // The shared view and parameter maths (one definition for this tracer and the GPU runtime).
 pub use vdbcook_scene::{
     blackbody_rgb, blackbody_table, content_box, depth_range, stored_bbox, stored_boxes, Affine,
-    Basis, Camera, Emission, Filter, LengthUnit, LevelChain, LightGrid, March, Mode, MsModel,
-    RenderSettings, TraceError, DEFAULT_NEAR_SCATTER, DEFAULT_SUN_NEAR, MAX_BOUNCES, MAX_LIGHT_RES,
-    MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    Basis, Camera, Emission, Filter, Integrator, LengthUnit, LevelChain, LightGrid, Lighting,
+    March, Medium, Mode, MsModel, Output, RenderSettings, TraceError, DEFAULT_NEAR_SCATTER,
+    DEFAULT_SUN_NEAR, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G,
+    MAX_SIDE, MAX_SPP, MIN_STEP,
 };
 pub use vdbcook_scene::{
     length, level_start, light_dirs, normalize, octave_source, pixel_angle, sky_diffusion,

@@ -106,7 +106,7 @@ impl LightVolume {
         extinction: f64,
     ) -> LightVolume {
         let chain = LevelChain::of(asset);
-        let grid = LightGrid::with_levels(content_box(asset, frame), s.light_res, chain);
+        let grid = LightGrid::with_levels(content_box(asset, frame), s.lighting.light_res, chain);
         let [nx, ny, _] = grid.dims.map(|d| d as usize);
         let slab = nx * ny;
         let n = grid.cells();
@@ -142,7 +142,7 @@ impl LightVolume {
         density.chunks_mut(slab).enumerate().for_each(fill);
 
         // Sun pass, per cell (`LightGrid::sun_depth`).
-        let ((l, sun_len), axis_len) = light_dirs(xf, s.light_dir, s.unit);
+        let ((l, sun_len), axis_len) = light_dirs(xf, s.lighting.light_dir, s.medium.unit);
         let mut tau = vec![[0.0f32; 2]; n];
         let sun = |(z, out): (usize, &mut [[f32; 2]])| {
             for y in 0..ny {
@@ -191,7 +191,7 @@ impl LightVolume {
             t[1] = sky_depth(t_mean[i], tau_mean[i], extinction) as f32;
         }
         let inputs = DiffusionInputs::of_settings(&grid, xf, s);
-        let diffusion = match s.ms_model {
+        let diffusion = match s.lighting.ms_model {
             MsModel::Octaves => Diffusion::default(),
             MsModel::Diffusion => diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs),
         };
@@ -336,7 +336,7 @@ impl Tracer<'_> {
         trans: f64,
         cache: &mut BrickCache,
     ) -> [f64; 2] {
-        let near = lv.grid.near_voxels(self.settings.sun_near);
+        let near = lv.grid.near_voxels(self.settings.lighting.sun_near);
         let cell_depth = self.extinction * rho * lv.cell_len;
         let cells = lv.lookup(q)[0];
         if !(near > 0.0)
@@ -437,14 +437,17 @@ impl<'a, 't> LitMarch<'a, 't> {
     ) -> Self {
         let s = &tracer.settings;
         let mu = {
-            let (d, l) = (normalize(dir), normalize(s.light_dir.map(|c| c as f64)));
+            let (d, l) = (
+                normalize(dir),
+                normalize(s.lighting.light_dir.map(|c| c as f64)),
+            );
             d[0] * l[0] + d[1] * l[1] + d[2] * l[2]
         };
         let mut sun_phase = [0.0; MAX_MS_OCTAVES as usize];
         let mut ci = 1.0f32;
-        for p in sun_phase.iter_mut().take(s.ms_octaves as usize) {
-            *p = phase(s.phase_g.map(|g| g * ci), s.phase_w, mu);
-            ci *= s.ms[2];
+        for p in sun_phase.iter_mut().take(s.lighting.ms_octaves as usize) {
+            *p = phase(s.medium.phase_g.map(|g| g * ci), s.medium.phase_w, mu);
+            ci *= s.lighting.ms[2];
         }
         LitMarch {
             tracer,
@@ -454,14 +457,19 @@ impl<'a, 't> LitMarch<'a, 't> {
             ray,
             set: tracer.grid.frame,
             scale: 1.0,
-            step: s.step as f64,
-            jitter: lit_jitter(s.seed, pixel),
+            step: s.integrator.step as f64,
+            jitter: lit_jitter(s.integrator.seed, pixel),
             trans: 1.0,
             rad: [0.0; 3],
             emit: [0.0; 3],
             budget: crate::scatter::MAX_MARCH_SAMPLES,
             sun_phase,
-            sky_k: sky_diffusion(tracer.albedo, s.phase_g, s.phase_w, s.ms_sky),
+            sky_k: sky_diffusion(
+                tracer.albedo,
+                s.medium.phase_g,
+                s.medium.phase_w,
+                s.lighting.ms_sky,
+            ),
         }
     }
 }
@@ -494,9 +502,11 @@ impl LitMarch<'_, '_> {
         let m = len * mean_depth(x);
         let q = self.ray.at((sa + m) / self.ray.per_t);
         let [ts, ts_cells] = t.sun_depth(self.lv, q, rho, self.trans, self.shadow);
-        let (sun, sky) = match s.ms_model {
+        let (sun, sky) = match s.lighting.ms_model {
             MsModel::Octaves => (
-                octave_source(ext * ts, s.ms, s.ms_octaves, |i| self.sun_phase[i as usize]),
+                octave_source(ext * ts, s.lighting.ms, s.lighting.ms_octaves, |i| {
+                    self.sun_phase[i as usize]
+                }),
                 sky_source(ext * self.lv.lookup(q)[1], self.sky_k),
             ),
             MsModel::Diffusion => {
@@ -505,7 +515,7 @@ impl LitMarch<'_, '_> {
                     self.sun_phase[0] * (-ext * ts).exp()
                         + (diffuse_sun
                             + near_scatter_source(
-                                s.near_scatter as f64,
+                                s.lighting.near_scatter as f64,
                                 albedo,
                                 ext * ts,
                                 ext * ts_cells,
@@ -517,7 +527,8 @@ impl LitMarch<'_, '_> {
         };
         let w = self.trans * albedo * (1.0 - e);
         for c in 0..3 {
-            self.rad[c] += w * (s.light_color[c] as f64 * sun + s.sky[c] as f64 * sky);
+            self.rad[c] +=
+                w * (s.lighting.light_color[c] as f64 * sun + s.lighting.sky[c] as f64 * sky);
         }
         self.trans *= e;
         if self.trans < LIT_MIN_TRANS {
@@ -554,7 +565,7 @@ impl SpanSampler for LitMarch<'_, '_> {
             k += 1.0;
             // The sample in the level's cell space (the walk's and the values').
             let p = ray.at(sd / ray.per_t).map(|c| c * self.scale);
-            let rho = match t.settings.filter {
+            let rho = match t.settings.integrator.filter {
                 Filter::Nearest => value(p) as f64,
                 Filter::Trilinear => t.trilinear_density_in(self.set, p),
             };

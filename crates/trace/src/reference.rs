@@ -157,10 +157,10 @@ impl Tracer<'_> {
         scratch: &mut Scratch,
     ) -> ([f64; 3], bool) {
         let s = &self.settings;
-        let l_world = normalize(s.light_dir.map(|c| c as f64));
-        let sun = s.light_color.iter().any(|&c| c > 0.0);
+        let l_world = normalize(s.lighting.light_dir.map(|c| c as f64));
+        let sun = s.lighting.light_color.iter().any(|&c| c > 0.0);
         let (mut radiance, mut throughput) = ([0.0f64; 3], 1.0f64);
-        for bounce in 0..=s.bounces {
+        for bounce in 0..=s.integrator.bounces {
             let ray = IndexRay::new(o, self.xf.dir_to_index(d), self.voxel_units());
             let mut f = Flight {
                 ray,
@@ -170,8 +170,9 @@ impl Tracer<'_> {
                 hit: None,
                 exhausted: false,
                 emission: s
+                    .medium
                     .emission
-                    .map(|e| (e, &self.emit_table, 1.0 / s.step as f64)),
+                    .map(|e| (e, &self.emit_table, 1.0 / s.integrator.step as f64)),
                 throughput,
                 emitted: [0.0; 3],
             };
@@ -199,21 +200,21 @@ impl Tracer<'_> {
                 if bounce == 0 {
                     return (radiance, true);
                 }
-                for (r, sky) in radiance.iter_mut().zip(s.sky) {
+                for (r, sky) in radiance.iter_mut().zip(s.lighting.sky) {
                     *r += throughput * sky as f64;
                 }
                 return (radiance, false);
             };
-            if bounce == s.bounces {
+            if bounce == s.integrator.bounces {
                 break;
             }
             throughput *= self.albedo;
             if sun && throughput > 0.0 {
                 let mu = d[0] * l_world[0] + d[1] * l_world[1] + d[2] * l_world[2];
-                let w = throughput * phase(s.phase_g, s.phase_w, mu);
+                let w = throughput * phase(s.medium.phase_g, s.medium.phase_w, mu);
                 if w > 0.0 {
                     let t = self.ratio_shadow(p, 0.0, rng, &mut scratch.shadow);
-                    for (r, c) in radiance.iter_mut().zip(s.light_color) {
+                    for (r, c) in radiance.iter_mut().zip(s.lighting.light_color) {
                         *r += w * t * c as f64;
                     }
                 }
@@ -224,10 +225,10 @@ impl Tracer<'_> {
                 }
                 throughput = 1.0;
             }
-            let g = if rng.uniform() < s.phase_w as f64 {
-                s.phase_g[0]
+            let g = if rng.uniform() < s.medium.phase_w as f64 {
+                s.medium.phase_g[0]
             } else {
-                s.phase_g[1]
+                s.medium.phase_g[1]
             };
             let mu = sample_hg(g as f64, rng.uniform());
             d = around(d, mu, std::f64::consts::TAU * rng.uniform());

@@ -93,10 +93,10 @@ impl<'a> Tracer<'a> {
         settings: &RenderSettings,
     ) -> Result<Tracer<'a>, TraceError> {
         settings.validate(asset.frame_count())?;
-        camera.basis(settings.width, settings.height)?;
+        camera.basis(settings.output.width, settings.output.height)?;
         let mut settings = settings.clone();
         let mut channel_emission = None;
-        if let Some(e) = settings.emission.filter(|e| e.channel > 0) {
+        if let Some(e) = settings.medium.emission.filter(|e| e.channel > 0) {
             if e.channel >= asset.channel_count() {
                 return Err(TraceError::Setting(format!(
                     "emission channel {} is not in the asset ({} channel(s))",
@@ -108,7 +108,7 @@ impl<'a> Tracer<'a> {
             // glows itself (the runtime's renderer takes the same box).
             let bg = asset.header.channel_background(e.channel);
             let bbox = if e.range[0] >= bg {
-                vdbcook_scene::content_box_above(asset, settings.frame, e.channel, bg)
+                vdbcook_scene::content_box_above(asset, settings.output.frame, e.channel, bg)
             } else {
                 Some(([0.0; 3], extent(asset)))
             };
@@ -119,48 +119,53 @@ impl<'a> Tracer<'a> {
             });
         }
         let emit_table = settings
+            .medium
             .emission
             .map(|e| blackbody_table(e.range))
             .unwrap_or([[0.0; 4]; BLACKBODY_TABLE_LEN]);
         if channel_emission.is_some() {
-            settings.emission = None;
+            settings.medium.emission = None;
         }
         let settings = &settings;
         let xf = Affine::cells(&asset.header.index_to_world)?;
-        let l = settings.light_dir.map(|c| c as f64);
+        let l = settings.lighting.light_dir.map(|c| c as f64);
         let light_index = xf.dir_to_index(normalize(l));
-        let extinction = settings.absorb as f64 + settings.scatter as f64;
+        let extinction = settings.medium.absorb as f64 + settings.medium.scatter as f64;
         let albedo = if extinction > 0.0 {
-            settings.scatter as f64 / extinction
+            settings.medium.scatter as f64 / extinction
         } else {
             0.0
         };
         // Depth range: nearest and farthest corner of the frame's stored box (0 if the eye is
         // inside it).
         let ext = extent(asset);
-        let bbox = stored_bbox(asset, settings.frame).unwrap_or(([0.0; 3], ext));
+        let bbox = stored_bbox(asset, settings.output.frame).unwrap_or(([0.0; 3], ext));
         let depth_range = depth_range(&xf, bbox, camera.eye);
-        let value_max = asset.frame_range(settings.frame, 0)[1];
-        let light = (settings.mode == Mode::Lit)
-            .then(|| LightVolume::build(asset, settings.frame, &xf, settings, extinction));
-        let levels = if settings.mode == Mode::Lit && settings.primary_lod {
+        let value_max = asset.frame_range(settings.output.frame, 0)[1];
+        let light = (settings.integrator.mode == Mode::Lit)
+            .then(|| LightVolume::build(asset, settings.output.frame, &xf, settings, extinction));
+        let levels = if settings.integrator.mode == Mode::Lit && settings.integrator.primary_lod {
             // Primary rays by footprint read one level per octave: the levels from full
             // resolution on that skip none (none above it in a `--lod-from` asset).
             (1..LevelChain::of(asset).consecutive())
-                .map(|k| Grid::new(asset, asset.lod_set(settings.frame, k)))
+                .map(|k| Grid::new(asset, asset.lod_set(settings.output.frame, k)))
                 .collect()
         } else {
             Vec::new()
         };
         Ok(Tracer {
             march: March::resolve(settings, value_max),
-            grid: Grid::new(asset, settings.frame),
+            grid: Grid::new(asset, settings.output.frame),
             levels,
-            pixel_angle: vdbcook_scene::pixel_angle(camera.fov_y_deg, settings.height),
+            pixel_angle: vdbcook_scene::pixel_angle(camera.fov_y_deg, settings.output.height),
             settings: settings.clone(),
             xf,
             extent: ext,
-            light_ray: IndexRay::new([0.0; 3], light_index, settings.unit == LengthUnit::Voxel),
+            light_ray: IndexRay::new(
+                [0.0; 3],
+                light_index,
+                settings.medium.unit == LengthUnit::Voxel,
+            ),
             extinction,
             albedo,
             depth_range,
@@ -185,7 +190,7 @@ impl<'a> Tracer<'a> {
     /// and optical depth `x`, reached with transmittance `trans`: `T · E(v) · step · φ(x)`, the
     /// emission absorbed as the step attenuates (the scatter and lit marches).
     pub(crate) fn step_emission(&self, emit: &mut [f64; 3], trans: f64, step: f64, x: f64, v: f32) {
-        if let Some(e) = &self.settings.emission {
+        if let Some(e) = &self.settings.medium.emission {
             let r = e.radiance(&self.emit_table, v);
             let w = trans * step * crate::exact::phi(x);
             for (a, r) in emit.iter_mut().zip(r) {
@@ -200,7 +205,7 @@ impl<'a> Tracer<'a> {
     }
 
     pub(crate) fn voxel_units(&self) -> bool {
-        self.settings.unit == LengthUnit::Voxel
+        self.settings.medium.unit == LengthUnit::Voxel
     }
 
     /// The ray from index point `p` toward the light (= `IndexRay::new(p, light_index, …)`).
@@ -234,7 +239,7 @@ impl<'a> Tracer<'a> {
         let ray = self.primary_ray(origin, dir);
         match ray.clip(self.extent) {
             Some((t0, t1)) if t1.min(t_max) > t0 => {
-                let absorb = self.settings.absorb as f64;
+                let absorb = self.settings.medium.absorb as f64;
                 self.depth_along(&ray, t0, t1.min(t_max), absorb, &mut scratch.primary)
             }
             _ => 0.0,
@@ -279,8 +284,8 @@ impl<'a> Tracer<'a> {
         let ray = self.primary_ray(eye, dir);
         let mut out = self.trace_mode(ray, dir, pixel, scratch);
         if let Some(ce) = &self.channel_emission {
-            let ext = match self.settings.mode {
-                Mode::Density => self.settings.absorb as f64,
+            let ext = match self.settings.integrator.mode {
+                Mode::Density => self.settings.medium.absorb as f64,
                 // Drawn inside their own flights.
                 Mode::DeltaTracking | Mode::Reference => return out,
                 _ => self.extinction,
@@ -323,7 +328,7 @@ impl<'a> Tracer<'a> {
         };
         let mut trans = (-ext * tau).exp();
         let asset = self.grid.asset;
-        let frame = self.settings.frame;
+        let frame = self.settings.output.frame;
         let (clo, chi) = (lo.map(|c| c as i64), hi.map(|c| c as i64));
         walk_cells(ray, 1.0, clo, chi, a, b, |cell, ta, tb| {
             let l = (tb - ta) * ray.per_t;
@@ -365,21 +370,21 @@ impl<'a> Tracer<'a> {
             value,
             steps: 0,
         };
-        match s.mode {
+        match s.integrator.mode {
             Mode::Density | Mode::Steps => {
                 let mut v = Density {
                     per_t: ray.per_t,
-                    absorb: s.absorb as f64,
+                    absorb: s.medium.absorb as f64,
                     tau: 0.0,
                     steps: 0,
-                    emission: s.emission.map(|e| (e, &self.emit_table)),
+                    emission: s.medium.emission.map(|e| (e, &self.emit_table)),
                     light: [0.0; 3],
                 };
                 if let Some((t0, t1)) = clip {
                     walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 }
-                let t = (-(s.absorb as f64) * v.tau).exp() as f32;
-                if s.mode == Mode::Density {
+                let t = (-(s.medium.absorb as f64) * v.tau).exp() as f32;
+                if s.integrator.mode == Mode::Density {
                     // Flat-lit grey `1 − T`, plus the emitted light.
                     let g = [0, 1, 2].map(|c| (1.0 - t) + v.light[c] as f32);
                     Sample {
@@ -398,7 +403,7 @@ impl<'a> Tracer<'a> {
             }
             Mode::Depth | Mode::FirstHitDensity | Mode::BrickHue => {
                 let mut v = FirstHit {
-                    cutoff: s.cutoff,
+                    cutoff: s.integrator.cutoff,
                     hit: None,
                 };
                 if let Some((t0, t1)) = clip {
@@ -407,7 +412,7 @@ impl<'a> Tracer<'a> {
                 let Some((t, value, holder)) = v.hit else {
                     return miss(-1.0, 0.0);
                 };
-                let (rgb, value) = match s.mode {
+                let (rgb, value) = match s.integrator.mode {
                     Mode::Depth => {
                         let [n, f] = self.depth_range;
                         let g = (1.0 - ((t - n) / (f - n)).clamp(0.0, 1.0)) as f32;
@@ -443,7 +448,8 @@ impl<'a> Tracer<'a> {
                 };
                 walk(&self.grid, &ray, t0, t1, &mut scratch.primary, &mut v);
                 let (lum, trans) = (v.lum, v.trans);
-                let c = [0, 1, 2].map(|i| (s.light_color[i] as f64 * lum + v.emit[i]) as f32);
+                let c =
+                    [0, 1, 2].map(|i| (s.lighting.light_color[i] as f64 * lum + v.emit[i]) as f32);
                 Sample {
                     rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
                     value: trans as f32,
@@ -455,12 +461,12 @@ impl<'a> Tracer<'a> {
                     return miss(1.0, 0.0);
                 };
                 let (mut lum, mut escaped, mut emitted) = (0.0f64, 0u32, [0.0f64; 3]);
-                for k in 0..s.spp {
-                    let sample = s.first_sample.wrapping_add(k);
+                for k in 0..s.integrator.spp {
+                    let sample = s.integrator.first_sample.wrapping_add(k);
                     let mut v = Path {
                         tracer: self,
                         ray,
-                        rng: Rng::new(s.seed, pixel, sample),
+                        rng: Rng::new(s.integrator.seed, pixel, sample),
                         shadow_cache: &mut scratch.shadow,
                         escaped: true,
                         lum: 0.0,
@@ -483,10 +489,10 @@ impl<'a> Tracer<'a> {
                         }
                     }
                 }
-                let n = s.spp as f64;
+                let n = s.integrator.spp as f64;
                 let trans = escaped as f64 / n;
-                let c =
-                    [0, 1, 2].map(|i| ((s.light_color[i] as f64 * lum + emitted[i]) / n) as f32);
+                let c = [0, 1, 2]
+                    .map(|i| ((s.lighting.light_color[i] as f64 * lum + emitted[i]) / n) as f32);
                 Sample {
                     rgba: [c[0], c[1], c[2], (1.0 - trans) as f32],
                     value: trans as f32,
@@ -500,15 +506,19 @@ impl<'a> Tracer<'a> {
                 }
                 let d = normalize(dir);
                 let (mut l, mut escaped) = ([0.0f64; 3], 0u32);
-                for k in 0..s.spp {
-                    let mut rng = Rng64::new(s.seed, pixel, s.first_sample.wrapping_add(k));
+                for k in 0..s.integrator.spp {
+                    let mut rng = Rng64::new(
+                        s.integrator.seed,
+                        pixel,
+                        s.integrator.first_sample.wrapping_add(k),
+                    );
                     let (li, esc) = self.reference_path(ray.o, d, &mut rng, scratch);
                     for (a, b) in l.iter_mut().zip(li) {
                         *a += b;
                     }
                     escaped += esc as u32;
                 }
-                let n = s.spp as f64;
+                let n = s.integrator.spp as f64;
                 let trans = escaped as f64 / n;
                 let c = l.map(|c| (c / n) as f32);
                 Sample {
@@ -561,7 +571,7 @@ impl Tracer<'_> {
             };
             v.set = grid.frame;
             v.scale = scale;
-            v.step = self.settings.step as f64 / scale;
+            v.step = self.settings.integrator.step as f64 / scale;
             // The level's cell space is full resolution's scaled by 2^−k.
             let lray = ray.scaled(scale);
             let flow = if self.march == March::Voxels {
@@ -593,7 +603,7 @@ impl Tracer<'_> {
         pixel: u32,
         scratch: &mut Scratch,
     ) -> Sample {
-        if self.settings.mode != Mode::Lit {
+        if self.settings.integrator.mode != Mode::Lit {
             return self.trace(eye, dir, pixel, scratch);
         }
         let ray = self.primary_ray(eye, dir);
@@ -609,7 +619,7 @@ pub fn render(
     settings: &RenderSettings,
 ) -> Result<Image, TraceError> {
     let tracer = Tracer::new(asset, camera, settings)?;
-    let (w, h) = (settings.width, settings.height);
+    let (w, h) = (settings.output.width, settings.output.height);
     let basis = camera.basis(w, h)?;
     let mut rgba = vec![0.0f32; w as usize * h as usize * 4];
     let mut value = vec![0.0f32; w as usize * h as usize];

@@ -54,7 +54,7 @@ pub(crate) struct Primary<'a, 't> {
 impl Primary<'_, '_> {
     fn march(&mut self, ta: f64, tb: f64, value: impl Fn([f64; 3]) -> f32) -> Flow {
         let s = &self.tracer.settings;
-        let (step, cutoff) = (s.step as f64, s.cutoff as f64);
+        let (step, cutoff) = (s.integrator.step as f64, s.integrator.cutoff as f64);
         let ext = self.tracer.extinction;
         let albedo = self.tracer.albedo;
         let ray = self.ray;
@@ -88,7 +88,7 @@ fn below_cutoff(max: f32, cutoff: f32) -> bool {
 
 impl SpanSampler for Primary<'_, '_> {
     fn skip_max(&self, max: f32) -> bool {
-        below_cutoff(max, self.tracer.settings.cutoff)
+        below_cutoff(max, self.tracer.settings.integrator.cutoff)
     }
     fn sample_span(
         &mut self,
@@ -112,7 +112,11 @@ struct Shadow<'a, 't> {
 impl Shadow<'_, '_> {
     fn march(&mut self, ta: f64, tb: f64, value: impl Fn([f64; 3]) -> f32) -> Flow {
         let s = &self.tracer.settings;
-        let (step, cutoff, gain) = (s.shadow_step as f64, s.cutoff as f64, s.gain as f64);
+        let (step, cutoff, gain) = (
+            s.integrator.shadow_step as f64,
+            s.integrator.cutoff as f64,
+            s.integrator.gain as f64,
+        );
         let ext = self.tracer.extinction;
         let ray = self.ray;
         let mut budget = self.budget;
@@ -138,7 +142,7 @@ impl Shadow<'_, '_> {
 
 impl SpanSampler for Shadow<'_, '_> {
     fn skip_max(&self, max: f32) -> bool {
-        below_cutoff(max, self.tracer.settings.cutoff)
+        below_cutoff(max, self.tracer.settings.integrator.cutoff)
     }
     fn sample_span(
         &mut self,

@@ -10,14 +10,14 @@ use crate::{Camera, RenderSettings};
 /// `-fov` is horizontal (the focal length comes from the horizontal 41.2 mm aperture), the
 /// tracer's vertical.
 pub fn args(camera: &Camera, s: &RenderSettings, grid: Option<&str>) -> Vec<String> {
-    let aspect = s.width as f64 / s.height as f64;
+    let aspect = s.output.width as f64 / s.output.height as f64;
     let hfov = 2.0 * ((camera.fov_y_deg.to_radians() * 0.5).tan() * aspect).atan();
     let v3 = |v: [f64; 3]| format!("{},{},{}", v[0], v[1], v[2]);
     let g = |v: f32| format!("{v},{v},{v}");
-    let (l, c) = (s.light_dir, s.light_color);
+    let (l, c) = (s.lighting.light_dir, s.lighting.light_color);
     let mut a: Vec<String> = vec![
         "-res".into(),
-        format!("{}x{}", s.width, s.height),
+        format!("{}x{}", s.output.width, s.output.height),
         "-translate".into(),
         v3(camera.eye),
         "-lookat".into(),
@@ -27,19 +27,19 @@ pub fn args(camera: &Camera, s: &RenderSettings, grid: Option<&str>) -> Vec<Stri
         "-fov".into(),
         format!("{}", hfov.to_degrees()),
         "-absorb".into(),
-        g(s.absorb),
+        g(s.medium.absorb),
         "-scatter".into(),
-        g(s.scatter),
+        g(s.medium.scatter),
         "-light".into(),
         format!("{},{},{},{},{},{}", l[0], l[1], l[2], c[0], c[1], c[2]),
         "-step".into(),
-        format!("{}", s.step),
+        format!("{}", s.integrator.step),
         "-shadowstep".into(),
-        format!("{}", s.shadow_step),
+        format!("{}", s.integrator.shadow_step),
         "-cutoff".into(),
-        format!("{}", s.cutoff),
+        format!("{}", s.integrator.cutoff),
         "-gain".into(),
-        format!("{}", s.gain),
+        format!("{}", s.integrator.gain),
         "-cpus".into(),
         "0".into(),
         "-v".into(),

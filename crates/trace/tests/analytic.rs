@@ -26,9 +26,15 @@ fn box_asset(xf: [[f64; 4]; 4], format: PayloadFormat) -> Asset {
 
 fn settings(unit: LengthUnit) -> RenderSettings {
     RenderSettings {
-        mode: Mode::Density,
-        absorb: ABSORB,
-        unit,
+        medium: Medium {
+            absorb: ABSORB,
+            unit,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Density,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -208,10 +214,16 @@ fn camera_inside_the_box_sees_the_distance_to_the_exit() {
         up: [0.0, 1.0, 0.0],
         fov_y_deg: 100.0,
     };
-    let s = RenderSettings {
-        width: 24,
-        height: 16,
-        ..settings(LengthUnit::Voxel)
+    let s = {
+        let base = settings(LengthUnit::Voxel);
+        RenderSettings {
+            output: Output {
+                width: 24,
+                height: 16,
+                ..base.output
+            },
+            ..base
+        }
     };
     let img = render(&a, &cam, &s).unwrap();
     let (lo, hi) = world_box();
@@ -305,14 +317,26 @@ fn tiled_regions_and_opaque_rays() {
         &[f],
         PayloadFormat::F32,
     );
-    let s = RenderSettings {
-        absorb: 0.05,
-        ..settings(LengthUnit::Voxel)
+    let s = {
+        let base = settings(LengthUnit::Voxel);
+        RenderSettings {
+            medium: Medium {
+                absorb: 0.05,
+                ..base.medium
+            },
+            ..base
+        }
     };
     let got = trace(&a, &s, [-10.0, 64.5, 3.0], [1.0, 0.0, 0.0]).value as f64;
     assert!((got - (-0.05f64 * 0.25 * 128.0).exp()).abs() < 1e-6);
     // A dense enough medium stops the ray (T below 2e-9) without NaN.
-    let s = RenderSettings { absorb: 5.0, ..s };
+    let s = RenderSettings {
+        medium: Medium {
+            absorb: 5.0,
+            ..s.medium
+        },
+        ..s
+    };
     let got = trace(&a, &s, [-10.0, 64.5, 3.0], [1.0, 0.0, 0.0]);
     assert!(got.value < 3e-9 && got.rgba[0] == 1.0);
 }

@@ -76,8 +76,14 @@ fn density(a: &Asset, mode: Mode) -> Tracer<'_> {
         fov_y_deg: 40.0,
     };
     let s = RenderSettings {
-        mode,
-        absorb: ABSORB,
+        medium: Medium {
+            absorb: ABSORB,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode,
+            ..Default::default()
+        },
         ..Default::default()
     };
     Tracer::new(a, &cam, &s).unwrap()

@@ -50,10 +50,19 @@ fn camera_at(centre: [f64; 3], dist: f64) -> Camera {
 
 fn settings(mode: Mode) -> RenderSettings {
     RenderSettings {
-        width: 101,
-        height: 101,
-        mode,
-        absorb: 1.0,
+        output: Output {
+            width: 101,
+            height: 101,
+            ..Default::default()
+        },
+        medium: Medium {
+            absorb: 1.0,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }

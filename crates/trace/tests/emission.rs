@@ -24,13 +24,19 @@ fn w(p: [f64; 3]) -> [f64; 3] {
 
 fn settings(absorb: f32) -> RenderSettings {
     RenderSettings {
-        mode: Mode::Density,
-        absorb,
-        emission: Some(Emission {
-            range: [800.0, 2000.0],
-            intensity: 2.0,
-            channel: 0,
-        }),
+        medium: Medium {
+            absorb,
+            emission: Some(Emission {
+                range: [800.0, 2000.0],
+                intensity: 2.0,
+                channel: 0,
+            }),
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Density,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -59,7 +65,7 @@ fn emitted_light_matches_the_closed_form() {
     let mut hits = 0;
     for absorb in [0.0f32, 2e-4, 2e-3] {
         let s = settings(absorb);
-        let e = s.emission.unwrap();
+        let e = s.medium.emission.unwrap();
         let radiance = e.radiance(&blackbody_table(e.range), value);
         let tracer = Tracer::new(&asset, &camera(), &s).unwrap();
         for (eye, dir) in rays {
@@ -114,25 +120,43 @@ fn emitted_light_matches_the_closed_form() {
 fn emission_outside_the_shaded_modes_or_out_of_range_is_refused() {
     let asset = box_asset(1000.0);
     for bad in [
-        RenderSettings {
-            mode: Mode::Steps,
-            ..settings(0.1)
+        {
+            let base = settings(0.1);
+            RenderSettings {
+                integrator: Integrator {
+                    mode: Mode::Steps,
+                    ..base.integrator
+                },
+                ..base
+            }
         },
-        RenderSettings {
-            emission: Some(Emission {
-                range: [2000.0, 800.0],
-                intensity: 1.0,
-                channel: 0,
-            }),
-            ..settings(0.1)
+        {
+            let base = settings(0.1);
+            RenderSettings {
+                medium: Medium {
+                    emission: Some(Emission {
+                        range: [2000.0, 800.0],
+                        intensity: 1.0,
+                        channel: 0,
+                    }),
+                    ..base.medium
+                },
+                ..base
+            }
         },
-        RenderSettings {
-            emission: Some(Emission {
-                range: [800.0, 2000.0],
-                intensity: f32::NAN,
-                channel: 0,
-            }),
-            ..settings(0.1)
+        {
+            let base = settings(0.1);
+            RenderSettings {
+                medium: Medium {
+                    emission: Some(Emission {
+                        range: [800.0, 2000.0],
+                        intensity: f32::NAN,
+                        channel: 0,
+                    }),
+                    ..base.medium
+                },
+                ..base
+            }
         },
     ] {
         let e = render(&asset, &camera(), &bad).unwrap_err();
@@ -150,15 +174,27 @@ fn scatter_mode_emission_sums_to_the_closed_form_over_its_samples() {
     let (lo, hi) = (w(LO.map(|c| c as f64)), w(HI.map(|c| c as f64)));
     // Absorptions that keep `3T²` above the cutoff through the box (the march stops there).
     for (absorb, step) in [(0.0f32, 1.0f32), (1e-5, 0.7), (3e-5, 1.3)] {
-        let s = RenderSettings {
-            mode: Mode::SingleScatter,
-            absorb,
-            scatter: 0.0,
-            light_color: [0.0; 3],
-            step,
-            ..settings(absorb)
+        let s = {
+            let base = settings(absorb);
+            RenderSettings {
+                medium: Medium {
+                    absorb,
+                    scatter: 0.0,
+                    ..base.medium
+                },
+                lighting: Lighting {
+                    light_color: [0.0; 3],
+                    ..base.lighting
+                },
+                integrator: Integrator {
+                    mode: Mode::SingleScatter,
+                    step,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
-        let e = s.emission.unwrap();
+        let e = s.medium.emission.unwrap();
         let radiance = e.radiance(&blackbody_table(e.range), value);
         let tracer = Tracer::new(&asset, &camera(), &s).unwrap();
         for (eye, dir) in [
@@ -207,11 +243,20 @@ fn stochastic_emission_converges_to_the_density_march() {
     {
         let dens = settings(absorb);
         let refs = RenderSettings {
-            mode,
-            scatter: 0.0,
-            light_color: [0.0; 3],
-            sky: [0.0; 3],
-            spp: MAX_SPP,
+            medium: Medium {
+                scatter: 0.0,
+                ..dens.medium.clone()
+            },
+            lighting: Lighting {
+                light_color: [0.0; 3],
+                sky: [0.0; 3],
+                ..dens.lighting.clone()
+            },
+            integrator: Integrator {
+                mode,
+                spp: MAX_SPP,
+                ..dens.integrator.clone()
+            },
             ..dens.clone()
         };
         let td = Tracer::new(&asset, &camera(), &dens).unwrap();

@@ -35,11 +35,20 @@ fn camera() -> Camera {
 
 fn lit() -> RenderSettings {
     RenderSettings {
-        mode: Mode::Lit,
-        width: 24,
-        height: 16,
-        absorb: 0.01,
-        scatter: 0.04,
+        output: Output {
+            width: 24,
+            height: 16,
+            ..Default::default()
+        },
+        medium: Medium {
+            absorb: 0.01,
+            scatter: 0.04,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Lit,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -69,13 +78,22 @@ fn light_volume_depths_are_exact_in_a_constant_box() {
         } else {
             1.0
         };
-        let s = RenderSettings {
-            light_res: 48,
-            light_dir: [0.0, 1.0, 0.0],
-            unit,
-            ..lit()
+        let s = {
+            let base = lit();
+            RenderSettings {
+                medium: Medium {
+                    unit,
+                    ..base.medium
+                },
+                lighting: Lighting {
+                    light_res: 48,
+                    light_dir: [0.0, 1.0, 0.0],
+                    ..base.lighting
+                },
+                ..base
+            }
         };
-        let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
+        let kappa = (s.medium.absorb + s.medium.scatter) as f64 * SIGMA as f64;
         let lv = light_volume(&s);
         assert_eq!(lv.grid.dims, side.map(|s| s as u32));
         assert_eq!(lv.grid.cell, 1.0);
@@ -109,10 +127,16 @@ fn light_volume_depths_are_exact_in_a_constant_box() {
     }
 
     // An oblique sun: the depth is the path to the box's far side (f32 storage).
-    let s = RenderSettings {
-        light_res: 48,
-        light_dir: [0.4, 1.0, -0.3],
-        ..lit()
+    let s = {
+        let base = lit();
+        RenderSettings {
+            lighting: Lighting {
+                light_res: 48,
+                light_dir: [0.4, 1.0, -0.3],
+                ..base.lighting
+            },
+            ..base
+        }
     };
     let lv = light_volume(&s);
     let l = normalize([0.4, 1.0, -0.3]);
@@ -135,17 +159,29 @@ fn light_volume_depths_are_exact_in_a_constant_box() {
 /// The mean radiance over the box's face seen along +z, with one octave, the sun along `l`.
 fn single(g: f32, l: [f32; 3], step: f32) -> (f64, RenderSettings) {
     let asset = constant_box(SIGMA);
-    let s = RenderSettings {
-        light_dir: l,
-        light_color: [2.0; 3],
-        sky: [0.0; 3],
-        phase_g: [g, g],
-        phase_w: 1.0,
-        ms_model: MsModel::Octaves,
-        ms_octaves: 1,
-        light_res: 50,
-        step,
-        ..lit()
+    let s = {
+        let base = lit();
+        RenderSettings {
+            medium: Medium {
+                phase_g: [g, g],
+                phase_w: 1.0,
+                ..base.medium
+            },
+            lighting: Lighting {
+                light_dir: l,
+                light_color: [2.0; 3],
+                sky: [0.0; 3],
+                ms_model: MsModel::Octaves,
+                ms_octaves: 1,
+                light_res: 50,
+                ..base.lighting
+            },
+            integrator: Integrator {
+                step,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     let cam = camera();
     let tracer = Tracer::new(&asset, &cam, &s).unwrap();
@@ -167,9 +203,9 @@ fn one_octave_is_single_scattering_with_the_reference_phase_convention() {
     for g in [0.0f32, 0.5, -0.5] {
         // Sun behind the camera: scattering cosine −1, shadow path from depth s is s.
         let (got, s) = single(g, [0.0, 0.0, -1.0], 0.5);
-        let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
-        let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
-        let e = s.light_color[0] as f64;
+        let kappa = (s.medium.absorb + s.medium.scatter) as f64 * SIGMA as f64;
+        let albedo = s.medium.scatter as f64 / (s.medium.absorb + s.medium.scatter) as f64;
+        let e = s.lighting.light_color[0] as f64;
         let [want, want_ahead] = single_scatter_closed_forms(g as f64, albedo, e, kappa, depth);
         assert!(
             (got - want).abs() < 0.02 * want,
@@ -189,19 +225,31 @@ fn one_octave_is_single_scattering_with_the_reference_phase_convention() {
 /// toward −z, `light_res` cells, the voxel march at `step` voxels, the near field over
 /// `sun_near` cells.
 fn sun_single(light_res: u32, step: f32, sun_near: f32) -> RenderSettings {
-    RenderSettings {
-        absorb: 0.1,
-        scatter: 1.5,
-        light_dir: [0.0, 0.0, -1.0],
-        light_color: [2.0; 3],
-        sky: [0.0; 3],
-        ms_model: MsModel::Octaves,
-        ms_octaves: 1,
-        light_res,
-        march: March::Voxels,
-        step,
-        sun_near,
-        ..lit()
+    {
+        let base = lit();
+        RenderSettings {
+            medium: Medium {
+                absorb: 0.1,
+                scatter: 1.5,
+                ..base.medium
+            },
+            lighting: Lighting {
+                light_dir: [0.0, 0.0, -1.0],
+                light_color: [2.0; 3],
+                sky: [0.0; 3],
+                ms_model: MsModel::Octaves,
+                ms_octaves: 1,
+                light_res,
+                sun_near,
+                ..base.lighting
+            },
+            integrator: Integrator {
+                march: March::Voxels,
+                step,
+                ..base.integrator
+            },
+            ..base
+        }
     }
 }
 
@@ -216,9 +264,10 @@ fn skin(density: f32, light_res: u32, step: f32, sun_near: f32) -> (f64, f64, f6
     let tracer = Tracer::new(&asset, &cam, &s).unwrap();
     let cell = tracer.light_volume().unwrap().grid.cell;
     let px = tracer.trace(cam.eye, [0.0, 0.0, 1.0], 0, &mut Scratch::default());
-    let kappa = (s.absorb + s.scatter) as f64 * density as f64;
-    let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
-    let [want, _] = single_scatter_closed_forms(0.6, albedo, s.light_color[0] as f64, kappa, depth);
+    let kappa = (s.medium.absorb + s.medium.scatter) as f64 * density as f64;
+    let albedo = s.medium.scatter as f64 / (s.medium.absorb + s.medium.scatter) as f64;
+    let [want, _] =
+        single_scatter_closed_forms(0.6, albedo, s.lighting.light_color[0] as f64, kappa, depth);
     // The default phase is dual-lobe: its value at −1 instead of one lobe's.
     let want = want / hg(0.6, -1.0) * (0.8 * hg(0.6, -1.0) + 0.2 * hg(-0.3, -1.0));
     (px.rgba[0] as f64, want, cell)
@@ -278,15 +327,27 @@ fn white_furnace_the_medium_disappears_against_the_sky() {
         for step in [0.25f32, 1.0, 7.0] {
             // Albedo 1, κ = 0.3 per voxel: optical depth 10 through the box; the default
             // settings otherwise (the sun is black, so its model does not matter).
-            let s = RenderSettings {
-                absorb: 0.0,
-                scatter: 0.3,
-                light_color: [0.0; 3],
-                sky,
-                step,
-                ms_model: model,
-                ms_sky: model.default_ms_sky(),
-                ..lit()
+            let s = {
+                let base = lit();
+                RenderSettings {
+                    medium: Medium {
+                        absorb: 0.0,
+                        scatter: 0.3,
+                        ..base.medium
+                    },
+                    lighting: Lighting {
+                        light_color: [0.0; 3],
+                        sky,
+                        ms_model: model,
+                        ms_sky: model.default_ms_sky(),
+                        ..base.lighting
+                    },
+                    integrator: Integrator {
+                        step,
+                        ..base.integrator
+                    },
+                    ..base
+                }
             };
             let img = render(&asset, &camera(), &s).unwrap();
             let mut covered = 0;
@@ -312,8 +373,11 @@ fn white_furnace_the_medium_disappears_against_the_sky() {
             let mut lossy = vec![(
                 "albedo 0.9",
                 RenderSettings {
-                    absorb: 0.03,
-                    scatter: 0.27,
+                    medium: Medium {
+                        absorb: 0.03,
+                        scatter: 0.27,
+                        ..s.medium.clone()
+                    },
                     ..s.clone()
                 },
             )];
@@ -321,9 +385,15 @@ fn white_furnace_the_medium_disappears_against_the_sky() {
                 lossy.push((
                     "ms-sky 16",
                     RenderSettings {
-                        ms_sky: MAX_MS_SKY,
-                        absorb: 0.003,
-                        scatter: 0.297,
+                        medium: Medium {
+                            absorb: 0.003,
+                            scatter: 0.297,
+                            ..s.medium.clone()
+                        },
+                        lighting: Lighting {
+                            ms_sky: MAX_MS_SKY,
+                            ..s.lighting.clone()
+                        },
                         ..s.clone()
                     },
                 ));
@@ -360,19 +430,34 @@ fn the_image_does_not_drift_with_the_step_size() {
     ] {
         // Dense: κ = 1.6 per voxel (the default medium), so a 4-voxel step has optical depth
         // 6.4.
-        let base = RenderSettings {
-            absorb: 0.1,
-            scatter: 1.5,
-            light_res: 25,
-            // The step march (what drifts; `March::Auto` would follow voxels from step 1 on).
-            march: March::Steps,
-            ms_model: model,
-            ms_sky: model.default_ms_sky(),
-            ..lit()
+        let base = {
+            let base = lit();
+            RenderSettings {
+                medium: Medium {
+                    absorb: 0.1,
+                    scatter: 1.5,
+                    ..base.medium
+                },
+                lighting: Lighting {
+                    light_res: 25,
+                    ms_model: model,
+                    ms_sky: model.default_ms_sky(),
+                    ..base.lighting
+                },
+                integrator: Integrator {
+                    // The step march (what drifts; `March::Auto` would follow voxels from step 1 on).
+                    march: March::Steps,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
         let img = |step: f32| {
             let s = RenderSettings {
-                step,
+                integrator: Integrator {
+                    step,
+                    ..base.integrator.clone()
+                },
                 ..base.clone()
             };
             render(&asset, &camera(), &s).unwrap()
@@ -414,43 +499,73 @@ fn lit_settings_out_of_range_are_refused() {
     let ok = lit();
     for bad in [
         RenderSettings {
-            light_res: 1,
+            lighting: Lighting {
+                light_res: 1,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            light_res: MAX_LIGHT_RES + 1,
+            lighting: Lighting {
+                light_res: MAX_LIGHT_RES + 1,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            ms_octaves: 0,
+            lighting: Lighting {
+                ms_octaves: 0,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            ms_octaves: MAX_MS_OCTAVES + 1,
+            lighting: Lighting {
+                ms_octaves: MAX_MS_OCTAVES + 1,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            ms: [0.5, 1.5, 0.5],
+            lighting: Lighting {
+                ms: [0.5, 1.5, 0.5],
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            ms: [f32::NAN, 0.5, 0.5],
+            lighting: Lighting {
+                ms: [f32::NAN, 0.5, 0.5],
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            ms_sky: -0.1,
+            lighting: Lighting {
+                ms_sky: -0.1,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            ms_sky: f32::INFINITY,
+            lighting: Lighting {
+                ms_sky: f32::INFINITY,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            near_scatter: 1.5,
+            lighting: Lighting {
+                near_scatter: 1.5,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            near_scatter: f32::NAN,
+            lighting: Lighting {
+                near_scatter: f32::NAN,
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
     ] {
@@ -491,10 +606,19 @@ fn trilinear_density_is_exact_on_a_ramp_across_bricks() {
         vdbcook_asset::PayloadFormat::F32,
     );
     let cam = Camera::framing(&asset, 0, 1.0).unwrap();
-    let s = RenderSettings {
-        light_res: 8,
-        filter: Filter::Trilinear,
-        ..lit()
+    let s = {
+        let base = lit();
+        RenderSettings {
+            lighting: Lighting {
+                light_res: 8,
+                ..base.lighting
+            },
+            integrator: Integrator {
+                filter: Filter::Trilinear,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     let t = Tracer::new(&asset, &cam, &s).unwrap();
     let mut rng = XorShift(11);
@@ -513,7 +637,10 @@ fn trilinear_density_is_exact_on_a_ramp_across_bricks() {
         &asset,
         &cam,
         &RenderSettings {
-            filter: Filter::Nearest,
+            integrator: Integrator {
+                filter: Filter::Nearest,
+                ..s.integrator.clone()
+            },
             ..s.clone()
         },
     )
@@ -554,8 +681,11 @@ fn the_voxel_march_is_exact_for_the_voxel_medium() {
     );
     let cam = Camera::framing(&asset, 0, 1.5).unwrap();
     let size = RenderSettings {
-        width: 48,
-        height: 32,
+        output: Output {
+            width: 48,
+            height: 32,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let (absorb, scatter) = (0.05f32, 0.25f32);
@@ -563,8 +693,14 @@ fn the_voxel_march_is_exact_for_the_voxel_medium() {
         &asset,
         &cam,
         &RenderSettings {
-            mode: Mode::Density,
-            absorb: absorb + scatter,
+            medium: Medium {
+                absorb: absorb + scatter,
+                ..size.medium.clone()
+            },
+            integrator: Integrator {
+                mode: Mode::Density,
+                ..size.integrator.clone()
+            },
             ..size.clone()
         },
     )
@@ -579,12 +715,21 @@ fn the_voxel_march_is_exact_for_the_voxel_medium() {
             &asset,
             &cam,
             &RenderSettings {
-                mode: Mode::Lit,
-                absorb,
-                scatter,
-                march,
-                step,
-                light_res: 16,
+                medium: Medium {
+                    absorb,
+                    scatter,
+                    ..size.medium.clone()
+                },
+                lighting: Lighting {
+                    light_res: 16,
+                    ..size.lighting.clone()
+                },
+                integrator: Integrator {
+                    mode: Mode::Lit,
+                    march,
+                    step,
+                    ..size.integrator.clone()
+                },
                 ..size.clone()
             },
         )
@@ -619,17 +764,32 @@ fn banding_at_large_steps_is_noise_that_frames_average_out() {
     let asset = constant_box(SIGMA);
     // (relative RMSE of one frame, of the mean of 16 seeds) at step 4 against step ¼.
     let errors = |k: f32, march: March| {
-        let base = RenderSettings {
-            absorb: 0.1 * k,
-            scatter: 1.5 * k,
-            light_res: 25,
-            march,
-            ..lit()
+        let base = {
+            let base = lit();
+            RenderSettings {
+                medium: Medium {
+                    absorb: 0.1 * k,
+                    scatter: 1.5 * k,
+                    ..base.medium
+                },
+                lighting: Lighting {
+                    light_res: 25,
+                    ..base.lighting
+                },
+                integrator: Integrator {
+                    march,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
         let img = |step: f32, seed: u32| {
             let s = RenderSettings {
-                step,
-                seed,
+                integrator: Integrator {
+                    step,
+                    seed,
+                    ..base.integrator.clone()
+                },
                 ..base.clone()
             };
             render(&asset, &camera(), &s).unwrap()
@@ -704,10 +864,10 @@ fn edge_on(asset: &vdbcook_asset::Asset, z: f64, light_res: u32) -> (f64, f64, R
 /// The closed form of [`edge_on`]: a slab of density `rho` 48 voxels along the ray, the sun's
 /// optical depth `tau` (with the extinction) at the ray, the default dual-lobe phase at 90°.
 fn edge_on_closed_form(s: &RenderSettings, rho: f64, tau: f64) -> f64 {
-    let kappa = (s.absorb + s.scatter) as f64 * rho;
-    let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
+    let kappa = (s.medium.absorb + s.medium.scatter) as f64 * rho;
+    let albedo = s.medium.scatter as f64 / (s.medium.absorb + s.medium.scatter) as f64;
     let phase = 0.8 * hg(0.6, 0.0) + 0.2 * hg(-0.3, 0.0);
-    albedo * phase * s.light_color[0] as f64 * (-tau).exp() * -(-kappa * 48.0).exp_m1()
+    albedo * phase * s.lighting.light_color[0] as f64 * (-tau).exp() * -(-kappa * 48.0).exp_m1()
 }
 
 /// A thin wisp beside a dense core under a coarse light volume: one cell holds both, its mean

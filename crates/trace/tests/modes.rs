@@ -28,11 +28,16 @@ fn two_frames() -> Asset {
 
 fn small(mode: Mode, frame: usize) -> RenderSettings {
     RenderSettings {
-        width: 32,
-        height: 24,
-        mode,
-        frame,
-        spp: 4,
+        output: Output {
+            width: 32,
+            height: 24,
+            frame,
+        },
+        integrator: Integrator {
+            mode,
+            spp: 4,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -72,14 +77,14 @@ fn bad_frame_and_bad_settings_are_errors() {
     );
     assert!(Camera::framing(&a, 7, 1.0).is_err());
     let bad: [fn(&mut RenderSettings); 8] = [
-        |s| s.step = 0.0,
-        |s| s.shadow_step = f32::NAN,
-        |s| s.absorb = -1.0,
-        |s| s.width = 0,
-        |s| s.spp = 0,
-        |s| s.light_dir = [0.0; 3],
-        |s| s.gain = f32::INFINITY,
-        |s| s.light_color = [1.0, f32::NAN, 0.0],
+        |s| s.integrator.step = 0.0,
+        |s| s.integrator.shadow_step = f32::NAN,
+        |s| s.medium.absorb = -1.0,
+        |s| s.output.width = 0,
+        |s| s.integrator.spp = 0,
+        |s| s.lighting.light_dir = [0.0; 3],
+        |s| s.integrator.gain = f32::INFINITY,
+        |s| s.lighting.light_color = [1.0, f32::NAN, 0.0],
     ];
     for (i, f) in bad.iter().enumerate() {
         let mut s = small(Mode::SingleScatter, 0);
@@ -215,12 +220,18 @@ fn no_mode_produces_nan_from_awkward_cameras() {
         };
         for mode in Mode::ALL {
             let s = RenderSettings {
-                width: 17,
-                height: 9,
-                mode,
-                spp: 2,
-                step: 2.0,
-                shadow_step: 4.0,
+                output: Output {
+                    width: 17,
+                    height: 9,
+                    ..Default::default()
+                },
+                integrator: Integrator {
+                    mode,
+                    spp: 2,
+                    step: 2.0,
+                    shadow_step: 4.0,
+                    ..Default::default()
+                },
                 ..Default::default()
             };
             let img = render(&a, &cam, &s).unwrap();
@@ -239,9 +250,15 @@ fn default_camera_frames_the_stored_box() {
     let (w, h) = (64u32, 36u32);
     let cam = Camera::framing(&a, 0, w as f64 / h as f64).unwrap();
     let s = RenderSettings {
-        width: w,
-        height: h,
-        mode: Mode::Depth,
+        output: Output {
+            width: w,
+            height: h,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Depth,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let img = render(&a, &cam, &s).unwrap();
@@ -279,9 +296,15 @@ fn optical_depth_is_the_density_sum_cut_at_t_max() {
         to_world(HI.map(|c| c as f64)),
     );
     let cam = Camera::framing(&a, 0, 1.0).unwrap();
-    let s = RenderSettings {
-        absorb: 0.01,
-        ..small(Mode::Density, 0)
+    let s = {
+        let base = small(Mode::Density, 0);
+        RenderSettings {
+            medium: Medium {
+                absorb: 0.01,
+                ..base.medium
+            },
+            ..base
+        }
     };
     let tracer = Tracer::new(&a, &cam, &s).unwrap();
     let mut rng = XorShift(5);

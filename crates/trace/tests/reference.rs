@@ -32,18 +32,29 @@ fn camera() -> Camera {
 
 fn reference(absorb: f32, scatter: f32) -> RenderSettings {
     RenderSettings {
-        mode: Mode::Reference,
-        width: 24,
-        height: 16,
-        absorb,
-        scatter,
-        light_color: [0.0; 3],
-        sky: [0.3, 0.5, 0.9],
-        phase_g: [0.7, -0.4],
-        phase_w: 0.6,
-        bounces: MAX_BOUNCES,
-        spp: 8,
-        ..Default::default()
+        output: Output {
+            width: 24,
+            height: 16,
+            ..Default::default()
+        },
+        medium: Medium {
+            absorb,
+            scatter,
+            phase_g: [0.7, -0.4],
+            phase_w: 0.6,
+            ..Default::default()
+        },
+        lighting: Lighting {
+            light_color: [0.0; 3],
+            sky: [0.3, 0.5, 0.9],
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Reference,
+            bounces: MAX_BOUNCES,
+            spp: 8,
+            ..Default::default()
+        },
     }
 }
 
@@ -57,7 +68,7 @@ fn white_furnace_the_medium_disappears_against_the_sky() {
     for (k, px) in img.rgba.chunks_exact(4).enumerate() {
         let t = img.value[k];
         covered += (t < 0.5) as usize;
-        for (c, (l, sky)) in px.iter().zip(s.sky).enumerate() {
+        for (c, (l, sky)) in px.iter().zip(s.lighting.sky).enumerate() {
             let total = l + t * sky;
             assert!(
                 (total - sky).abs() <= 1e-5,
@@ -76,7 +87,7 @@ fn white_furnace_the_medium_disappears_against_the_sky() {
         .rgba
         .chunks_exact(4)
         .zip(&dark.value)
-        .filter(|(px, t)| **t < 0.5 && px[2] + **t * s.sky[2] < 0.8 * s.sky[2])
+        .filter(|(px, t)| **t < 0.5 && px[2] + **t * s.lighting.sky[2] < 0.8 * s.lighting.sky[2])
         .count();
     assert!(lost > 100, "albedo 0.9 should lose energy ({lost} pixels)");
 }
@@ -86,16 +97,25 @@ fn white_furnace_the_medium_disappears_against_the_sky() {
 fn single(g: f32, l: [f32; 3], spp: u32) -> (f64, RenderSettings) {
     let asset = box_asset();
     let s = RenderSettings {
-        mode: Mode::Reference,
-        absorb: 0.01,
-        scatter: 0.04,
-        light_dir: l,
-        light_color: [2.0; 3],
-        sky: [0.0; 3],
-        phase_g: [g, g],
-        phase_w: 1.0,
-        bounces: 1,
-        spp,
+        medium: Medium {
+            absorb: 0.01,
+            scatter: 0.04,
+            phase_g: [g, g],
+            phase_w: 1.0,
+            ..Default::default()
+        },
+        lighting: Lighting {
+            light_dir: l,
+            light_color: [2.0; 3],
+            sky: [0.0; 3],
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode: Mode::Reference,
+            bounces: 1,
+            spp,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let cam = camera();
@@ -119,9 +139,9 @@ fn single_scattering_matches_the_closed_forms_and_the_phase_convention() {
         // Sun behind the camera (light travels along +z with the view): the scattering cosine
         // d·l is −1 and the shadow path from depth s is s.
         let (got, s) = single(g, [0.0, 0.0, -1.0], spp);
-        let kappa = (s.absorb + s.scatter) as f64 * SIGMA as f64;
-        let albedo = s.scatter as f64 / (s.absorb + s.scatter) as f64;
-        let e = s.light_color[0] as f64;
+        let kappa = (s.medium.absorb + s.medium.scatter) as f64 * SIGMA as f64;
+        let albedo = s.medium.scatter as f64 / (s.medium.absorb + s.medium.scatter) as f64;
+        let e = s.lighting.light_color[0] as f64;
         let [want, want_ahead] = single_scatter_closed_forms(g as f64, albedo, e, kappa, depth);
         assert!(
             (got - want).abs() < 0.02 * want,
@@ -143,19 +163,31 @@ fn reference_settings_out_of_range_are_refused() {
     let ok = reference(0.0, 0.3);
     for bad in [
         RenderSettings {
-            phase_g: [1.0, 0.0],
+            medium: Medium {
+                phase_g: [1.0, 0.0],
+                ..ok.medium.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            phase_w: 1.5,
+            medium: Medium {
+                phase_w: 1.5,
+                ..ok.medium.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            bounces: 0,
+            integrator: Integrator {
+                bounces: 0,
+                ..ok.integrator.clone()
+            },
             ..ok.clone()
         },
         RenderSettings {
-            sky: [f32::NAN, 0.0, 0.0],
+            lighting: Lighting {
+                sky: [f32::NAN, 0.0, 0.0],
+                ..ok.lighting.clone()
+            },
             ..ok.clone()
         },
     ] {
@@ -169,18 +201,33 @@ fn reference_settings_out_of_range_are_refused() {
 #[test]
 fn primary_escape_is_the_exact_transmittance() {
     let asset = box_asset();
-    let s = RenderSettings {
-        absorb: 0.01,
-        scatter: 0.05,
-        spp: 256,
-        ..reference(0.0, 0.0)
+    let s = {
+        let base = reference(0.0, 0.0);
+        RenderSettings {
+            medium: Medium {
+                absorb: 0.01,
+                scatter: 0.05,
+                ..base.medium
+            },
+            integrator: Integrator {
+                spp: 256,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     let exact = render(
         &asset,
         &camera(),
         &RenderSettings {
-            mode: Mode::Density,
-            absorb: s.absorb + s.scatter,
+            medium: Medium {
+                absorb: s.medium.absorb + s.medium.scatter,
+                ..s.medium.clone()
+            },
+            integrator: Integrator {
+                mode: Mode::Density,
+                ..s.integrator.clone()
+            },
             ..s.clone()
         },
     )
@@ -190,7 +237,7 @@ fn primary_escape_is_the_exact_transmittance() {
     for (k, (&got, &want)) in img.value.iter().zip(&exact.value).enumerate() {
         let (got, want) = (got as f64, want as f64);
         partial += (want > 0.05 && want < 0.95) as usize;
-        let sd = (want * (1.0 - want) / s.spp as f64).sqrt();
+        let sd = (want * (1.0 - want) / s.integrator.spp as f64).sqrt();
         assert!(
             (got - want).abs() <= 5.0 * sd + 1e-3,
             "pixel {k}: escaped {got} vs T {want}"

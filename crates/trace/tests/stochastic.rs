@@ -42,10 +42,16 @@ fn camera() -> Camera {
 
 fn settings(mode: Mode) -> RenderSettings {
     RenderSettings {
-        width: 6,
-        height: 4,
-        mode,
-        cutoff: 0.0,
+        output: Output {
+            width: 6,
+            height: 4,
+            ..Default::default()
+        },
+        integrator: Integrator {
+            mode,
+            cutoff: 0.0,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -57,11 +63,20 @@ fn single_scatter_without_scattering_is_pure_absorption() {
     let (lo, hi) = (world(LO.map(|c| c as f64)), world(HI.map(|c| c as f64)));
     for step in [1.0f32, 0.37] {
         let absorb = 0.05f32;
-        let s = RenderSettings {
-            absorb,
-            scatter: 0.0,
-            step,
-            ..settings(Mode::SingleScatter)
+        let s = {
+            let base = settings(Mode::SingleScatter);
+            RenderSettings {
+                medium: Medium {
+                    absorb,
+                    scatter: 0.0,
+                    ..base.medium
+                },
+                integrator: Integrator {
+                    step,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
         let img = render(&a, &cam, &s).unwrap();
         for j in 0..4 {
@@ -87,21 +102,32 @@ fn single_scatter_without_scattering_is_pure_absorption() {
 
 /// Mean and per-pixel checks of delta tracking's escape fraction against Density's exact `T`.
 fn check_escape(a: &Asset, cam: &Camera, absorb: f32, scatter: f32, spp: u32) {
-    let exact = render(
-        a,
-        cam,
-        &RenderSettings {
-            absorb: absorb + scatter,
-            ..settings(Mode::Density)
-        },
-    )
+    let exact = render(a, cam, &{
+        let base = settings(Mode::Density);
+        RenderSettings {
+            medium: Medium {
+                absorb: absorb + scatter,
+                ..base.medium
+            },
+            ..base
+        }
+    })
     .unwrap();
-    let s = RenderSettings {
-        absorb,
-        scatter,
-        spp,
-        seed: 42,
-        ..settings(Mode::DeltaTracking)
+    let s = {
+        let base = settings(Mode::DeltaTracking);
+        RenderSettings {
+            medium: Medium {
+                absorb,
+                scatter,
+                ..base.medium
+            },
+            integrator: Integrator {
+                spp,
+                seed: 42,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     let img = render(a, cam, &s).unwrap();
     let (mut sum_got, mut sum_want) = (0.0, 0.0);
@@ -154,19 +180,34 @@ fn delta_tracking_converges_to_the_density_transmittance() {
 fn delta_tracking_radiance_converges_to_small_step_single_scatter() {
     let a = box_asset();
     let cam = camera();
-    let base = RenderSettings {
-        absorb: 0.01,
-        scatter: 0.04,
-        gain: 0.1,
-        light_dir: [0.3, 0.8, -0.2],
-        ..settings(Mode::SingleScatter)
+    let base = {
+        let base = settings(Mode::SingleScatter);
+        RenderSettings {
+            medium: Medium {
+                absorb: 0.01,
+                scatter: 0.04,
+                ..base.medium
+            },
+            lighting: Lighting {
+                light_dir: [0.3, 0.8, -0.2],
+                ..base.lighting
+            },
+            integrator: Integrator {
+                gain: 0.1,
+                ..base.integrator
+            },
+            ..base
+        }
     };
     let fine = render(
         &a,
         &cam,
         &RenderSettings {
-            step: 0.05,
-            shadow_step: 0.05,
+            integrator: Integrator {
+                step: 0.05,
+                shadow_step: 0.05,
+                ..base.integrator.clone()
+            },
             ..base.clone()
         },
     )
@@ -175,9 +216,12 @@ fn delta_tracking_radiance_converges_to_small_step_single_scatter() {
         &a,
         &cam,
         &RenderSettings {
-            mode: Mode::DeltaTracking,
-            spp: 8192,
-            seed: 7,
+            integrator: Integrator {
+                mode: Mode::DeltaTracking,
+                spp: 8192,
+                seed: 7,
+                ..base.integrator
+            },
             ..base
         },
     )
@@ -202,12 +246,21 @@ fn progressive_batches_add_up_to_one_render() {
     for mode in [Mode::DeltaTracking, Mode::Reference] {
         let a = box_asset();
         let cam = camera();
-        let s = RenderSettings {
-            spp: 64,
-            seed: 3,
-            absorb: 0.01,
-            scatter: 0.04,
-            ..settings(mode)
+        let s = {
+            let base = settings(mode);
+            RenderSettings {
+                medium: Medium {
+                    absorb: 0.01,
+                    scatter: 0.04,
+                    ..base.medium
+                },
+                integrator: Integrator {
+                    spp: 64,
+                    seed: 3,
+                    ..base.integrator
+                },
+                ..base
+            }
         };
         let all = render(&a, &cam, &s).unwrap();
         assert!(
@@ -218,7 +271,10 @@ fn progressive_batches_add_up_to_one_render() {
             &a,
             &cam,
             &RenderSettings {
-                spp: 24,
+                integrator: Integrator {
+                    spp: 24,
+                    ..s.integrator.clone()
+                },
                 ..s.clone()
             },
         )
@@ -227,8 +283,11 @@ fn progressive_batches_add_up_to_one_render() {
             &a,
             &cam,
             &RenderSettings {
-                spp: 40,
-                first_sample: 24,
+                integrator: Integrator {
+                    spp: 40,
+                    first_sample: 24,
+                    ..s.integrator.clone()
+                },
                 ..s.clone()
             },
         )
@@ -243,7 +302,18 @@ fn progressive_batches_add_up_to_one_render() {
         // Another seed gives another image; the same seed the same one.
         let again = render(&a, &cam, &s).unwrap();
         assert_eq!(again, all);
-        let other = render(&a, &cam, &RenderSettings { seed: 4, ..s }).unwrap();
+        let other = render(
+            &a,
+            &cam,
+            &RenderSettings {
+                integrator: Integrator {
+                    seed: 4,
+                    ..s.integrator
+                },
+                ..s
+            },
+        )
+        .unwrap();
         assert_ne!(other, all);
     }
 }
