@@ -29,10 +29,6 @@ struct Params {
     inv_a2: vec4<f32>,
     // xyz: root extent in voxels.
     extent: vec4<f32>,
-    // xyz: index-space image of the unit world direction toward the light.
-    light_index: vec4<f32>,
-    // xyz: the light colour.
-    light_color: vec4<f32>,
     // xyz: the frame's content box [lo, hi) in index space (empty: lo > hi); every leaf outside
     // holds values <= 0, which the sampling modes pass over, so they clip their rays to it.
     content_lo: vec4<f32>,
@@ -46,35 +42,15 @@ struct Params {
     near: f32,
     far: f32,
     value_max: f32,
-    voxel_units: u32,
     out_flags: u32,
-    // absorb + scatter and scatter / (absorb + scatter) (0 when both are 0).
-    extinction: f32,
-    albedo: f32,
-    step: f32,
     shadow_step: f32,
     gain: f32,
     spp: u32,
     first_sample: u32,
-    seed: u32,
     // Emission read from this channel of a multi-channel asset (0: from the rendered grid, by
-    // each mode's own march; else `channel_emission`, with `emission.w` 0).
+    // each mode's own march; else `channel_emission`, with `shading.emission.w` 0).
     emit_channel: u32,
-    // The lit mode (`vdbcook_trace`'s `lit` module): the light volume's grid (xyz: corner of
-    // cell 0 in cell space, w: cell edge; dims xyz, w: multiple-scattering octaves, 0 for the
-    // diffusion model), the octave
-    // falloff (x, y, z: a, b, c), the sky radiance (xyz; w: k of `lv_sky_source`), the phase (x, y: g0, g1, z: weight) and
-    // the unit world direction toward the light (xyz); ms.w: 1 for trilinear density.
-    lv_lo: vec4<f32>,
-    lv_dims: vec4<u32>,
-    ms: vec4<f32>,
-    sky: vec4<f32>,
-    phase: vec4<f32>,
-    light_world: vec4<f32>,
-    // Emission (`vdbcook_scene::Emission`): x, y the range in Kelvin, z the intensity, w 1 when
-    // on; the blackbody colours over the range (`vdbcook_scene::blackbody_table`).
-    emission: vec4<f32>,
-    emit_table: array<vec4<f32>, 32>,
+    _pad0: u32,
     // With `emit_channel`: the cell box [lo, hi) where that channel may glow (empty: lo > hi).
     emit_lo: vec4<f32>,
     emit_hi: vec4<f32>,
@@ -83,21 +59,17 @@ struct Params {
     // z the camera's pixel angle (bits of an f32); w 1 for the voxel march (`March::resolve`;
     // `LIT_VOXELS`, the pipeline variant, decides).
     lod: vec4<u32>,
-    // The lit mode: x the near field toward the sun in voxels (`RenderSettings::sun_near` cells;
-    // 0: none), y a light-volume cell's edge in the length unit (the shortest), z the phase's
-    // mean cosine, w `RenderSettings::near_scatter`; `lv_axis` xyz: length per cell-space unit
-    // along each axis.
-    lit: vec4<f32>,
-    lv_axis: vec4<f32>,
+    // The light, the medium's phase and emission, the step and seed (every shaded mode reads
+    // them; `lit.wgsl`), and the one volume's placement: extinction and albedo (every shaded
+    // mode), the index-space direction toward the light, the lit mode's light volume.
+    shading: VdbShading,
+    place: VdbLitPlace,
 }
 
 @group(1) @binding(0) var<uniform> params: Params;
 @group(2) @binding(0) var out_texture: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(2) @binding(1) var<storage, read_write> out_buffer: array<f32>;
-// Group 3: the lit mode's light volume, (τ_sun, τ_sky) per cell, and the diffusion model's
-// six words per cell (`light_build.wgsl`'s `ms_store_main`; written only for that model).
-@group(3) @binding(0) var<storage, read> lv_tau: array<vec2<f32>>;
-@group(3) @binding(1) var<storage, read> lv_diffusion: array<vec2<u32>>;
+// Group 3: the lit mode's light volume (`lit.wgsl`'s `lit_tau` and `lit_ms`).
 
 // Whether this pipeline draws emission (`Renderer::new` compiles it out unless asked).
 const TRACE_EMISSION: bool = {{EMISSION}};
@@ -147,56 +119,11 @@ fn vis_skip(m: f32) -> bool {
     return !(m > params.cutoff);
 }
 
-// Emission from channel `params.emit_channel` along `ray` up to `t_end` (`vdbcook_trace::Tracer`'s
-// `ChannelEmission`): over the voxels of the channel's box inside the root extent, each
-// `T · E · ℓ · φ(x)` with `x = ext·ρ·ℓ` (ρ: channel 0, nearest voxel), `T` starting from channel
-// 0's exact optical depth from the extent's entry to the box's; stops once T < 1e-6. `ext` 0:
-// no attenuation (delta tracking's track-length estimator over one flight).
+// Emission from channel `params.emit_channel` along `ray` up to `t_end` (`lit.wgsl`'s
+// `lit_channel_emission` over the channel's box of this frame).
 fn channel_emission(ray: VdbRay, ext: f32, t_end: f32) -> vec3<f32> {
-    var light = vec3<f32>(0.0);
-    let c = vdb_clip(ray, params.extent.xyz);
-    let b = vdb_clip_box(ray, params.emit_lo.xyz, params.emit_hi.xyz);
-    let a0 = max(c.x, b.x);
-    let a1 = min(min(c.y, b.y), t_end);
-    if (!(a0 < a1)) {
-        return light;
-    }
-    var tau = 0.0;
-    if (a0 > c.x && ext > 0.0) {
-        tau = vdb_optical_depth(params.frame_root, ray, c.x, a0, ext);
-    }
-    var trans = exp(-ext * tau);
-    var d = vdb_dda_init(ray, 1.0, vec3<i32>(params.emit_lo.xyz), vec3<i32>(params.emit_hi.xyz), a0, a1);
-    for (var i = 0; i < 1000000; i++) {
-        let s = vdb_dda_next(ray, &d);
-        if (!s.ok) {
-            break;
-        }
-        let l = (s.tb - s.ta) * ray.per_t;
-        var x = 0.0;
-        if (ext > 0.0) {
-            let rho = vdb_value(params.frame_root, s.cell);
-            if (rho > 0.0) {
-                x = ext * rho * l;
-            }
-        }
-        let e = exp(-x);
-        let v = vdb_value_c(params.frame_root, s.cell, params.emit_channel);
-        light += trans * l * lv_phi(x, e) * emit_radiance(v);
-        trans *= e;
-        if (trans < 1.0e-6) {
-            break;
-        }
-    }
-    return light;
-}
-
-// The radiance per unit length emitted by value `v` (`vdbcook_scene::Emission::radiance`).
-fn emit_radiance(v: f32) -> vec3<f32> {
-    let w = lv_emission_at(v, params.emission);
-    let i = u32(w.x);
-    let c0 = params.emit_table[i].xyz;
-    return w.z * (c0 + w.y * (params.emit_table[i + 1u].xyz - c0));
+    return lit_channel_emission(params.frame_root, ray, ext, t_end, params.emit_channel,
+        params.emit_lo.xyz, params.emit_hi.xyz);
 }
 
 // A span [ta, tb] of constant value `v`; true: stop the walk.
@@ -205,9 +132,9 @@ fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
         return false;
     }
     if (v_density) {
-        if (TRACE_EMISSION && params.emission.w != 0.0) {
+        if (TRACE_EMISSION && params.shading.emission.w != 0.0) {
             // Emitted light reaching the eye: T_before · E(v) · ℓ · (1 − e^{−x})/x, x = absorb·v·ℓ.
-            let r = emit_radiance(v);
+            let r = lit_emission(v);
             if (any(r != vec3<f32>(0.0))) {
                 let len = (tb - ta) * v_per_t;
                 let x = params.absorb * v * len;
@@ -442,8 +369,8 @@ fn media_clip(ray: VdbRay) -> vec2<f32> {
 fn light_ray(p: vec3<f32>) -> VdbRay {
     var r: VdbRay;
     r.o = p;
-    r.d = params.light_index.xyz;
-    r.per_t = select(1.0, length(r.d), params.voxel_units != 0u);
+    r.d = params.place.sun_cell.xyz;
+    r.per_t = select(1.0, length(r.d), params.shading.voxel_units != 0u);
     return r;
 }
 
@@ -482,7 +409,7 @@ fn shadow_march(p: vec3<f32>) -> f32 {
             if (d < cutoff || d <= 0.0) {
                 continue;
             }
-            trans *= exp(-params.extinction * d * step / (1.0 + s * params.gain));
+            trans *= exp(-params.place.sun_cell.w * d * step / (1.0 + s * params.gain));
             if (3.0 * trans * trans < cutoff) {
                 stop = true;
                 break;
@@ -497,7 +424,7 @@ fn shadow_march(p: vec3<f32>) -> f32 {
 
 // Single scatter along the primary ray for t in [t0, t1]: (luminance, transmittance).
 fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
-    let step = params.step;
+    let step = params.shading.sun.w;
     let cutoff = params.cutoff;
     var w = wk_init(ray, t0, t1);
     var budget = MAX_MARCH_SAMPLES;
@@ -527,14 +454,14 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
             if (sigma < cutoff || sigma <= 0.0) {
                 continue;
             }
-            let x = params.extinction * sigma * step;
+            let x = params.place.sun_cell.w * sigma * step;
             let dt = exp(-x);
-            if (TRACE_EMISSION && params.emission.w != 0.0) {
+            if (TRACE_EMISSION && params.shading.emission.w != 0.0) {
                 // Emission over the step, absorbed as the step attenuates: T · E · step · φ(x).
-                v_emit += trans * step * lv_phi(x, dt) * emit_radiance(sigma);
+                v_emit += trans * step * lv_phi(x, dt) * lit_emission(sigma);
             }
             let ts = shadow_march(p);
-            lum += params.albedo * ts * trans * (1.0 - dt);
+            lum += params.place.axis.w * ts * trans * (1.0 - dt);
             trans *= dt;
             if (3.0 * trans * trans < cutoff) {
                 stop = true;
@@ -549,66 +476,6 @@ fn scatter_primary(ray: VdbRay, t0: f32, t1: f32) -> vec2<f32> {
 }
 
 // ---- The lit mode (`vdbcook_trace`'s `lit` module) -----------------------------------------
-
-fn lit_lookup(p: vec3<f32>) -> vec2<f32> {
-    let t = lv_taps(p, params.lv_lo.xyz, params.lv_lo.w, params.lv_dims.xyz);
-    var out = vec2<f32>(0.0);
-    for (var k = 0u; k < 8u; k++) {
-        out += t.w[k] * lv_tau[t.idx[k]];
-    }
-    return out;
-}
-
-// The diffusion model's (sun, sky) light scattered at `p` toward `eye`
-// (`LightVolume::diffuse_at`).
-fn lit_diffuse(p: vec3<f32>, eye: vec3<f32>) -> vec2<f32> {
-    let t = lv_taps(p, params.lv_lo.xyz, params.lv_lo.w, params.lv_dims.xyz);
-    var acc: LvDiffuse;
-    for (var k = 0u; k < 8u; k++) {
-        let i = 3u * t.idx[k];
-        lv_diffuse_add(&acc, t.w[k], lv_diffusion[i], lv_diffusion[i + 1u], lv_diffusion[i + 2u]);
-    }
-    return lv_diffuse_read(acc, eye, params.lit.z);
-}
-
-// `Tracer::sun_depth`: the sun's optical depth at `q` (density `rho`, the primary ray's
-// transmittance `trans`), the first `params.lit.x` voxels toward the sun walked exactly where
-// one light-volume cell is optically thick and the ray still bright, the light volume's depth
-// where that walk ends beyond; and the light volume's depth at `q` (the same without a walk).
-fn lit_sun_depth(q: vec3<f32>, rho: f32, trans: f32) -> vec2<f32> {
-    let cells = lit_lookup(q).x;
-    let near = params.lit.x;
-    if (!LIT_NEAR || !(near > 0.0)
-        || !(params.extinction * rho * params.lit.y >= lv_near_depth(params.lv_lo.w))
-        || !(trans >= LV_NEAR_TRANS)) {
-        return vec2<f32>(cells);
-    }
-    return vec2<f32>(lit_near_sun_depth(q, near), cells);
-}
-
-// `Tracer::near_sun_depth`: the near field's depth toward the sun from `q` over `near`
-// voxels, the light volume's beyond.
-fn lit_near_sun_depth(q: vec3<f32>, near: f32) -> f32 {
-    let ray = light_ray(q);
-    let c = vdb_clip(ray, params.extent.xyz);
-    if (!(c.y > c.x)) {
-        return 0.0;
-    }
-    let t_near = near / length(ray.d);
-    let t_end = min(c.y, t_near);
-    // The whole near field (no opaque stop: the octaves read e^{-b^i·σ·τ}).
-    let tau = vdb_optical_depth_near_from(params.frame_root, ray, c.x, t_end, 0.0, lit_hint_leaf, lit_hint_ref);
-    if (t_near >= c.y) {
-        return tau;
-    }
-    let p = ray.o + t_near * ray.d;
-    let l = normalize(ray.d);
-    let te = lv_box_entry(params.lv_lo, params.lv_dims.xyz, p, l);
-    if (te < 0.0) {
-        return tau;
-    }
-    return tau + lit_lookup(p + te * l).x;
-}
 
 // `vdb_trilinear` at `p` inside span `sp`: when the eight taps lie in the span's brick (about
 // two samples in three), read from the brick directly instead of descending the tree eight times.
@@ -664,35 +531,19 @@ struct LitState {
 }
 
 // `LitMarch::light`: the segment of `ray` from length `sa` over `len` of optical depth `x`
-// (mean density `rho`), the source read at its mean scattering depth.
+// (mean density `rho`), the source read at its mean scattering depth (`lit_scattered`).
 fn lit_light(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, x: f32, rho: f32) {
     if ((*st).budget == 0u) {
         (*st).stop = true;
         return;
     }
     (*st).budget -= 1u;
-    let ext = params.extinction;
-    let octaves = params.lv_dims.w;
     let e = exp(-x);
     let trans = (*st).trans;
     let q = ray.o + ((sa + len * lv_mean_depth(x)) / ray.per_t) * ray.d;
-    let tau_sun = lit_sun_depth(q, rho, trans);
-    var sun = 0.0;
-    var sky = 0.0;
-    if (octaves == 0u) {
-        // The diffusion model: single scattering plus the solve's sun (with the once-scattered
-        // light below its cells where the near field was walked); the solve's sky.
-        let diffuse = lit_diffuse(q, (*st).eye);
-        let direct = exp(-ext * tau_sun.x);
-        sun = (*st).ph[0] * direct
-            + max(diffuse.x + lv_near_scatter(params.lit.w, params.albedo, direct, exp(-ext * tau_sun.y)), 0.0);
-        sky = diffuse.y;
-    } else {
-        var ph = (*st).ph;
-        sun = lv_octaves(ext * tau_sun.x, params.ms.xyz, octaves, &ph);
-        sky = lv_sky_source(ext * lit_lookup(q).y, params.sky.w);
-    }
-    (*st).rad += trans * params.albedo * (1.0 - e) * (params.light_color.xyz * sun + params.sky.xyz * sky);
+    var ph = (*st).ph;
+    let src = lit_scattered(params.place, q, rho, trans, (*st).eye, &ph, lit_hint_leaf, lit_hint_ref);
+    (*st).rad += trans * params.place.axis.w * (1.0 - e) * src;
     (*st).trans = trans * e;
     if ((*st).trans < LV_MIN_TRANS) {
         (*st).stop = true;
@@ -701,9 +552,9 @@ fn lit_light(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, x: f32
 
 // `LitMarch::add`: the segment's emission (at transmittance `trans`), then its light.
 fn lit_add(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, rho: f32) {
-    let x = params.extinction * rho * len;
-    if (TRACE_EMISSION && params.emission.w != 0.0) {
-        v_emit += (*st).trans * len * lv_phi(x, exp(-x)) * emit_radiance(rho);
+    let x = params.place.sun_cell.w * rho * len;
+    if (TRACE_EMISSION && params.shading.emission.w != 0.0) {
+        v_emit += (*st).trans * len * lv_phi(x, exp(-x)) * lit_emission(rho);
     }
     lit_light(st, ray, sa, len, x, rho);
 }
@@ -733,15 +584,14 @@ fn lit_span(st: ptr<function, LitState>, ray: VdbRay, ta: f32, tb: f32, v: f32, 
 // spans whole, `lit_span`); else samples every step, jittered.
 fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4<f32> {
     // The phase per octave at this ray's μ, the sky's (isotropic: 1).
-    let mu = dot(dw, params.light_world.xyz);
     var st: LitState;
-    st.ph = lv_sun_phases(params.phase.xyz, params.ms.z, mu);
+    st.ph = lit_sun_phases(dw);
     st.rad = vec3<f32>(0.0);
     st.trans = 1.0;
     st.stop = false;
     st.budget = MAX_MARCH_SAMPLES;
-    st.eye = lv_eye_dir(ray.d, params.lv_axis.xyz);
-    let jitter = lv_jitter(params.seed, pixel);
+    st.eye = lv_eye_dir(ray.d, params.place.axis.xyz);
+    let jitter = lv_jitter(params.shading.seed, pixel);
     let levels = max(params.lod.x, 1u);
     let grow = bitcast<f32>(params.lod.z) * length(ray.d);
     // The pipeline variant decides (`params.lod.w` says the same): the other march compiles out.
@@ -772,7 +622,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
             continue;
         }
         let root = params.frame_root + lvl * params.lod.y;
-        let step = params.step / scale;
+        let step = params.shading.sun.w / scale;
         var w = wk_init(lray, a, b);
         w.root = root;
         for (var g = 0; g < WALK_SPANS; g++) {
@@ -826,7 +676,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
                 k += 1.0;
                 let p = lray.o + (s / ray.per_t) * lray.d;
                 var rho = 0.0;
-                if (LIT_TRILINEAR && params.ms.w != 0.0) {
+                if (LIT_TRILINEAR && lit_trilinear_on()) {
                     rho = lit_trilinear(sp, root, p);
                 } else {
                     rho = wk_value(sp, p);
@@ -857,7 +707,7 @@ fn ratio_shadow(p: vec3<f32>, rng: ptr<function, u32>) -> f32 {
     if (!(clip.y > clip.x)) {
         return 1.0;
     }
-    let ext = params.extinction;
+    let ext = params.place.sun_cell.w;
     var w = wk_init(ray, clip.x, clip.y);
     var events = MAX_EVENTS;
     var weight = 1.0;
@@ -902,7 +752,7 @@ fn ratio_shadow(p: vec3<f32>, rng: ptr<function, u32>) -> f32 {
 // One delta-tracking path along the primary ray: (light scored, escaped 0 or 1); `v_hit_t` is
 // set to where the flight ended (`VDB_BIG` if it escaped).
 fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f32> {
-    let ext = params.extinction;
+    let ext = params.place.sun_cell.w;
     v_hit_t = VDB_BIG;
     var w = wk_init(ray, t0, t1);
     var events = MAX_EVENTS;
@@ -917,10 +767,10 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
         let base = ext * sp.m;
         // Emission (`vdbcook_trace`'s delta `Path`): the majorant at least 1/step where the span
         // can emit, `E / μ̄` gathered at each tentative collision.
-        let emits = TRACE_EMISSION && params.emission.w != 0.0 && sp.m > params.emission.x;
+        let emits = TRACE_EMISSION && params.shading.emission.w != 0.0 && sp.m > params.shading.emission.x;
         var mu_bar = base;
         if (emits) {
-            mu_bar = max(base, 1.0 / params.step);
+            mu_bar = max(base, 1.0 / params.shading.sun.w);
         }
         let boosted = mu_bar != base;
         if (!(mu_bar > 0.0)) {
@@ -943,7 +793,7 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
             let v = wk_value(sp, p);
             let sigma = max(v, 0.0);
             if (emits) {
-                v_emit += emit_radiance(v) / mu_bar;
+                v_emit += lit_emission(v) / mu_bar;
             }
             var null_collision: bool;
             if (boosted) {
@@ -955,7 +805,7 @@ fn delta_path(ray: VdbRay, t0: f32, t1: f32, rng: ptr<function, u32>) -> vec2<f3
                 continue; // null collision
             }
             escaped = 0.0;
-            if (rng_uniform(rng) < params.albedo) {
+            if (rng_uniform(rng) < params.place.axis.w) {
                 lum = ratio_shadow(p, rng);
             }
             break;
@@ -1034,7 +884,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var ray: VdbRay;
     ray.o = params.eye_index.xyz;
     ray.d = vec3<f32>(dot(params.inv_a0.xyz, dw), dot(params.inv_a1.xyz, dw), dot(params.inv_a2.xyz, dw));
-    ray.per_t = select(1.0, length(ray.d), params.voxel_units != 0u);
+    ray.per_t = select(1.0, length(ray.d), params.shading.voxel_units != 0u);
 
     v_density = params.mode == MODE_DENSITY || params.mode == MODE_STEPS;
     v_per_t = ray.per_t;
@@ -1072,7 +922,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 var escaped = 0.0;
                 for (var k = 0u; k < params.spp; k++) {
                     let si = params.first_sample + k;
-                    var rng = pcg_hash(params.seed ^ pcg_hash(pixel ^ pcg_hash(si)));
+                    var rng = pcg_hash(params.shading.seed ^ pcg_hash(pixel ^ pcg_hash(si)));
                     let r = delta_path(ray, mclip.x, mclip.y, &rng);
                     lum += r.x;
                     escaped += r.y;
@@ -1089,7 +939,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             // No medium on the ray: every flight escapes.
             v_emit = channel_emission(ray, 0.0, VDB_BIG);
         }
-        rgba = vec4<f32>(params.light_color.xyz * lt.x + lit + v_emit, 1.0 - lt.y);
+        rgba = vec4<f32>(params.shading.sun_color.xyz * lt.x + lit + v_emit, 1.0 - lt.y);
         value = lt.y;
     } else if (v_density) {
         let t = exp(-params.absorb * v_tau);
@@ -1123,7 +973,7 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (params.mode == MODE_DENSITY) {
             rgba += vec4<f32>(channel_emission(ray, params.absorb, VDB_BIG), 0.0);
         } else if (params.mode == MODE_SCATTER || params.mode == MODE_LIT) {
-            rgba += vec4<f32>(channel_emission(ray, params.extinction, VDB_BIG), 0.0);
+            rgba += vec4<f32>(channel_emission(ray, params.place.sun_cell.w, VDB_BIG), 0.0);
         }
     }
     rgba = finite4(rgba);

@@ -251,10 +251,11 @@ fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
     return q.x + (q.y - q.x) * t;
 }
 
-// What holds asset index `a` in the frame whose roots start at `frame_root`: `VDB_EMPTY` (the
-// background: nothing stored, or outside the root extent), `VDB_TILE_BIT | t` (a region's or a
-// leaf slot's tile `t`), or a brick index.
-fn vdb_holder(frame_root: u32, a: vec3<i32>) -> u32 {
+// What holds asset index `a` of channel `c` in the frame whose roots start at `frame_root`:
+// `VDB_EMPTY` (the channel's background: nothing stored, or outside the root extent),
+// `VDB_TILE_BIT | t` (a region's or a leaf slot's tile `t`), or a brick index. The one descent
+// root → L2 → leaf slot every point lookup takes.
+fn vdb_holder_c(frame_root: u32, a: vec3<i32>, c: u32) -> u32 {
     let ext = vec3<i32>(vdb_info.root_dims * 128u);
     if (any(a < vec3<i32>(0)) || any(a >= ext)) {
         return VDB_EMPTY;
@@ -263,33 +264,20 @@ fn vdb_holder(frame_root: u32, a: vec3<i32>) -> u32 {
     if (e == VDB_EMPTY || (e & VDB_TILE_BIT) != 0u) {
         return e;
     }
-    return vdb_leaf_ref(e, a >> vec3<u32>(3u));
+    let m = vec3<u32>((a >> vec3<u32>(3u)) & vec3<i32>(15));
+    return vdb_slot_ref_c(e, m.x + 16u * (m.y + 16u * m.z), c);
 }
 
-// The value at asset index `a` of the frame whose roots start at `frame_root` (background where
-// nothing is stored and outside the root extent): `Asset::value` on the GPU.
-fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
-    let r = vdb_holder(frame_root, a);
-    if (r == VDB_EMPTY) {
-        return vdb_info.background;
-    }
-    if ((r & VDB_TILE_BIT) != 0u) {
-        return vdb_tile(r & ~VDB_TILE_BIT);
-    }
-    return vdb_brick_voxel(r, a);
+// `vdb_holder_c` of channel 0 (what every mode renders).
+fn vdb_holder(frame_root: u32, a: vec3<i32>) -> u32 {
+    return vdb_holder_c(frame_root, a, 0u);
 }
 
-// `vdb_value` of channel `c` (its own background where it stores nothing).
+// The value of channel `c` at asset index `a` of the frame whose roots start at `frame_root`
+// (the channel's background where nothing is stored and outside the root extent):
+// `Asset::value_c` on the GPU.
 fn vdb_value_c(frame_root: u32, a: vec3<i32>, c: u32) -> f32 {
-    let ext = vec3<i32>(vdb_info.root_dims * 128u);
-    if (any(a < vec3<i32>(0)) || any(a >= ext)) {
-        return vdb_channel_bg(c);
-    }
-    var r = vdb_root_entry(frame_root, a >> vec3<u32>(7u));
-    if (r != VDB_EMPTY && (r & VDB_TILE_BIT) == 0u) {
-        let m = vec3<u32>((a >> vec3<u32>(3u)) & vec3<i32>(15));
-        r = vdb_slot_ref_c(r, m.x + 16u * (m.y + 16u * m.z), c);
-    }
+    let r = vdb_holder_c(frame_root, a, c);
     if (r == VDB_EMPTY) {
         return vdb_channel_bg(c);
     }
@@ -297,6 +285,11 @@ fn vdb_value_c(frame_root: u32, a: vec3<i32>, c: u32) -> f32 {
         return vdb_tile(r & ~VDB_TILE_BIT);
     }
     return vdb_brick_voxel(r, a);
+}
+
+// `vdb_value_c` of channel 0: `Asset::value` on the GPU.
+fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
+    return vdb_value_c(frame_root, a, 0u);
 }
 
 // The bound of the leaf (8³ voxels) holding asset index `a`: its brick's max, its tile's value,

@@ -615,7 +615,9 @@ fn render_clipped(
                 let tau = tracer.optical_depth(camera.eye, dir, t_max, scratch);
                 let t = (-(s.medium.absorb as f64) * tau).exp() as f32;
                 let g = 1.0 - t;
-                row[4 * i..4 * i + 4].copy_from_slice(&[g, g, g, 1.0]);
+                let e = tracer.emission_until(camera.eye, dir, t_max, scratch);
+                let e = e.map(|c| c as f32);
+                row[4 * i..4 * i + 4].copy_from_slice(&[g + e[0], g + e[1], g + e[2], 1.0]);
                 vrow[i] = t;
             }
         });
@@ -780,13 +782,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], what)?;
     let s = settings(a)?;
-    if a.depth.is_some() && s.medium.emission.is_some() {
-        return Err(CliError::Usage(
-            "--depth with --emission: the depth-cut march and the engine drawer do not draw \
-             emission yet; drop one of them"
-                .into(),
-        ));
-    }
     if a.depth.is_some() && !matches!(s.integrator.mode, Mode::Density | Mode::Lit) {
         return Err(CliError::Usage(format!(
             "--depth cuts the density and lit modes only (the other modes do not stop at a \
@@ -874,14 +869,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     // `composited`: whether the plate is already under the image (the GPU drawer does it).
     let (mut image, backend, adapter, gpu_ms, composited) = match &gpu {
         #[cfg(feature = "gpu")]
-        // The drawer composites density or lit over a plate on the GPU, without emission (its
-        // flat march has none; emission goes to the renderer below, or to the CPU's cut march
-        // for lit with a depth, and the plate is composited on the CPU). Lit with a
-        // depth and no plate needs its transmittance as alpha, which the drawer's blend keeps
-        // from the scene: the CPU's cut march draws it.
+        // The drawer composites density or lit over a plate on the GPU, emission of any
+        // channel included. Lit with a depth and no plate needs its transmittance as alpha,
+        // which the drawer's blend keeps from the scene: the CPU's cut march draws it.
         Some(g)
             if scene
-                && s.medium.emission.is_none()
                 && (s.integrator.mode == Mode::Density
                     || (s.integrator.mode == Mode::Lit && plate.is_some())) =>
         {
@@ -1299,9 +1291,10 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
             time: s.output.frame as f32,
             ..Default::default()
         };
-        drawer
-            .record(
+        let _held = drawer
+            .draw(
                 device,
+                queue,
                 &mut encoder,
                 &DrawTarget {
                     color: &color_view,

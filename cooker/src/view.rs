@@ -73,17 +73,26 @@ pub struct Args {
     /// Absorption per unit density per unit length (as `render`).
     #[arg(long, default_value_t = 0.1)]
     absorb: f32,
-    /// Blackbody emission in the density mode, as `render`: the grid's values are Kelvin, LO,HI
-    /// the range over which the glow rises (e.g. `--grid temperature --emission 800,2000`).
+    /// Blackbody emission in the shaded modes, as `render`: a channel's values are Kelvin, LO,HI
+    /// the range over which the glow rises (e.g. `--emission 800,2000`; a multi-channel asset
+    /// glows from its temperature channel, as `render`).
     #[arg(long, value_name = "LO,HI")]
     emission: Option<String>,
     /// Brightness of the emission at HI Kelvin.
     #[arg(long, default_value_t = 1.0)]
     emission_intensity: f32,
+    /// The channel whose values are the Kelvin of --emission (default: the asset's
+    /// `temperature`, `heat` or `temp` channel, else the shown one), as `render`.
+    #[arg(long, value_name = "NAME", requires = "emission")]
+    emission_grid: Option<String>,
 }
 
-/// The render settings the flags ask for (the mode is the viewer's own, switched with `m`).
-fn base_settings(a: &Args) -> Result<vdbcook_trace::RenderSettings, CliError> {
+/// The render settings the flags ask for (the mode is the viewer's own, switched with `m`), the
+/// emission's channel resolved on `asset` as `render` resolves it.
+fn base_settings(
+    a: &Args,
+    asset: Option<&vdbcook_asset::Asset>,
+) -> Result<vdbcook_trace::RenderSettings, CliError> {
     let usage = |m: String| CliError::Usage(m);
     let emission = match &a.emission {
         None => None,
@@ -96,10 +105,15 @@ fn base_settings(a: &Args) -> Result<vdbcook_trace::RenderSettings, CliError> {
             let [lo, hi] = v[..] else {
                 return Err(usage(format!("--emission {r}: give LO,HI in Kelvin")));
             };
+            let channel = match asset {
+                Some(asset) => crate::render::emission_channel(asset, a.emission_grid.as_deref())
+                    .map_err(|e| usage(format!("{}: {e}", a.input.display())))?,
+                None => 0,
+            };
             Some(vdbcook_trace::Emission {
                 range: [lo, hi],
                 intensity: a.emission_intensity,
-                channel: 0,
+                channel,
             })
         }
     };
@@ -118,7 +132,7 @@ fn base_settings(a: &Args) -> Result<vdbcook_trace::RenderSettings, CliError> {
 /// The headless run's frame count, after checking the flags: `None` for the interactive viewer.
 fn headless_frames(a: &Args) -> Result<Option<u32>, CliError> {
     let usage = |m: String| Err(CliError::Usage(m));
-    base_settings(a)?;
+    base_settings(a, None)?;
     if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 1000.0) {
         return usage(format!(
             "--fps {} is out of range: give 0 < F <= 1000",
@@ -678,7 +692,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             a.emission.is_some(),
         )
         .map_err(at)?;
-        state.settings = base_settings(a)?;
+        state.settings = base_settings(a, Some(asset))?;
         let target = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("vdbcook view headless target"),
             size: wgpu::Extent3d {
@@ -1027,13 +1041,14 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             ))
         })?;
         event_loop.set_control_flow(ControlFlow::Poll);
+        let settings = base_settings(a, Some(&asset))?;
         let mut app = App {
             asset,
             args_size: (a.width, a.height),
             frame: a.frame,
             mode,
             fps: a.fps,
-            settings: base_settings(a)?,
+            settings,
             gfx: None,
             error: None,
             dragging: false,

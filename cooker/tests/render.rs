@@ -181,7 +181,8 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         assert_eq!(code, 1, "{extra:?}: {err}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
-    // Emission with a depth cut is not drawn yet: a usage error, not a silent grey image.
+    // Emission with a depth cut is drawn now (composite.rs tests it): a missing depth file is
+    // still refused, naming it.
     let (code, _, err) = vdbcook(&[
         "render",
         &asset,
@@ -192,8 +193,8 @@ fn render_refusals_exit_non_zero_with_a_reason() {
         "--depth",
         "nope.pfm",
     ]);
-    assert_eq!(code, 2, "{err}");
-    assert!(err.contains("--depth with --emission"), "{err}");
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("nope.pfm"), "{err}");
     // The diffusion model solves the sky's light: the octaves' sky knob is refused with it.
     let (code, _, err) = vdbcook(&[
         "render", &asset, "-o", &out, "--mode", "lit", "--ms-sky", "0.5",

@@ -186,6 +186,67 @@ fn emission_glows_in_the_density_mode() {
     assert_eq!(run(&[]), Some(0), "no glow without --emission");
 }
 
+/// A multi-channel fire glows from its temperature channel in the viewer, as `render` draws it
+/// (issue 31): `--emission` alone picks the temperature channel; `--emission-grid density` reads
+/// the density's values (0..1) as Kelvin, which glow nowhere.
+#[test]
+fn a_multi_channel_fire_glows_from_its_temperature_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let fire = dir.path().join("fire.vdbc");
+    let (code, _, err) = common::vdbcook(&[
+        "cook",
+        "fixtures/seq/fire",
+        "--grids",
+        "density,temperature,flame",
+        "-o",
+        fire.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let shot = dir.path().join("fire.png");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "view",
+            fire.to_str().unwrap(),
+            "--frame",
+            "1",
+            "--emission",
+            "700,1800",
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--width",
+            "96",
+            "--height",
+            "96",
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = gpu_run(&args)?;
+        assert_eq!(code, 0, "{err}");
+        let (_, _, px) = read_png(&shot);
+        Some(
+            px.chunks(4)
+                .filter(|p| p[0] > 40 && p[0] > p[1] && p[1] >= p[2])
+                .count(),
+        )
+    };
+    let Some(glow) = run(&[]) else {
+        return;
+    };
+    assert!(glow > 200, "only {glow} glowing pixels");
+    assert_eq!(run(&["--emission-grid", "density"]), Some(0));
+    let (code, _, err) = common::vdbcook(&[
+        "view",
+        fire.to_str().unwrap(),
+        "--emission",
+        "700,1800",
+        "--emission-grid",
+        "soot",
+        "--frames",
+        "1",
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("soot"), "{err}");
+}
+
 #[test]
 fn bad_input_is_refused_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();

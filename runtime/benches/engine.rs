@@ -168,9 +168,10 @@ fn main() {
                 if let Some(t) = &timer {
                     t.begin(&mut enc);
                 }
-                drawer
-                    .record(
+                let _held = drawer
+                    .draw(
                         &device,
+                        &queue,
                         &mut enc,
                         &DrawTarget {
                             color: &color,
@@ -180,7 +181,7 @@ fn main() {
                         &instances,
                         &medium,
                     )
-                    .expect("record");
+                    .expect("draw");
                 if let Some(t) = &timer {
                     t.end(&mut enc);
                 }

@@ -416,10 +416,22 @@ pub fn render_scene(
         }),
         ..Default::default()
     };
-    // One encoder for the whole frame: the volumes' light (which the opaque pass reads for the
-    // smoke's shadows), opaque pass, copy, volumes, copy.
+    // Prepare (everything but commands: the light volumes, submitted by the drawer; uniforms;
+    // bind groups), then one encoder for the whole frame: opaque pass (it reads the smoke's
+    // shadows), copy, volumes, copy.
+    let shadows = drawer.sun_shadows(device, queue, &instances, &medium)?;
+    let volumes = drawer.prepare(
+        device,
+        queue,
+        &DrawTarget {
+            color: &color_view,
+            depth: Some(&depth_view),
+        },
+        &view,
+        &instances,
+        &medium,
+    )?;
     let mut encoder = device.create_command_encoder(&Default::default());
-    let shadows = drawer.sun_shadows(device, &mut encoder, &instances, &medium)?;
     {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("engine_scene opaque"),
@@ -456,17 +468,7 @@ pub fn render_scene(
         pass.draw(0..vertices.len() as u32, 0..1);
     }
     copy(&mut encoder, &scene_buffer);
-    drawer.record(
-        device,
-        &mut encoder,
-        &DrawTarget {
-            color: &color_view,
-            depth: Some(&depth_view),
-        },
-        &view,
-        &instances,
-        &medium,
-    )?;
+    drawer.record(&mut encoder, &volumes);
     copy(&mut encoder, &composite_buffer);
     queue.submit([encoder.finish()]);
 

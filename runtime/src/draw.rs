@@ -31,7 +31,10 @@ use vdbcook_scene::{
     RenderSettings, MAX_SIDE,
 };
 
-use crate::light::{LightParams, LightPass};
+use std::sync::Arc;
+
+use crate::light::{LightEntry, LightParams, LightPass};
+use crate::shading::{LitPlace, ShadingUniform};
 
 /// The light volumes one draw needs (deduplicated), and the diffusion inputs of each
 /// (`MsModel::Diffusion`), as `LightPass::record` takes them.
@@ -40,7 +43,7 @@ struct LitVolumes {
     diffusion: Vec<Option<DiffusionInputs>>,
 }
 use crate::upload::{Bound, GpuVolume};
-use crate::{LengthUnit, Result, RuntimeError, LIGHT_WGSL, VOLUME_WGSL};
+use crate::{Result, RuntimeError, LIGHT_WGSL, LIT_WGSL, VOLUME_WGSL};
 
 /// The engine drawer's compute shader (needs [`VOLUME_WGSL`](crate::VOLUME_WGSL) before it).
 pub const DRAW_WGSL: &str = include_str!("../../shaders/draw.wgsl");
@@ -450,11 +453,14 @@ pub struct DrawTarget<'a> {
 fn draw_source(lit: bool, trilinear: bool, near: bool) -> String {
     let flag = |on: bool| if on { "true" } else { "false" };
     format!(
-        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
+        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
+        LIT_WGSL
+            .replace("{{LIT_GROUP}}", "2")
+            .replace("{{SHADING}}", "draw_view.shading"),
         DRAW_WGSL
             .replace("{{DRAW_LIT}}", flag(lit))
             .replace("{{DRAW_TRILINEAR}}", flag(trilinear))
-            .replace("{{DRAW_NEAR}}", flag(near))
+            .replace("{{LIT_NEAR}}", flag(near))
     )
 }
 
@@ -470,22 +476,14 @@ struct DrawView {
     near_ndc: f32,
     instance_count: u32,
     has_depth: u32,
-    voxel_units: u32,
-    /// Lighting: direction toward the light and the step; light colour and `near_scatter`;
-    /// sky; phase; octave falloff; octaves; seed.
-    light_dir: [f32; 4],
-    light_color: [f32; 4],
-    sky: [f32; 4],
-    phase: [f32; 4],
-    ms: [f32; 4],
-    ms_octaves: u32,
-    seed: u32,
-    /// Light-volume cells of the near field toward the sun (`Lighting::sun_near`).
-    sun_near: f32,
-    _pad1: u32,
-    /// Emission of lit instances: range, intensity, on; its blackbody table.
-    emission: [f32; 4],
-    emit_table: [[f32; 4]; vdbcook_scene::BLACKBODY_TABLE_LEN],
+    /// The emission pass: its channel, and whether it runs for flat and for lit instances.
+    emit_channel: u32,
+    emit_flat: u32,
+    emit_lit: u32,
+    /// The pixel of the dispatch's first invocation (the covered rectangle's corner).
+    origin: [u32; 2],
+    /// The light, phase, emission, step and seed (the renderer's packing too).
+    shading: ShadingUniform,
 }
 
 /// One element of the `draw_instances` array of `draw.wgsl`.
@@ -496,24 +494,16 @@ struct DrawInstance {
     tint_absorb: [f32; 4],
     box_lo: [f32; 4],
     box_hi: [f32; 4],
+    /// Where the emission channel may glow (both frames), empty: lo > hi.
+    emit_lo: [f32; 4],
+    emit_hi: [f32; 4],
     frame_root0: u32,
     frame_root1: u32,
-    /// 1: lit (the light volumes below), 0: flat.
+    /// 1: lit (`place` holds its light volumes), 0: flat.
     lit: u32,
-    albedo: f32,
-    extinction: f32,
-    lv_base0: u32,
-    lv_base1: u32,
-    /// `k` of the sky's source (it depends on the albedo).
-    sky_k: f32,
-    /// Light-volume grids of the two frames: corner and cell; cells per axis.
-    lv_lo0: [f32; 4],
-    lv_dims0: [u32; 4],
-    lv_lo1: [f32; 4],
-    lv_dims1: [u32; 4],
-    /// Length per cell-space unit along each axis (the diffusion's metric); the phase's mean
-    /// cosine.
-    lv_axis: [f32; 4],
+    _pad: u32,
+    /// The lit march's medium and light volumes in the instance's cell space.
+    place: LitPlace,
 }
 
 /// One element of `vdb_shadow_instances` (`shaders/shadow.wgsl`): a lit instance's world → cell
@@ -537,6 +527,54 @@ pub struct SunShadows {
     pub bind_group: wgpu::BindGroup,
     /// How many instances cast shadows (the lit ones with content in their frames).
     pub casters: usize,
+    /// The light volumes read (kept from being overwritten while this is held).
+    _light: Option<Arc<LightEntry>>,
+}
+
+/// One draw's uniforms: the view and the instances (grown when a draw has more). A draw holds
+/// its slot until it is dropped; a slot no draw holds is reused.
+struct DrawSlot {
+    view: wgpu::Buffer,
+    instances: wgpu::Buffer,
+    capacity: usize,
+}
+
+/// A draw made ready by [`VolumeDrawer::prepare`]: everything [`VolumeDrawer::record`] binds,
+/// with the uniforms written and the light volumes built. Keep it until the encoder it was
+/// recorded into is submitted (or dropped): it holds the buffers the draw reads, which a later
+/// `prepare` would otherwise reuse.
+#[must_use = "a prepared draw holds what the draw reads: record it, and keep it until its encoder is submitted"]
+pub struct PreparedDraw {
+    /// Nothing to draw: no instance has content where the view looks.
+    empty: bool,
+    /// `None`: the flat pipeline; else the lit variant's index.
+    lit_variant: Option<usize>,
+    group: wgpu::BindGroup,
+    light_group: wgpu::BindGroup,
+    composite_group: wgpu::BindGroup,
+    color: wgpu::TextureView,
+    /// The pixels the instances can cover: x, y, width, height.
+    rect: [u32; 4],
+    _slot: Arc<DrawSlot>,
+    _light: Option<Arc<LightEntry>>,
+}
+
+impl std::fmt::Debug for PreparedDraw {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PreparedDraw")
+            .field("empty", &self.empty)
+            .field("lit_variant", &self.lit_variant)
+            .field("covered", &self.rect)
+            .finish_non_exhaustive()
+    }
+}
+
+impl PreparedDraw {
+    /// The pixels the draw covers (x, y, width, height): its dispatch and its composite's
+    /// scissor; nothing outside is read or written.
+    pub fn covered(&self) -> [u32; 4] {
+        self.rect
+    }
 }
 
 /// The `(L, T)` texture of one viewport size and the composite's bind group over it.
@@ -551,10 +589,13 @@ struct LtTexture {
 pub struct VolumeDrawer {
     /// The flat pipeline (the lit march compiled out).
     draw_pipeline: wgpu::ComputePipeline,
-    /// The lit pipelines, made on the first draw that asks for each: index 1 for trilinear
-    /// density, 2 for the near field toward the sun (code a draw cannot reach is left out:
-    /// software Vulkan pays for it).
+    /// The lit pipelines: index 1 for trilinear density, 2 for the near field toward the sun
+    /// (code a draw cannot reach is left out: software Vulkan pays for it). Index 2 is made with
+    /// the drawer, the others by [`VolumeDrawer::warm_up`] or the first `prepare` that needs
+    /// them; `record` never compiles.
     lit_pipelines: [Option<wgpu::ComputePipeline>; 4],
+    /// The draws' uniforms (see [`DrawSlot`]).
+    slots: Vec<Arc<DrawSlot>>,
     /// The lit instances' light volumes.
     light: LightPass,
     /// The layout of `SunShadows::bind_group`.
@@ -758,6 +799,7 @@ impl VolumeDrawer {
             color_format,
             dummy_depth,
             lt: None,
+            slots: Vec::new(),
         })
     }
 
@@ -771,10 +813,9 @@ impl VolumeDrawer {
         Ok(())
     }
 
-    /// Makes the next lit draw rebuild its light volumes: call it after dropping an encoder that
-    /// held a lit draw without submitting it (the drawer assumes what it recorded was
-    /// submitted, and rebuilds only when frames, instances' rotations or scales, the light or
-    /// the medium change).
+    /// Makes the next lit draw rebuild its light volumes (it rebuilds by itself when frames,
+    /// instances' rotations or scales, the light or the medium change; the builds are submitted
+    /// by `prepare` itself, so a dropped encoder leaves none unbuilt).
     pub fn invalidate_light_volumes(&self) {
         self.light.invalidate();
     }
@@ -784,18 +825,17 @@ impl VolumeDrawer {
         &self.shadow_layout
     }
 
-    /// Records the light volumes of `instances` under `medium`'s lighting (as [`record`]
-    /// would; a later `record` of the same instances and medium reuses them) and returns the
-    /// bind group through which an engine's shaders read the sun's transmittance at any world
-    /// point (`vdb_sun_transmittance` in [`crate::shadow_wgsl`]): call it before the engine's
-    /// opaque pass in the same encoder, then `record` after it. Refuses a medium without
-    /// lighting (`RuntimeError::Setting`). Creates one small buffer and a bind group.
-    ///
-    /// [`record`]: VolumeDrawer::record
+    /// Builds (and submits) the light volumes of `instances` under `shading`'s lighting, as
+    /// [`VolumeDrawer::prepare`] would (a later draw of the same instances and shading reads
+    /// the same build), and returns the bind group through which an engine's shaders read the
+    /// sun's transmittance at any world point (`vdb_sun_transmittance` in
+    /// [`crate::shadow_wgsl`]): keep it while a pass that binds it is pending. Refuses a
+    /// shading without lighting (`RuntimeError::Setting`). Creates one small buffer and a bind
+    /// group.
     pub fn sun_shadows(
         &mut self,
         device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
+        queue: &wgpu::Queue,
         instances: &[Instance],
         shading: &Shading,
     ) -> Result<SunShadows> {
@@ -804,35 +844,36 @@ impl VolumeDrawer {
                 "sun shadows need Shading::lighting (the light volumes of the lit mode)".into(),
             ));
         }
-        let (draws, volumes) = self.instances(DVec3::ZERO, instances, shading)?;
-        let (bases, pool) = if volumes.volumes.is_empty() {
-            (Vec::new(), None)
+        let (draws, volumes, _) = self.instances(DVec3::ZERO, instances, shading)?;
+        let build = if volumes.volumes.is_empty() {
+            None
         } else {
-            let (_, bases, pool) = self.light.record(
+            Some(self.light.prepare(
                 device,
-                encoder,
+                queue,
                 &self.vol.group,
                 &volumes.volumes,
                 &volumes.diffusion,
-            )?;
-            (bases, Some(pool))
+            )?)
         };
+        let bases: &[u32] = build.as_ref().map_or(&[], |b| &b.bases);
         let mut casters: Vec<ShadowInstance> = draws
             .iter()
             .filter(|d| d.lit != 0)
             .map(|d| {
-                // The cell-space direction toward the sun: its light volume's.
-                let sun = volumes.volumes[d.lv_base0 as usize].sun;
-                let with_base =
-                    |dims: [u32; 4], idx: u32| [dims[0], dims[1], dims[2], bases[idx as usize]];
+                let p = &d.place;
+                let (i0, i1) = (p.lv_dims0[3] as usize, p.lv_dims1[3] as usize);
+                // The unit cell-space direction toward the sun: its light volume's.
+                let sun = volumes.volumes[i0].sun;
+                let with_base = |dims: [u32; 4], i: usize| [dims[0], dims[1], dims[2], bases[i]];
                 ShadowInstance {
                     cell_from_world: d.cell_from_world,
-                    sun: [sun[0], sun[1], sun[2], d.extinction],
-                    lo0: d.lv_lo0,
-                    dims0: with_base(d.lv_dims0, d.lv_base0),
-                    lo1: d.lv_lo1,
-                    dims1: with_base(d.lv_dims1, d.lv_base1),
-                    weight: [d.box_lo[3], 0.0, 0.0, 0.0],
+                    sun: [sun[0], sun[1], sun[2], p.sun_cell[3]],
+                    lo0: p.lv_lo0,
+                    dims0: with_base(p.lv_dims0, i0),
+                    lo1: p.lv_lo1,
+                    dims1: with_base(p.lv_dims1, i1),
+                    weight: [p.misc[1], 0.0, 0.0, 0.0],
                 }
             })
             .collect();
@@ -846,14 +887,17 @@ impl VolumeDrawer {
             contents: bytemuck::cast_slice(&casters),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let pool = pool.unwrap_or_else(|| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("vdbcook sun shadows (no light volume)"),
-                size: 8,
-                usage: wgpu::BufferUsages::STORAGE,
-                mapped_at_creation: false,
-            })
-        });
+        let pool = build.as_ref().map_or_else(
+            || {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("vdbcook sun shadows (no light volume)"),
+                    size: 8,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                })
+            },
+            |b| b.pool.clone(),
+        );
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("vdbcook sun shadows"),
             layout: &self.shadow_layout,
@@ -871,6 +915,7 @@ impl VolumeDrawer {
         Ok(SunShadows {
             bind_group,
             casters: count,
+            _light: build,
         })
     }
 
@@ -879,7 +924,6 @@ impl VolumeDrawer {
         self.color_format
     }
 
-    /// Validates the targets against the view.
     fn check_targets(&self, target: &DrawTarget, (w, h): (u32, u32)) -> Result<()> {
         let c = target.color.texture();
         if c.format() != self.color_format {
@@ -965,23 +1009,23 @@ impl VolumeDrawer {
         self.lt.as_ref().expect("just created")
     }
 
-    /// The lighting checked, then the GPU instances in front-to-back order (by the distance
+    /// The shading checked, then the GPU instances in front-to-back order (by the distance
     /// from the eye, or the near plane's centre, to the centre of each instance's box; ties keep
-    /// the caller's order), leaving out instances with nothing > 0 in their frames, and the
-    /// light volumes the lit ones need.
+    /// the caller's order), leaving out instances with nothing > 0 in their frames and nothing
+    /// glowing, the light volumes the lit ones need, and each instance's box (content and
+    /// emission) as its eight world corners.
+    #[allow(clippy::type_complexity)]
     fn instances(
         &self,
         eye: DVec3,
         instances: &[Instance],
         shading: &Shading,
-    ) -> Result<(Vec<DrawInstance>, LitVolumes)> {
+    ) -> Result<(Vec<DrawInstance>, LitVolumes, Vec<[DVec3; 8]>)> {
         let medium = &shading.medium;
-        if shading.lighting.is_some() {
-            shading
-                .settings()
-                .validate(self.vol.frames())
-                .map_err(|e| RuntimeError::Setting(format!("lighting: {e}")))?;
-        }
+        shading
+            .settings()
+            .validate(self.vol.frames())
+            .map_err(|e| RuntimeError::Setting(format!("shading: {e}")))?;
         let mut out = Vec::with_capacity(instances.len());
         let mut volumes: Vec<LightParams> = Vec::new();
         let mut diffusion: Vec<Option<DiffusionInputs>> = Vec::new();
@@ -991,15 +1035,28 @@ impl VolumeDrawer {
             let (f0, f1, a) = inst.frames(self.vol.frames())?;
             let xf = Affine::cells(&inst.index_to_world(&self.vol.index_to_world))
                 .map_err(|e| RuntimeError::Transform(format!("instance {i}: {e}")))?;
-            let boxes = [self.vol.content[f0], self.vol.content[f1]];
-            let Some((lo, hi)) = boxes.into_iter().flatten().reduce(|x, y| {
-                (
-                    [0, 1, 2].map(|k| x.0[k].min(y.0[k])),
-                    [0, 1, 2].map(|k| x.1[k].max(y.1[k])),
-                )
-            }) else {
+            let union = |boxes: [Option<([f64; 3], [f64; 3])>; 2]| {
+                boxes.into_iter().flatten().reduce(|x, y| {
+                    (
+                        [0, 1, 2].map(|k| x.0[k].min(y.0[k])),
+                        [0, 1, 2].map(|k| x.1[k].max(y.1[k])),
+                    )
+                })
+            };
+            let emit_box = match &medium.emission {
+                Some(e) => union([self.vol.emission_box(e, f0)?, self.vol.emission_box(e, f1)?]),
+                None => None,
+            };
+            let content = union([self.vol.content[f0], self.vol.content[f1]]);
+            // An instance with nothing > 0 in its frames and nothing glowing draws nothing.
+            let Some((lo, hi)) = content.or(emit_box) else {
                 continue;
             };
+            let (blo, bhi) = union([content, emit_box]).expect("one of them");
+            let corners: [DVec3; 8] = std::array::from_fn(|c| {
+                let p = [0, 1, 2].map(|k| if c >> k & 1 == 0 { blo[k] } else { bhi[k] });
+                DVec3::from(xf.world_of(p))
+            });
             let centre = xf.world_of([0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k])));
             let distance = (DVec3::from(centre) - eye).length();
             // world → cell: c = inv_a·(w − b).
@@ -1009,54 +1066,42 @@ impl VolumeDrawer {
                 [m[0] as f32, m[1] as f32, m[2] as f32, -shift[r] as f32]
             };
             let v4 = |v: [f64; 3], w: f32| [v[0] as f32, v[1] as f32, v[2] as f32, w];
+            let (clo, chi) = content.map_or(([1.0; 4], [0.0; 4]), |(l, h)| (v4(l, a), v4(h, 0.0)));
             let absorb = medium.absorb * inst.density_scale;
             let t = inst.tint;
             let roots = [f0, f1].map(|f| (f * self.vol.root_len) as u32);
             let mut d = DrawInstance {
                 cell_from_world: [row(0), row(1), row(2)],
                 tint_absorb: [t.x, t.y, t.z, absorb],
-                box_lo: v4(lo, a),
-                box_hi: v4(hi, 0.0),
+                // The crossfade weight rides in `box_lo.w` even when the box is empty.
+                box_lo: [clo[0], clo[1], clo[2], a],
+                box_hi: chi,
+                emit_lo: emit_box.map_or([1.0; 4], |b| v4(b.0, 0.0)),
+                emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1, 0.0)),
                 frame_root0: roots[0],
                 frame_root1: roots[1],
                 lit: 0,
-                albedo: 0.0,
-                extinction: 0.0,
-                lv_base0: 0,
-                lv_base1: 0,
-                sky_k: 0.0,
-                lv_lo0: [0.0; 4],
-                lv_dims0: [1; 4],
-                lv_lo1: [0.0; 4],
-                lv_dims1: [1; 4],
-                lv_axis: [1.0, 1.0, 1.0, 0.0],
+                _pad: 0,
+                place: LitPlace::zeroed(),
             };
             if let Some(l) = &shading.lighting {
-                // As `vdbcook_trace::Tracer::new`: in f64, then f32.
-                let k = medium.absorb as f64 + medium.scatter as f64;
-                let extinction = k * inst.density_scale as f64;
                 d.lit = 1;
-                let albedo = if k > 0.0 {
-                    medium.scatter as f64 / k
+                let extinction =
+                    (medium.absorb as f64 + medium.scatter as f64) * inst.density_scale as f64;
+                let albedo = if medium.absorb + medium.scatter > 0.0 {
+                    medium.scatter as f64 / (medium.absorb as f64 + medium.scatter as f64)
                 } else {
                     0.0
                 };
-                d.albedo = albedo as f32;
-                d.sky_k =
-                    vdbcook_scene::sky_diffusion(albedo, medium.phase_g, medium.phase_w, l.ms_sky)
-                        as f32;
-                d.extinction = extinction as f32;
-                let (_, axis_len) = light_dirs(&xf, l.light_dir, medium.unit);
-                let w = medium.phase_w as f64;
-                let mean_cos = w * medium.phase_g[0] as f64 + (1.0 - w) * medium.phase_g[1] as f64;
-                d.lv_axis = [axis_len[0], axis_len[1], axis_len[2], mean_cos].map(|v| v as f32);
-                // A light volume per frame of the crossfade, in the instance's cell space;
-                // `lv_base*` hold their indices in `volumes` until `record` places them.
-                for (n, f) in [f0, f1].into_iter().enumerate() {
-                    let grid =
-                        LightGrid::with_levels(self.vol.content[f], l.light_res, self.vol.lod.0);
+                // A light volume per frame of the crossfade, in the instance's cell space; the
+                // bases hold their indices in `volumes` until `record` places them.
+                let grids = [f0, f1].map(|f| {
+                    LightGrid::with_levels(self.vol.content[f], l.light_res, self.vol.lod.0)
+                });
+                let mut idx = [0u32; 2];
+                for (n, grid) in grids.iter().enumerate() {
                     let lp = LightParams::new(
-                        &grid,
+                        grid,
                         &xf,
                         l.light_dir,
                         extinction,
@@ -1064,11 +1109,11 @@ impl VolumeDrawer {
                         roots[n],
                         self.vol.lod,
                     );
-                    let idx = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
+                    idx[n] = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
                         volumes.push(lp);
                         diffusion.push((l.ms_model == MsModel::Diffusion).then(|| {
                             DiffusionInputs::new(
-                                &grid,
+                                grid,
                                 light_dirs(&xf, l.light_dir, medium.unit),
                                 extinction,
                                 albedo,
@@ -1077,40 +1122,102 @@ impl VolumeDrawer {
                         }));
                         volumes.len() - 1
                     }) as u32;
-                    let lo = [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32);
-                    let dims = [grid.dims[0], grid.dims[1], grid.dims[2], 0];
-                    if n == 0 {
-                        (d.lv_base0, d.lv_lo0, d.lv_dims0) = (idx, lo, dims);
-                    } else {
-                        (d.lv_base1, d.lv_lo1, d.lv_dims1) = (idx, lo, dims);
-                    }
                 }
+                d.place = LitPlace::new(
+                    &xf,
+                    medium,
+                    l,
+                    inst.density_scale,
+                    &[(&grids[0], idx[0], roots[0]), (&grids[1], idx[1], roots[1])],
+                    a,
+                );
             }
-            out.push((distance, d));
+            out.push((distance, d, corners));
         }
         out.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let corners = out.iter().map(|x| x.2).collect();
         Ok((
-            out.into_iter().map(|(_, d)| d).collect(),
+            out.into_iter().map(|(_, d, _)| d).collect(),
             LitVolumes { volumes, diffusion },
+            corners,
         ))
     }
 
-    /// Records the draw of `instances` seen through `view` into `encoder`: a compute pass that
-    /// writes `(L, T)` per pixel, then a render pass that blends `out = L + T·scene` onto
-    /// `target.color` (loaded and stored). Creates two small buffers and a bind group; writes
-    /// nothing through the queue, so any number of draws may be recorded into one encoder (each
-    /// composites over what the earlier ones left). Instances of this volume composite front to
-    /// back per pixel (ordered by distance, see `docs/engine.md`); draws of other volumes
-    /// composite in the order they are recorded. Nothing is recorded for an empty list.
-    pub fn record(
+    /// Makes every lit pipeline variant now (trilinear density and the near field on or off),
+    /// so that no later `prepare` compiles one (seconds on software Vulkan).
+    pub fn warm_up(&mut self, device: &wgpu::Device) {
+        for i in 0..self.lit_pipelines.len() {
+            self.lit_pipeline(device, i);
+        }
+    }
+
+    /// The lit pipeline variant `i` (bit 0: trilinear, bit 1: near field), made if missing.
+    fn lit_pipeline(&mut self, device: &wgpu::Device, i: usize) {
+        if self.lit_pipelines[i].is_some() {
+            return;
+        }
+        let (trilinear, near) = (i & 1 != 0, i & 2 != 0);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("vdbcook draw (lit variant)"),
+            source: wgpu::ShaderSource::Wgsl(draw_source(true, trilinear, near).into()),
+        });
+        self.lit_pipelines[i] = Some(self.vol.compute_pipeline(
+            device,
+            "vdbcook draw (lit variant)",
+            &module,
+            "draw_main",
+            &[&self.draw_layout, &self.light.read_layout],
+        ));
+    }
+
+    /// A slot for a draw of `n` instances: one no draw holds (grown if too small), else new.
+    fn slot(&mut self, device: &wgpu::Device, n: usize) -> Arc<DrawSlot> {
+        let free = self.slots.iter().position(|s| Arc::strong_count(s) == 1);
+        if let Some(i) = free {
+            if self.slots[i].capacity >= n {
+                return self.slots[i].clone();
+            }
+            self.slots.swap_remove(i);
+        }
+        let capacity = n.next_power_of_two().max(4);
+        let slot = Arc::new(DrawSlot {
+            view: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vdbcook draw view"),
+                size: std::mem::size_of::<DrawView>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            instances: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vdbcook draw instances"),
+                size: (capacity * std::mem::size_of::<DrawInstance>()) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            capacity,
+        });
+        self.slots.push(slot.clone());
+        slot
+    }
+
+    /// Gets the draw of `instances` seen through `view` onto `target` ready: checks everything,
+    /// orders the instances front to back, builds (and submits on `queue`) the light volumes
+    /// the lit ones need unless a kept build has them, makes the pipeline variant the shading
+    /// needs if missing, writes the view and instance uniforms (`Queue::write_buffer`: they
+    /// take effect at the next submission) into a slot of their own, and finds the pixels the
+    /// instances can cover (their boxes projected; the whole viewport where a box reaches
+    /// behind the eye). Then [`VolumeDrawer::record`] it into the encoder of that submission;
+    /// keep the [`PreparedDraw`] until then. Any number of draws may be prepared and recorded
+    /// per submission (each composites over what the draws recorded before it left).
+    #[allow(clippy::too_many_arguments)]
+    pub fn prepare(
         &mut self,
         device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
+        queue: &wgpu::Queue,
         target: &DrawTarget,
         view: &View,
         instances: &[Instance],
         shading: &Shading,
-    ) -> Result<()> {
+    ) -> Result<PreparedDraw> {
         let rays = view.rays()?;
         let medium = &shading.medium;
         if !(medium.absorb >= 0.0 && medium.absorb.is_finite()) {
@@ -1121,33 +1228,43 @@ impl VolumeDrawer {
         }
         let size = view.viewport;
         self.check_targets(target, size)?;
-        let (mut gpu_instances, volumes) = self.instances(rays.eye(), instances, shading)?;
-        if gpu_instances.is_empty() {
-            return Ok(());
-        }
-        let light_group = if volumes.volumes.is_empty() {
-            self.light.empty_group.clone()
+        let (mut gpu_instances, volumes, corners) =
+            self.instances(rays.eye(), instances, shading)?;
+        let rect = coverage(view, &corners);
+        let build = if volumes.volumes.is_empty() {
+            None
         } else {
-            let (group, bases, _) = self.light.record(
+            let b = self.light.prepare(
                 device,
-                encoder,
+                queue,
                 &self.vol.group,
                 &volumes.volumes,
                 &volumes.diffusion,
             )?;
             for d in gpu_instances.iter_mut().filter(|d| d.lit != 0) {
-                d.lv_base0 = bases[d.lv_base0 as usize];
-                d.lv_base1 = bases[d.lv_base1 as usize];
+                let p = &mut d.place;
+                p.set_bases(
+                    b.bases[p.lv_dims0[3] as usize],
+                    b.bases[p.lv_dims1[3] as usize],
+                );
             }
-            group
+            Some(b)
         };
-        let lighting = shading.lighting.clone().unwrap_or_default();
-        let integ = &shading.integrator;
-        let l = lighting.light_dir.map(|c| c as f64);
-        let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
-        let l = l.map(|c| (c / ln) as f32);
+        let light_group = build
+            .as_ref()
+            .map_or_else(|| self.light.empty_group.clone(), |b| b.read.clone());
+        let lit_variant = shading.lighting.as_ref().map(|l| {
+            let trilinear = shading.integrator.filter == vdbcook_scene::Filter::Trilinear;
+            let near = l.sun_near > 0.0;
+            trilinear as usize | (near as usize) << 1
+        });
+        if let Some(i) = lit_variant {
+            self.lit_pipeline(device, i);
+        }
         let m4 = |m: &DMat4| m.as_mat4().to_cols_array_2d();
-        let v3 = |v: [f32; 3]| [v[0], v[1], v[2], 0.0];
+        // The emission pass: every flat instance's, and lit ones' from another channel (the lit
+        // march glows its own).
+        let channel = medium.emission.map_or(0, |e| e.channel);
         let params = DrawView {
             view_from_clip: m4(&rays.view_from_clip),
             world_from_view: m4(&rays.world_from_view),
@@ -1162,49 +1279,22 @@ impl VolumeDrawer {
             near_ndc: rays.near_ndc as f32,
             instance_count: gpu_instances.len() as u32,
             has_depth: target.depth.is_some() as u32,
-            voxel_units: (medium.unit == LengthUnit::Voxel) as u32,
-            light_dir: [l[0], l[1], l[2], integ.step],
-            light_color: [
-                lighting.light_color[0],
-                lighting.light_color[1],
-                lighting.light_color[2],
-                lighting.near_scatter,
-            ],
-            sky: v3(lighting.sky),
-            phase: [medium.phase_g[0], medium.phase_g[1], medium.phase_w, 0.0],
-            ms: [
-                lighting.ms[0],
-                lighting.ms[1],
-                lighting.ms[2],
-                (integ.filter == vdbcook_scene::Filter::Trilinear) as u32 as f32,
-            ],
-            // 0: the diffusion model (`draw.wgsl`'s `draw_lit`).
-            ms_octaves: match lighting.ms_model {
-                vdbcook_scene::MsModel::Octaves => lighting.ms_octaves,
-                vdbcook_scene::MsModel::Diffusion => 0,
-            },
-            seed: integ.seed,
-            sun_near: lighting.sun_near,
-            _pad1: 0,
-            emission: medium
-                .emission
-                .map_or([0.0; 4], |e| [e.range[0], e.range[1], e.intensity, 1.0]),
-            emit_table: medium
-                .emission
-                .map_or([[0.0; 4]; vdbcook_scene::BLACKBODY_TABLE_LEN], |e| {
-                    vdbcook_scene::blackbody_table(e.range)
-                }),
+            emit_channel: channel as u32,
+            emit_flat: medium.emission.is_some() as u32,
+            emit_lit: (medium.emission.is_some() && channel > 0) as u32,
+            origin: [rect[0], rect[1]],
+            shading: ShadingUniform::new(
+                medium,
+                &shading.lighting.clone().unwrap_or_default(),
+                &shading.integrator,
+                channel == 0,
+            ),
         };
-        let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vdbcook draw view"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let instance_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vdbcook draw instances"),
-            contents: bytemuck::cast_slice(&gpu_instances),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        let slot = self.slot(device, gpu_instances.len().max(1));
+        queue.write_buffer(&slot.view, 0, bytemuck::bytes_of(&params));
+        if !gpu_instances.is_empty() {
+            queue.write_buffer(&slot.instances, 0, bytemuck::cast_slice(&gpu_instances));
+        }
         let depth = target.depth.unwrap_or(&self.dummy_depth).clone();
         let lt = self.lt_texture(device, size);
         let (lt_view, composite_group) = (lt.view.clone(), lt.composite_group.clone());
@@ -1214,11 +1304,11 @@ impl VolumeDrawer {
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: view_buffer.as_entire_binding(),
+                    resource: slot.view.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
-                    resource: instance_buffer.as_entire_binding(),
+                    resource: slot.instances.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 2,
@@ -1230,45 +1320,49 @@ impl VolumeDrawer {
                 },
             ],
         });
+        Ok(PreparedDraw {
+            empty: gpu_instances.is_empty() || rect[2] == 0 || rect[3] == 0,
+            lit_variant,
+            group,
+            light_group,
+            composite_group,
+            color: target.color.clone(),
+            rect,
+            _slot: slot,
+            _light: build,
+        })
+    }
+
+    /// Records a prepared draw into `encoder`: a compute pass over the covered pixels that
+    /// writes `(L, T)` per pixel, then a render pass that blends `out = L + T·scene` onto the
+    /// target's colour (loaded and stored, scissored to the covered pixels). It records
+    /// commands only: it creates no buffer, bind group or pipeline and writes nothing through
+    /// the queue (it has no device to). Instances of this volume composite front to back per
+    /// pixel (ordered by distance, see `docs/engine.md`); draws composite in the order they are
+    /// recorded.
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, draw: &PreparedDraw) {
+        if draw.empty {
+            return;
+        }
+        let [x, y, w, h] = draw.rect;
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("vdbcook draw"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(match &shading.lighting {
+            pass.set_pipeline(match draw.lit_variant {
                 None => &self.draw_pipeline,
-                Some(l) => {
-                    let trilinear = integ.filter == vdbcook_scene::Filter::Trilinear;
-                    let near = l.sun_near > 0.0;
-                    let (vol, layouts) = (&self.vol, [&self.draw_layout, &self.light.read_layout]);
-                    self.lit_pipelines[trilinear as usize | (near as usize) << 1]
-                        .get_or_insert_with(|| {
-                            let module =
-                                device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                                    label: Some("vdbcook draw (lit variant)"),
-                                    source: wgpu::ShaderSource::Wgsl(
-                                        draw_source(true, trilinear, near).into(),
-                                    ),
-                                });
-                            vol.compute_pipeline(
-                                device,
-                                "vdbcook draw (lit variant)",
-                                &module,
-                                "draw_main",
-                                &layouts,
-                            )
-                        })
-                }
+                Some(i) => self.lit_pipelines[i].as_ref().expect("made by prepare"),
             });
             pass.set_bind_group(0, &self.vol.group, &[]);
-            pass.set_bind_group(1, &group, &[]);
-            pass.set_bind_group(2, &light_group, &[]);
-            pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
+            pass.set_bind_group(1, &draw.group, &[]);
+            pass.set_bind_group(2, &draw.light_group, &[]);
+            pass.dispatch_workgroups(w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1);
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("vdbcook composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target.color,
+                view: &draw.color,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
@@ -1281,11 +1375,73 @@ impl VolumeDrawer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        pass.set_scissor_rect(x, y, w, h);
         pass.set_pipeline(&self.composite_pipeline);
-        pass.set_bind_group(0, &composite_group, &[]);
+        pass.set_bind_group(0, &draw.composite_group, &[]);
         pass.draw(0..3, 0..1);
-        Ok(())
     }
+
+    /// [`VolumeDrawer::prepare`] and [`VolumeDrawer::record`] in one call; returns the prepared
+    /// draw, to keep until `encoder` is submitted.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &DrawTarget,
+        view: &View,
+        instances: &[Instance],
+        shading: &Shading,
+    ) -> Result<PreparedDraw> {
+        let d = self.prepare(device, queue, target, view, instances, shading)?;
+        self.record(encoder, &d);
+        Ok(d)
+    }
+}
+
+/// The pixels (x, y, width, height) boxes of world corners `boxes` can cover seen through
+/// `view`: the union of their projections grown by two pixels (the jitter and the rasterizing
+/// of edges), clamped to the viewport; the whole viewport where a box reaches behind the eye.
+fn coverage(view: &View, boxes: &[[DVec3; 8]]) -> [u32; 4] {
+    let (w, h) = view.viewport;
+    let clip = view.proj.as_dmat4() * view.view.as_dmat4();
+    let (mut lo, mut hi) = (
+        glam::DVec2::splat(f64::INFINITY),
+        glam::DVec2::splat(f64::NEG_INFINITY),
+    );
+    for corners in boxes {
+        let mut behind = 0;
+        let (mut blo, mut bhi) = (lo, hi);
+        for c in corners {
+            let p = clip * c.extend(1.0);
+            if !(p.w > 1e-9 * (p.x.abs() + p.y.abs() + p.z.abs()).max(1e-30)) {
+                behind += 1;
+                continue;
+            }
+            let ndc = glam::DVec2::new(p.x / p.w, p.y / p.w);
+            let px = glam::DVec2::new(
+                (ndc.x + 1.0) * 0.5 * w as f64,
+                (1.0 - ndc.y) * 0.5 * h as f64,
+            );
+            blo = blo.min(px);
+            bhi = bhi.max(px);
+        }
+        match behind {
+            0 => (lo, hi) = (blo, bhi),
+            8 => {}
+            _ => return [0, 0, w, h],
+        }
+    }
+    if !(lo.x <= hi.x && lo.y <= hi.y) {
+        return [0, 0, 0, 0];
+    }
+    let j = view.jitter.as_dvec2().abs();
+    let x0 = (lo.x - 2.0 - j.x).floor().clamp(0.0, w as f64) as u32;
+    let y0 = (lo.y - 2.0 - j.y).floor().clamp(0.0, h as f64) as u32;
+    let x1 = (hi.x + 2.0 + j.x).ceil().clamp(0.0, w as f64) as u32;
+    let y1 = (hi.y + 2.0 + j.y).ceil().clamp(0.0, h as f64) as u32;
+    [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
 }
 
 #[cfg(test)]
@@ -1310,18 +1466,11 @@ mod tests {
                 near_ndc,
                 instance_count,
                 has_depth,
-                voxel_units,
-                light_dir,
-                light_color,
-                sky,
-                phase,
-                ms,
-                ms_octaves,
-                seed,
-                sun_near,
-                _pad1,
-                emission,
-                emit_table,
+                emit_channel,
+                emit_flat,
+                emit_lit,
+                origin,
+                shading,
             }),
         );
         assert_mirrors(
@@ -1332,19 +1481,13 @@ mod tests {
                 tint_absorb,
                 box_lo,
                 box_hi,
+                emit_lo,
+                emit_hi,
                 frame_root0,
                 frame_root1,
                 lit,
-                albedo,
-                extinction,
-                lv_base0,
-                lv_base1,
-                sky_k,
-                lv_lo0,
-                lv_dims0,
-                lv_lo1,
-                lv_dims1,
-                lv_axis,
+                _pad,
+                place,
             }),
         );
     }

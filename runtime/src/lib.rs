@@ -53,14 +53,15 @@ mod error;
 mod layout_check;
 mod light;
 mod render;
+mod shading;
 mod timer;
 mod upload;
 mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, Shading, SunShadows, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL,
-    DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, PreparedDraw, Shading, SunShadows, View, ViewRays, VolumeDrawer,
+    COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
@@ -87,6 +88,10 @@ pub const TRACE_WGSL: &str = include_str!("../../shaders/trace.wgsl");
 /// The lit mode's light-volume lookup and octave source (no bindings); the tracer and the
 /// light-volume pass include it.
 pub const LIGHT_WGSL: &str = include_str!("../../shaders/light.wgsl");
+/// The lit march's light, written once for the tracer and the drawer (`VdbShading`,
+/// `VdbLitPlace`, `lit_scattered`); needs [`VOLUME_WGSL`] and [`LIGHT_WGSL`] before it, and its
+/// `{{LIT_GROUP}}` and `{{SHADING}}` replaced by the includer.
+pub const LIT_WGSL: &str = include_str!("../../shaders/lit.wgsl");
 /// The lit mode's light-volume passes (group 0 the volume, group 1 their uniform and buffers;
 /// entry points `lv_density_main`, `lv_sun_main`, `lv_axis0_main`, `lv_axis1_main`,
 /// `lv_axis2_main`, `lv_sky_main`, in that order); needs [`VOLUME_WGSL`] and [`LIGHT_WGSL`]

@@ -1,10 +1,11 @@
-//! The lit mode's light volumes on the GPU (`shaders/light_build.wgsl`): its six pipelines, one
-//! buffer that holds every light volume a draw needs (made anew, larger, when a draw needs more
-//! cells than it holds, up to the device's binding limit), the density scratch they are built through (one at a time), and the
-//! cache that skips the passes while the frames, the lights and the media stay the same (one
-//! entry: the last list built). The renderer and the drawer record the passes into the caller's
-//! encoder ahead of their own dispatch and read the volumes through one bind group (the
-//! renderer's group 3, `lv_tau`; the drawer's group 2, `draw_lv`).
+//! The lit mode's light volumes on the GPU (`shaders/light_build.wgsl`): its six pipelines, the
+//! builds (each a buffer holding every light volume one draw needs, up to the device's binding
+//! limit), the density scratch they are built through (one at a time), and the builds kept for
+//! reuse while the frames, the lights and the media stay the same. A build is recorded into an
+//! encoder of its own and submitted at once, in `prepare`: a caller's encoder holds only draws,
+//! so dropping one never leaves light volumes unbuilt. The renderer and the drawer read a build
+//! through one bind group (`lit.wgsl`'s `lit_tau`, `lit_ms`: the renderer's group 3, the
+//! drawer's group 2); the draws holding it keep it from being overwritten.
 //!
 //! A volume built for `MsModel::Diffusion` also runs the diffusion solve (`ms_*` passes, six
 //! more pipelines over a scratch of every level, one `MsParams` record per level and sweep
@@ -14,7 +15,7 @@
 //! `vdbcook_scene::ms_stored_flux`; binding 1 of the read group; `lv_diffuse_*` in `light.wgsl`
 //! reads it). 24 bytes a cell: 6 MiB at `light_res` 64 on a cubic box (48 until 2026-11-26).
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
@@ -138,20 +139,37 @@ const MS_FLOATS_PER_CELL: usize = 13;
 /// Bytes of the diffusion model's output per cell (six words: three f32, six 16-bit fluxes).
 const MS_OUT_BYTES: usize = 24;
 
-/// What was built last: the buffers and the uniforms of the volumes in them.
+/// The light volumes of one build: where they lie and the bind group that reads them. The draws
+/// that read a build hold it (an `Arc`), so a build no draw holds is the one a new build may
+/// overwrite: draws prepared for one submission each keep their own light, whatever was built
+/// after them.
+pub(crate) struct LightEntry {
+    /// The volumes (placed) and the diffusion inputs of those that solve it.
+    key: (Vec<LightParams>, Vec<Option<DiffusionInputs>>),
+    /// `(τ_sun, τ_sky)` per cell, and the diffusion model's six words per cell.
+    pub pool: wgpu::Buffer,
+    ms_pool: wgpu::Buffer,
+    /// Capacities in cells.
+    cells: usize,
+    ms_cells: usize,
+    pub read: wgpu::BindGroup,
+    /// Each volume's base element.
+    pub bases: Vec<u32>,
+}
+
+/// Builds kept for reuse: a repeated list of light volumes (the same frames, lights and media)
+/// is read from its build instead of rebuilt.
+const KEPT_BUILDS: usize = 8;
+
+/// The builds and the scratch they are made through.
 #[derive(Default)]
 struct State {
-    /// The shared buffers (`(τ_sun, τ_sky)` per cell, and the diffusion model's six words per
-    /// cell), their capacity in cells, their read bind group.
-    /// The capacities: cells, and cells of the diffusion output.
-    pool: Option<(wgpu::Buffer, wgpu::Buffer, usize, usize, wgpu::BindGroup)>,
+    /// Most recently used last.
+    builds: Vec<Arc<LightEntry>>,
     /// The density scratch and its capacity in cells.
     scratch: Option<(wgpu::Buffer, usize)>,
     /// The diffusion solve's scratch (every level of one volume) and its capacity in f32s.
     ms_scratch: Option<(wgpu::Buffer, usize)>,
-    /// The light volumes the pool holds and the diffusion inputs of those that solve it
-    /// (`None`: invalidated).
-    built: Option<(Vec<LightParams>, Vec<Option<DiffusionInputs>>)>,
 }
 
 /// The light-volume passes of one renderer or drawer.
@@ -288,25 +306,24 @@ impl LightPass {
         }
     }
 
-    /// Forgets the cached light volumes (the volume behind them changed, or a recording was
-    /// dropped unsubmitted).
+    /// Forgets the kept builds (the volume behind them changed).
     pub fn invalidate(&self) {
-        self.state.lock().expect("light state").built = None;
+        self.state.lock().expect("light state").builds.clear();
     }
 
-    /// Records the passes that build `volumes` one after the other into one buffer, unless the
-    /// last call built the same ones (and its recording was submitted), and returns the bind
-    /// group that reads them, each one's base element, and the buffer. `diffusion[i]`: the
-    /// inputs of volume `i`'s diffusion solve (`MsModel::Diffusion`), if it runs one (a
-    /// shorter slice: the rest run none).
-    pub fn record(
+    /// The light volumes `volumes`, built one after the other into one buffer and submitted
+    /// at once on `queue` (so a caller's dropped encoder never leaves them unbuilt), unless a
+    /// kept build holds the same ones. `diffusion[i]`: the inputs of volume `i`'s diffusion
+    /// solve (`MsModel::Diffusion`), if it runs one (a shorter slice: the rest run none). Hold
+    /// the returned build while a draw that reads it is pending.
+    pub fn prepare(
         &self,
         device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
+        queue: &wgpu::Queue,
         volume_group: &wgpu::BindGroup,
         volumes: &[LightParams],
         diffusion: &[Option<DiffusionInputs>],
-    ) -> Result<(wgpu::BindGroup, Vec<u32>, wgpu::Buffer), RuntimeError> {
+    ) -> Result<Arc<LightEntry>, RuntimeError> {
         let diffusion: Vec<Option<DiffusionInputs>> = (0..volumes.len())
             .map(|i| diffusion.get(i).copied().flatten())
             .collect();
@@ -334,9 +351,14 @@ impl LightPass {
                 per_cell * total
             )));
         }
-        let bases = placed.iter().map(|lp| lp.base).collect();
-        let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
+        let key = (placed, diffusion);
         let mut state = self.state.lock().expect("light state");
+        if let Some(i) = state.builds.iter().position(|b| b.key == key) {
+            let b = state.builds.remove(i);
+            state.builds.push(b.clone());
+            return Ok(b);
+        }
+        let (placed, diffusion) = &key;
         let buffer = |label: &str, bytes: usize| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -347,41 +369,45 @@ impl LightPass {
         };
         // Cells the diffusion output must hold: all of them when any volume solves it.
         let ms_total = if per_cell == MS_OUT_BYTES { total } else { 0 };
-        if state
-            .pool
-            .as_ref()
-            .is_none_or(|p| p.2 < total || p.3 < ms_total)
-        {
-            let ms_cap = state.pool.as_ref().map_or(0, |p| p.3).max(ms_total);
-            let pool = buffer("vdbcook light volumes", 8 * total);
-            let ms_pool = buffer(
-                "vdbcook light diffusion",
-                (MS_OUT_BYTES * ms_cap).max(MS_OUT_BYTES),
-            );
-            let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vdbcook light read"),
-                layout: &self.read_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: pool.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: ms_pool.as_entire_binding(),
-                    },
-                ],
-            });
-            state.pool = Some((pool, ms_pool, total, ms_cap, read));
-            state.built = None;
-        }
+        // Where to build: a kept build no draw holds (its buffers when large enough), else new.
+        let free = state.builds.iter().position(|b| Arc::strong_count(b) == 1);
+        let old = free.map(|i| state.builds.remove(i));
+        let (pool, ms_pool, cells, ms_cells) = match old {
+            Some(b) if b.cells >= total && b.ms_cells >= ms_total => {
+                (b.pool.clone(), b.ms_pool.clone(), b.cells, b.ms_cells)
+            }
+            _ => (
+                buffer("vdbcook light volumes", 8 * total),
+                buffer(
+                    "vdbcook light diffusion",
+                    (MS_OUT_BYTES * ms_total).max(MS_OUT_BYTES),
+                ),
+                total,
+                ms_total,
+            ),
+        };
+        let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook light read"),
+            layout: &self.read_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: pool.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: ms_pool.as_entire_binding(),
+                },
+            ],
+        });
+        let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
         if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
             state.scratch = Some((buffer("vdbcook light density", 4 * largest), largest));
         }
         // The diffusion solves' records, all volumes', each `align`-aligned.
         let solves: Vec<Option<(Vec<[MsParams; 2]>, usize)>> = placed
             .iter()
-            .zip(&diffusion)
+            .zip(diffusion)
             .map(|(lp, m)| m.map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m)))
             .collect();
         let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
@@ -398,137 +424,155 @@ impl LightPass {
                 ms_floats,
             ));
         }
-        let (pool, ms_pool, _, _, read) = state.pool.as_ref().expect("just made");
         let (scratch, _) = state.scratch.as_ref().expect("just made");
-        let key = (placed.clone(), diffusion.clone());
-        if state.built.as_ref() != Some(&key) {
-            let align =
-                (limits.min_uniform_buffer_offset_alignment as usize).max(MS_PARAMS_SIZE as usize);
-            let mut bytes: Vec<u8> = Vec::new();
-            for (records, _) in solves.iter().flatten() {
-                for r in records.iter().flatten() {
-                    bytes.extend_from_slice(bytemuck::bytes_of(r));
-                    bytes.resize(bytes.len().next_multiple_of(align), 0);
-                }
-            }
-            let ms_group = (!bytes.is_empty()).then(|| {
-                let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("vdbcook light diffusion params"),
-                    contents: &bytes,
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
-                let (ms_scratch, _) = state.ms_scratch.as_ref().expect("made above");
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("vdbcook light diffusion"),
-                    layout: &self.ms_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: ms_scratch.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                                buffer: &uniform,
-                                offset: 0,
-                                size: wgpu::BufferSize::new(MS_PARAMS_SIZE),
-                            }),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: ms_pool.as_entire_binding(),
-                        },
-                    ],
-                })
-            });
-            let mut next_record = 0usize;
-            for (lp, solve) in placed.iter().zip(&solves) {
-                let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("vdbcook light params"),
-                    contents: bytemuck::bytes_of(lp),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
-                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("vdbcook light build"),
-                    layout: &self.build_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: uniform.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: scratch.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: pool.as_entire_binding(),
-                        },
-                    ],
-                });
-                // Per cell (4³ groups) or per column of an axis (8² groups over the other two).
-                let [x, y, z, _] = lp.dims;
-                let cells = [x, y, z].map(|d| d.div_ceil(WORKGROUP));
-                let columns = |u: u32, v: u32| [u.div_ceil(8), v.div_ceil(8), 1];
-                let sizes = [
-                    cells,
-                    cells,
-                    columns(y, z),
-                    columns(z, x),
-                    columns(x, y),
-                    cells,
-                ];
-                for (pipeline, size) in self.passes.iter().zip(sizes) {
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("vdbcook light volume"),
-                        timestamp_writes: None,
-                    });
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(0, volume_group, &[]);
-                    pass.set_bind_group(1, &group, &[]);
-                    pass.dispatch_workgroups(size[0], size[1], size[2]);
-                }
-                if let (Some((records, _)), Some(ms_group)) = (solve, &ms_group) {
-                    let first = next_record;
-                    next_record += 2 * records.len();
-                    // The dynamic offset of level `k`'s record of `parity`.
-                    let at = |k: usize, parity: usize| ((first + 2 * k + parity) * align) as u32;
-                    let groups = |k: usize| {
-                        let d = records[k][0].dims;
-                        [d[0], d[1], d[2]].map(|v| v.div_ceil(WORKGROUP))
-                    };
-                    let [source, restrict, prolong, limit, update, store] = &self.ms_passes;
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("vdbcook light diffusion"),
-                        timestamp_writes: None,
-                    });
-                    pass.set_bind_group(1, &group, &[]);
-                    let mut run = |pipeline: &wgpu::ComputePipeline, k: usize, parity: usize| {
-                        pass.set_pipeline(pipeline);
-                        pass.set_bind_group(2, ms_group, &[at(k, parity)]);
-                        let [x, y, z] = groups(k);
-                        pass.dispatch_workgroups(x, y, z);
-                    };
-                    run(source, 0, 0);
-                    for k in 1..records.len() {
-                        run(restrict, k, 0);
-                    }
-                    for k in (0..records.len()).rev() {
-                        run(prolong, k, 0);
-                        for sweep in 0..ms_sweeps(k) {
-                            run(limit, k, sweep % 2);
-                            run(update, k, sweep % 2);
-                        }
-                    }
-                    // The resistances of the result (in φ A), for the flux.
-                    run(limit, 0, 0);
-                    run(store, 0, 0);
-                }
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("vdbcook light volumes"),
+        });
+        let align =
+            (limits.min_uniform_buffer_offset_alignment as usize).max(MS_PARAMS_SIZE as usize);
+        let mut bytes: Vec<u8> = Vec::new();
+        for (records, _) in solves.iter().flatten() {
+            for r in records.iter().flatten() {
+                bytes.extend_from_slice(bytemuck::bytes_of(r));
+                bytes.resize(bytes.len().next_multiple_of(align), 0);
             }
         }
-        let (read, pool) = (read.clone(), pool.clone());
-        state.built = Some(key);
-        Ok((read, bases, pool))
+        let ms_group = (!bytes.is_empty()).then(|| {
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vdbcook light diffusion params"),
+                contents: &bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let (ms_scratch, _) = state.ms_scratch.as_ref().expect("made above");
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vdbcook light diffusion"),
+                layout: &self.ms_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: ms_scratch.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &uniform,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(MS_PARAMS_SIZE),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: ms_pool.as_entire_binding(),
+                    },
+                ],
+            })
+        });
+        let mut next_record = 0usize;
+        for (lp, solve) in placed.iter().zip(&solves) {
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vdbcook light params"),
+                contents: bytemuck::bytes_of(lp),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vdbcook light build"),
+                layout: &self.build_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: scratch.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: pool.as_entire_binding(),
+                    },
+                ],
+            });
+            // Per cell (4³ groups) or per column of an axis (8² groups over the other two).
+            let [x, y, z, _] = lp.dims;
+            let cells = [x, y, z].map(|d| d.div_ceil(WORKGROUP));
+            let columns = |u: u32, v: u32| [u.div_ceil(8), v.div_ceil(8), 1];
+            let sizes = [
+                cells,
+                cells,
+                columns(y, z),
+                columns(z, x),
+                columns(x, y),
+                cells,
+            ];
+            for (pipeline, size) in self.passes.iter().zip(sizes) {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("vdbcook light volume"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, volume_group, &[]);
+                pass.set_bind_group(1, &group, &[]);
+                pass.dispatch_workgroups(size[0], size[1], size[2]);
+            }
+            if let (Some((records, _)), Some(ms_group)) = (solve, &ms_group) {
+                let first = next_record;
+                next_record += 2 * records.len();
+                // The dynamic offset of level `k`'s record of `parity`.
+                let at = |k: usize, parity: usize| ((first + 2 * k + parity) * align) as u32;
+                let groups = |k: usize| {
+                    let d = records[k][0].dims;
+                    [d[0], d[1], d[2]].map(|v| v.div_ceil(WORKGROUP))
+                };
+                let [source, restrict, prolong, limit, update, store] = &self.ms_passes;
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("vdbcook light diffusion"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(1, &group, &[]);
+                let mut run = |pipeline: &wgpu::ComputePipeline, k: usize, parity: usize| {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(2, ms_group, &[at(k, parity)]);
+                    let [x, y, z] = groups(k);
+                    pass.dispatch_workgroups(x, y, z);
+                };
+                run(source, 0, 0);
+                for k in 1..records.len() {
+                    run(restrict, k, 0);
+                }
+                for k in (0..records.len()).rev() {
+                    run(prolong, k, 0);
+                    for sweep in 0..ms_sweeps(k) {
+                        run(limit, k, sweep % 2);
+                        run(update, k, sweep % 2);
+                    }
+                }
+                // The resistances of the result (in φ A), for the flux.
+                run(limit, 0, 0);
+                run(store, 0, 0);
+            }
+        }
+        queue.submit([encoder.finish()]);
+        let bases = placed.iter().map(|lp| lp.base).collect();
+        let entry = Arc::new(LightEntry {
+            key: key.clone(),
+            pool,
+            ms_pool,
+            cells,
+            ms_cells,
+            read,
+            bases,
+        });
+        state.builds.push(entry.clone());
+        // Kept builds beyond the limit that no draw holds go, oldest first.
+        while state.builds.len() > KEPT_BUILDS {
+            match state.builds.iter().position(|b| Arc::strong_count(b) == 1) {
+                Some(i) => {
+                    state.builds.remove(i);
+                }
+                None => break,
+            }
+        }
+        Ok(entry)
     }
 }
 

@@ -7,14 +7,15 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    blackbody_table, depth_range, light_dirs, lit_near_depth, pixel_angle, sky_diffusion, Affine,
-    DiffusionInputs, Filter, LightGrid, March, Mode, MsModel, BLACKBODY_TABLE_LEN, MAX_SIDE,
+    depth_range, lit_near_depth, pixel_angle, Affine, DiffusionInputs, Filter, LightGrid, March,
+    Mode, MsModel, MAX_SIDE,
 };
 
 use crate::light::{LightParams, LightPass};
+use crate::shading::{LitPlace, ShadingUniform};
 use crate::upload::{buffer_entry, Bound, GpuVolume};
 use crate::{
-    Camera, LengthUnit, Result, RuntimeError, Settings, LIGHT_WGSL, TRACE_WGSL, VOLUME_WGSL,
+    Camera, Result, RuntimeError, Settings, LIGHT_WGSL, LIT_WGSL, TRACE_WGSL, VOLUME_WGSL,
 };
 
 /// The `Params` uniform of `trace.wgsl`.
@@ -29,10 +30,6 @@ struct Params {
     inv_a1: [f32; 4],
     inv_a2: [f32; 4],
     extent: [f32; 4],
-    /// xyz: index-space image of the unit world direction toward the light.
-    light_index: [f32; 4],
-    /// xyz: the light colour.
-    light_color: [f32; 4],
     /// xyz: the frame's content box `[lo, hi)` in index space (empty: lo > hi), which the
     /// sampling modes clip their rays to.
     content_lo: [f32; 4],
@@ -46,34 +43,15 @@ struct Params {
     near: f32,
     far: f32,
     value_max: f32,
-    voxel_units: u32,
     out_flags: u32,
-    /// `absorb + scatter` and `scatter / (absorb + scatter)` (0 when both are 0), from f64.
-    extinction: f32,
-    albedo: f32,
-    step: f32,
     shadow_step: f32,
     gain: f32,
     spp: u32,
     first_sample: u32,
-    seed: u32,
     /// Emission read from this channel (`Emission::channel`; 0: from the rendered grid, by the
     /// modes' own marches).
     emit_channel: u32,
-    /// The lit mode: the light volume's grid (xyz corner, w cell; xyz dims, w octaves), the
-    /// octave falloff `a, b, c`, the sky, the phase `g0, g1, w`, the unit world direction
-    /// toward the light.
-    lv_lo: [f32; 4],
-    lv_dims: [u32; 4],
-    ms: [f32; 4],
-    sky: [f32; 4],
-    phase: [f32; 4],
-    light_world: [f32; 4],
-    /// Emission (`vdbcook_scene::Emission`): low and high end of the range (Kelvin),
-    /// intensity, and 1 when on (0: off).
-    emission: [f32; 4],
-    /// `vdbcook_scene::blackbody_table` of the emission's range.
-    emit_table: [[f32; 4]; BLACKBODY_TABLE_LEN],
+    _pad0: u32,
     /// With `emit_channel`: the cell box `[lo, hi)` where that channel may glow (empty: lo > hi).
     emit_lo: [f32; 4],
     emit_hi: [f32; 4],
@@ -82,11 +60,10 @@ struct Params {
     /// (f32 bits), 1 for the voxel march (`March::resolve`; the pipeline variant, `LIT_VOXELS`,
     /// decides which march runs).
     lod: [u32; 4],
-    /// The lit mode: the near field toward the sun in voxels (`sun_near` cells), a light-volume
-    /// cell's shortest edge in the length unit, the phase's mean cosine, `near_scatter`.
-    lit: [f32; 4],
-    /// Length per cell-space unit along each axis (`vdbcook_scene::light_dirs`), 0.
-    lv_axis: [f32; 4],
+    /// The light, phase, emission, step and seed (`ShadingUniform`, the drawer's packing too).
+    shading: ShadingUniform,
+    /// The volume's extinction, albedo, light direction and light volume (`LitPlace`).
+    place: LitPlace,
 }
 
 const WORKGROUP: u32 = 8;
@@ -171,6 +148,9 @@ pub struct Renderer {
     /// [`LitVariant::index`] (index 0 is `pipeline`).
     layouts: [wgpu::BindGroupLayout; 3],
     lit_variants: [std::sync::OnceLock<wgpu::ComputePipeline>; 8],
+    /// The light volumes of the last lit render, held until the next render (one render per
+    /// submission: by then it was submitted), so no later build overwrites them first.
+    last_light: std::sync::Mutex<Option<std::sync::Arc<crate::light::LightEntry>>>,
 }
 
 /// The parts of the lit march compiled into a pipeline (`trace.wgsl`'s `LIT_*` constants):
@@ -204,7 +184,10 @@ fn trace_module(
 ) -> wgpu::ShaderModule {
     let flag = |on: bool| if on { "true" } else { "false" };
     let source = format!(
-        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
+        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
+        LIT_WGSL
+            .replace("{{LIT_GROUP}}", "3")
+            .replace("{{SHADING}}", "params.shading"),
         TRACE_WGSL
             .replace("{{TARGET_FORMAT}}", format)
             .replace("{{EMISSION}}", flag(emission))
@@ -347,6 +330,7 @@ impl Renderer {
             device: device.clone(),
             layouts,
             lit_variants: Default::default(),
+            last_light: std::sync::Mutex::new(None),
         })
     }
 
@@ -548,9 +532,12 @@ impl Renderer {
             );
             let diffusion = (settings.lighting.ms_model == MsModel::Diffusion)
                 .then(|| DiffusionInputs::of_settings(&grid, &self.xf, settings));
-            self.light
-                .record(&self.device, encoder, &self.vol.group, &[lp], &[diffusion])?
-                .0
+            let build =
+                self.light
+                    .prepare(&self.device, queue, &self.vol.group, &[lp], &[diffusion])?;
+            let group = build.read.clone();
+            *self.last_light.lock().expect("light") = Some(build);
+            group
         } else {
             self.light.empty_group.clone()
         };
@@ -565,8 +552,8 @@ impl Renderer {
                 trilinear,
                 // As the march's per-sample test, at the frame's largest value (a margin for
                 // f32 rounding: a variant with the near field draws the same without it).
-                near: params.lit[0] > 0.0
-                    && params.extinction * params.value_max * params.lit[1]
+                near: params.place.near[0] > 0.0
+                    && params.place.sun_cell[3] * params.value_max * params.place.near[1]
                         >= lit_near_depth(grid.cell) as f32 * (1.0 - 1e-4),
                 voxels: March::resolve(settings, self.vol.frame_max[frame]) == March::Voxels,
             }
@@ -623,17 +610,6 @@ impl Renderer {
         let vmax = self.vol.frame_max[frame];
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let inv = self.xf.inv_a;
-        // As `vdbcook_trace::Tracer::new`: the light in index space, extinction and albedo in f64.
-        let l = settings.lighting.light_dir.map(|c| c as f64);
-        let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
-        let light_index = self.xf.dir_to_index(l.map(|c| c / ln));
-        let extinction = settings.medium.absorb as f64 + settings.medium.scatter as f64;
-        let albedo = if extinction > 0.0 {
-            settings.medium.scatter as f64 / extinction
-        } else {
-            0.0
-        };
-        let c = settings.lighting.light_color;
         let grid = LightGrid::with_levels(
             self.vol.content[frame],
             settings.lighting.light_res,
@@ -641,27 +617,11 @@ impl Renderer {
         );
         // Emission from another channel: the modes' own emission is off (`emission.w = 0`) and
         // `channel_emission` draws it over the channel's box (as `vdbcook_trace::Tracer`).
-        let mut emit_box = None;
-        let emit_channel = match settings.medium.emission {
-            Some(e) if e.channel > 0 => {
-                let Some(ch) = self.vol.channels.get(e.channel - 1) else {
-                    return Err(RuntimeError::Setting(format!(
-                        "emission channel {} is not in the asset ({} channel(s))",
-                        e.channel,
-                        self.vol.channels.len() + 1
-                    )));
-                };
-                emit_box = if e.range[0] >= ch.background {
-                    ch.boxes[frame]
-                } else {
-                    Some(([0.0; 3], self.vol.extent))
-                };
-                e.channel as u32
-            }
-            _ => 0,
+        let (emit_channel, emit_box) = match settings.medium.emission {
+            Some(e) if e.channel > 0 => (e.channel as u32, self.vol.emission_box(&e, frame)?),
+            _ => (0, None),
         };
-        let lw = l.map(|c| (c / ln) as f32);
-        let (_, axis_len) = light_dirs(&self.xf, settings.lighting.light_dir, settings.medium.unit);
+        let frame_root = (frame * self.vol.root_len) as u32;
         let params = Params {
             eye_index: v4(eye),
             forward: v4(basis.forward),
@@ -671,74 +631,24 @@ impl Renderer {
             inv_a1: v4(inv[1]),
             inv_a2: v4(inv[2]),
             extent: v4(self.vol.extent),
-            light_index: v4(light_index),
-            light_color: [c[0], c[1], c[2], 0.0],
             content_lo: self.vol.content[frame].map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
             content_hi: self.vol.content[frame].map_or([0.0; 4], |b| v4(b.1)),
             width,
             height,
             mode,
-            frame_root: (frame * self.vol.root_len) as u32,
+            frame_root,
             absorb: settings.medium.absorb,
             cutoff: settings.integrator.cutoff,
             near: near as f32,
             far: far as f32,
             value_max: if vmax > 0.0 { vmax } else { 1.0 },
-            voxel_units: (settings.medium.unit == LengthUnit::Voxel) as u32,
             out_flags,
-            extinction: extinction as f32,
-            albedo: albedo as f32,
-            step: settings.integrator.step,
             shadow_step: settings.integrator.shadow_step,
             gain: settings.integrator.gain,
             spp: settings.integrator.spp,
             first_sample: settings.integrator.first_sample,
-            seed: settings.integrator.seed,
             emit_channel,
-            lv_lo: [grid.lo[0], grid.lo[1], grid.lo[2], grid.cell].map(|v| v as f32),
-            lv_dims: [
-                grid.dims[0],
-                grid.dims[1],
-                grid.dims[2],
-                match settings.lighting.ms_model {
-                    MsModel::Octaves => settings.lighting.ms_octaves,
-                    MsModel::Diffusion => 0,
-                },
-            ],
-            ms: [
-                settings.lighting.ms[0],
-                settings.lighting.ms[1],
-                settings.lighting.ms[2],
-                (settings.integrator.filter == Filter::Trilinear) as u32 as f32,
-            ],
-            sky: [
-                settings.lighting.sky[0],
-                settings.lighting.sky[1],
-                settings.lighting.sky[2],
-                sky_diffusion(
-                    albedo,
-                    settings.medium.phase_g,
-                    settings.medium.phase_w,
-                    settings.lighting.ms_sky,
-                ) as f32,
-            ],
-            phase: [
-                settings.medium.phase_g[0],
-                settings.medium.phase_g[1],
-                settings.medium.phase_w,
-                0.0,
-            ],
-            light_world: [lw[0], lw[1], lw[2], 0.0],
-            emission: settings.medium.emission.map_or([0.0; 4], |e| {
-                let own = (emit_channel == 0) as u32 as f32;
-                [e.range[0], e.range[1], e.intensity, own]
-            }),
-            emit_table: settings
-                .medium
-                .emission
-                .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
-                    blackbody_table(e.range)
-                }),
+            _pad0: 0,
             emit_lo: emit_box.map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
             emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1)),
             lod: [
@@ -752,13 +662,20 @@ impl Renderer {
                 // 1: the voxel march (`March::resolve`; trilinear density marches in steps).
                 (March::resolve(settings, vmax) == March::Voxels) as u32,
             ],
-            lit: [
-                grid.near_voxels(settings.lighting.sun_near) as f32,
-                (axis_len.into_iter().fold(f64::INFINITY, f64::min) * grid.cell) as f32,
-                DiffusionInputs::of_settings(&grid, &self.xf, settings).mean_cos as f32,
-                settings.lighting.near_scatter,
-            ],
-            lv_axis: [axis_len[0], axis_len[1], axis_len[2], 0.0].map(|v| v as f32),
+            shading: ShadingUniform::new(
+                &settings.medium,
+                &settings.lighting,
+                &settings.integrator,
+                emit_channel == 0,
+            ),
+            place: LitPlace::new(
+                &self.xf,
+                &settings.medium,
+                &settings.lighting,
+                1.0,
+                &[(&grid, 0, frame_root)],
+                0.0,
+            ),
         };
         Ok((params, grid))
     }
@@ -773,7 +690,10 @@ mod tests {
     fn params_mirror_the_wgsl() {
         assert_mirrors(
             &format!(
-                "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}",
+                "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
+                LIT_WGSL
+                    .replace("{{LIT_GROUP}}", "3")
+                    .replace("{{SHADING}}", "params.shading"),
                 TRACE_WGSL
                     .replace("{{TARGET_FORMAT}}", "rgba8unorm")
                     .replace("{{EMISSION}}", "true")
@@ -791,8 +711,6 @@ mod tests {
                 inv_a1,
                 inv_a2,
                 extent,
-                light_index,
-                light_color,
                 content_lo,
                 content_hi,
                 width,
@@ -804,30 +722,18 @@ mod tests {
                 near,
                 far,
                 value_max,
-                voxel_units,
                 out_flags,
-                extinction,
-                albedo,
-                step,
                 shadow_step,
                 gain,
                 spp,
                 first_sample,
-                seed,
                 emit_channel,
-                lv_lo,
-                lv_dims,
-                ms,
-                sky,
-                phase,
-                light_world,
-                emission,
-                emit_table,
+                _pad0,
                 emit_lo,
                 emit_hi,
                 lod,
-                lit,
-                lv_axis,
+                shading,
+                place,
             }),
         );
     }

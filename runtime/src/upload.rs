@@ -1126,6 +1126,34 @@ pub(crate) struct Bound {
     pub channels: Vec<ChannelBoxes>,
 }
 
+impl Bound {
+    /// The cell box of `frame` where emission `e` may glow (`None`: nowhere): its channel's
+    /// voxels above the channel's background, or everywhere when the background glows itself
+    /// (`vdbcook_trace::Tracer` takes the same box); the density's content box for channel 0
+    /// (emission ranges start at 0 K or above, and the content box holds every value above 0).
+    pub fn emission_box(
+        &self,
+        e: &vdbcook_scene::Emission,
+        frame: usize,
+    ) -> crate::Result<Option<([f64; 3], [f64; 3])>> {
+        if e.channel == 0 {
+            return Ok(self.content[frame]);
+        }
+        let Some(ch) = self.channels.get(e.channel - 1) else {
+            return Err(crate::RuntimeError::Setting(format!(
+                "emission channel {} is not in the asset ({} channel(s))",
+                e.channel,
+                self.channels.len() + 1
+            )));
+        };
+        Ok(if e.range[0] >= ch.background {
+            ch.boxes[frame]
+        } else {
+            Some(([0.0; 3], self.extent))
+        })
+    }
+}
+
 /// A compute-stage buffer binding of `ty` at `binding` (no dynamic offset, no minimum size).
 pub(crate) fn buffer_entry(
     binding: u32,

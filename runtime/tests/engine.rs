@@ -187,9 +187,17 @@ impl Gpu {
             color: &f.color_view,
             depth: depth.map(|_| &f.depth_view),
         };
-        drawer
-            .record(&self.device, &mut enc, &target, view, instances, medium)
-            .expect("record");
+        let _held = drawer
+            .draw(
+                &self.device,
+                &self.queue,
+                &mut enc,
+                &target,
+                view,
+                instances,
+                medium,
+            )
+            .expect("draw");
         self.queue.submit([enc.finish()]);
         self.read(f)
     }
@@ -697,15 +705,16 @@ fn lit_instances_match_the_cpu_lit_mode() {
         depth: None,
     };
     let e = drawer
-        .record(
+        .draw(
             &gpu.device,
+            &gpu.queue,
             &mut enc,
             &target,
             &view,
             &[Instance::default()],
             &bad,
         )
-        .unwrap_err();
+        .expect_err("refused");
     assert!(matches!(e, RuntimeError::Setting(_)), "{e}");
 }
 
@@ -755,8 +764,22 @@ fn overlapping_instances_in_one_draw_multiply_transmittances() {
     assert_matches("three overlapping instances", &g, &cpu, TOL);
 }
 
+/// Draws of two volumes, flat and lit, prepared and recorded into one encoder composite as they
+/// do one submission each: every prepared draw keeps its own uniforms and light volumes (the lit
+/// instances sit at different frames, so each draw has a build of its own).
 #[test]
 fn many_draws_in_one_encoder_equal_one_submission_each() {
+    many_draws(Shading::default());
+    many_draws(Shading {
+        lighting: Some(Lighting {
+            light_res: 16,
+            ..Default::default()
+        }),
+        ..Default::default()
+    });
+}
+
+fn many_draws(medium: Shading) {
     let Some(gpu) = Gpu::new("many_draws_in_one_encoder_equal_one_submission_each") else {
         return;
     };
@@ -765,7 +788,6 @@ fn many_draws_in_one_encoder_equal_one_submission_each() {
     let b = cloud(PayloadFormat::Unorm8);
     let (_va, mut da) = setup(&gpu, &a);
     let (_vb, mut db) = setup(&gpu, &b);
-    let medium = Shading::default();
     let (view, cam) = framing_view(&a);
     let z = Some(ndc_depth(&view.proj, centre_distance(&cam)));
     let draws: Vec<(bool, Instance)> = (0..4)
@@ -792,17 +814,29 @@ fn many_draws_in_one_encoder_equal_one_submission_each() {
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     gpu.clear(&mut enc, &f1, BG, z);
     let (c, d) = target(&f1);
+    let mut held = Vec::new();
     for (first, inst) in &draws {
         let drawer = if *first { &mut da } else { &mut db };
         let t = DrawTarget {
             color: &c,
             depth: Some(&d),
         };
-        drawer
-            .record(&gpu.device, &mut enc, &t, &view, &[*inst], &medium)
-            .unwrap();
+        held.push(
+            drawer
+                .draw(
+                    &gpu.device,
+                    &gpu.queue,
+                    &mut enc,
+                    &t,
+                    &view,
+                    &[*inst],
+                    &medium,
+                )
+                .unwrap(),
+        );
     }
     gpu.queue.submit([enc.finish()]);
+    drop(held);
     let one = gpu.read(&f1);
     // One submission each.
     let f2 = gpu.frame();
@@ -817,8 +851,16 @@ fn many_draws_in_one_encoder_equal_one_submission_each() {
             color: &c,
             depth: Some(&d),
         };
-        drawer
-            .record(&gpu.device, &mut enc, &t, &view, &[*inst], &medium)
+        let _held = drawer
+            .draw(
+                &gpu.device,
+                &gpu.queue,
+                &mut enc,
+                &t,
+                &view,
+                &[*inst],
+                &medium,
+            )
             .unwrap();
         gpu.queue.submit([enc.finish()]);
     }
@@ -996,7 +1038,15 @@ fn bad_inputs_are_errors() {
     );
     let mut record = |target: DrawTarget, view: &View, insts: &[Instance]| {
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        drawer.record(&gpu.device, &mut enc, &target, view, insts, &medium)
+        drawer.draw(
+            &gpu.device,
+            &gpu.queue,
+            &mut enc,
+            &target,
+            view,
+            insts,
+            &medium,
+        )
     };
     let with_depth = |d| DrawTarget {
         color: &f.color_view,
@@ -1141,8 +1191,16 @@ fn srgb_8_bit_targets_blend_in_linear_space() {
         color: &cv,
         depth: None,
     };
-    drawer
-        .record(&gpu.device, &mut enc, &target, &view, &inst, &medium)
+    let _held = drawer
+        .draw(
+            &gpu.device,
+            &gpu.queue,
+            &mut enc,
+            &target,
+            &view,
+            &inst,
+            &medium,
+        )
         .unwrap();
     // 160 texels · 4 bytes = 640: rows padded to 768 for the copy.
     let row = 768u32;
@@ -1208,6 +1266,117 @@ fn srgb_8_bit_targets_blend_in_linear_space() {
 /// instance on the moved asset, multiplied: at a lattice of world points around, inside and under
 /// two instances (one translated at frame 0, one rotated and scaled in a crossfade at time 1.5,
 /// whose optical depths lerp).
+/// `record` only records: it takes no device, so it cannot create a buffer, a bind group or a
+/// pipeline (a signature that gained one would not compile here); `prepare` makes what it
+/// binds.
+#[test]
+fn record_takes_no_device_and_creates_nothing() {
+    let _: fn(&VolumeDrawer, &mut wgpu::CommandEncoder, &vdbcook_runtime::PreparedDraw) =
+        VolumeDrawer::record;
+}
+
+/// A lit draw whose encoder is dropped unsubmitted leaves nothing unbuilt: the next draw of the
+/// same instances (the same light volumes) draws what a fresh drawer draws. (Before the light
+/// volumes were built in the caller's encoder, and a cache hit after a dropped one read
+/// volumes never built: 4,375 wrong pixels in an engine client.)
+#[test]
+fn a_dropped_encoder_leaves_the_next_lit_draw_right() {
+    let Some(gpu) = Gpu::new("a_dropped_encoder_leaves_the_next_lit_draw_right") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let (_vol2, mut fresh) = setup(&gpu, &asset);
+    let medium = Shading {
+        lighting: Some(Lighting {
+            light_res: 20,
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    let inst = [Instance::default()];
+    {
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let target = DrawTarget {
+            color: &f.color_view,
+            depth: None,
+        };
+        let d = drawer
+            .draw(
+                &gpu.device,
+                &gpu.queue,
+                &mut enc,
+                &target,
+                &view,
+                &inst,
+                &medium,
+            )
+            .unwrap();
+        drop(enc);
+        drop(d);
+    }
+    let again = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, None);
+    let want = gpu.draw(&mut fresh, &f, &view, &inst, &medium, BG, None);
+    assert!(
+        want.chunks(4).any(|p| (p[0] as f64 - BG[0]).abs() > 0.05),
+        "the cloud shows"
+    );
+    assert_eq!(again, want);
+}
+
+/// The draw covers the pixels its instances can reach and no more: a small instance far off
+/// costs a small dispatch (`PreparedDraw::covered`), every pixel it changes lies inside it, and
+/// the image is what a draw over the whole viewport gives (the moved instance's CPU image
+/// agrees in `moved_and_jittered_instances_match_the_cpu`).
+#[test]
+fn a_small_instance_covers_a_small_rectangle() {
+    let Some(gpu) = Gpu::new("a_small_instance_covers_a_small_rectangle") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    let medium = Shading::default();
+    // A quarter-size copy shifted toward a corner of the view.
+    let inst = [Instance::at(Affine3A::from_scale_rotation_translation(
+        Vec3::splat(0.25),
+        Quat::IDENTITY,
+        Vec3::new(-20.0, 12.0, 0.0),
+    ))];
+    let target = DrawTarget {
+        color: &f.color_view,
+        depth: None,
+    };
+    let d = drawer
+        .prepare(&gpu.device, &gpu.queue, &target, &view, &inst, &medium)
+        .unwrap();
+    let [x, y, w, h] = d.covered();
+    assert!(
+        (w * h) as f64 <= 0.15 * (W * H) as f64,
+        "covered {w}x{h} of {W}x{H}"
+    );
+    drop(d);
+    let g = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, None);
+    let mut changed = 0;
+    for py in 0..H {
+        for px in 0..W {
+            let p = (py * W + px) as usize;
+            let moved = (0..3).any(|c| (g[4 * p + c] as f64 - BG[c]).abs() > 1e-3);
+            if moved {
+                changed += 1;
+                assert!(
+                    px >= x && px < x + w && py >= y && py < y + h,
+                    "pixel ({px}, {py}) changed outside the covered {x},{y} {w}x{h}"
+                );
+            }
+        }
+    }
+    assert!(changed > 20, "the instance shows ({changed} pixels)");
+}
+
 #[test]
 fn sun_shadows_match_the_cpu() {
     let Some(gpu) = Gpu::new("sun_shadows_match_the_cpu") else {
@@ -1240,9 +1409,8 @@ fn sun_shadows_match_the_cpu() {
         },
     ];
     // Without lighting: refused.
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
     let e = drawer
-        .sun_shadows(&gpu.device, &mut enc, &instances, &Shading::default())
+        .sun_shadows(&gpu.device, &gpu.queue, &instances, &Shading::default())
         .err()
         .expect("no lighting, no shadows");
     assert!(matches!(e, RuntimeError::Setting(_)), "{e}");
@@ -1327,9 +1495,8 @@ fn sun_shadows_match_the_cpu() {
         .collect();
 
     // The GPU: a compute shader over the points, the shadows bound at group 0.
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
     let shadows = drawer
-        .sun_shadows(&gpu.device, &mut enc, &instances, &medium)
+        .sun_shadows(&gpu.device, &gpu.queue, &instances, &medium)
         .unwrap();
     assert_eq!(shadows.casters, 2);
     let source = format!(
@@ -1340,8 +1507,6 @@ fn sun_shadows_match_the_cpu() {
          out_t[id.x] = vdb_sun_transmittance(pts[id.x].xyz);\n}}\n",
         vdbcook_runtime::shadow_wgsl(0)
     );
-    // The light volumes' passes go first, in their own submission.
-    gpu.queue.submit([enc.finish()]);
     let got = vdbcook_testkit::gpu::eval_points(
         &gpu.device,
         &gpu.queue,

@@ -607,7 +607,46 @@ impl Tracer<'_> {
             return self.trace(eye, dir, pixel, scratch);
         }
         let ray = self.primary_ray(eye, dir);
-        self.lit(ray, dir, ray.clip(self.extent), t_max, pixel, scratch)
+        let mut out = self.lit(ray, dir, ray.clip(self.extent), t_max, pixel, scratch);
+        if let Some(ce) = &self.channel_emission {
+            let e = self.emission_of_channel(ce, &ray, self.extinction, t_max, scratch);
+            for (o, e) in out.rgba.iter_mut().zip(e) {
+                *o += e as f32;
+            }
+        }
+        out
+    }
+
+    /// The density mode's emission along the ray from `eye` up to world distance `t_max`,
+    /// voxel by voxel behind the density's optical depth with `absorb` (what
+    /// [`Tracer::optical_depth`] cuts at a depth leaves out): the channel of
+    /// `settings.medium.emission`, the rendered one (its values above 0, the content box)
+    /// included. For the rendered channel it is the density walk's own emission, each voxel
+    /// summed apart instead of a constant span at once (equal up to rounding). Nothing
+    /// without emission.
+    pub fn emission_until(
+        &self,
+        eye: [f64; 3],
+        dir: [f64; 3],
+        t_max: f64,
+        scratch: &mut Scratch,
+    ) -> [f64; 3] {
+        let ray = self.primary_ray(eye, dir);
+        let absorb = self.settings.medium.absorb as f64;
+        let own;
+        let ce = match (&self.channel_emission, self.settings.medium.emission) {
+            (Some(ce), _) => ce,
+            (None, Some(e)) => {
+                own = ChannelEmission {
+                    emission: e,
+                    channel: 0,
+                    bbox: vdbcook_scene::content_box(self.grid.asset, self.settings.output.frame),
+                };
+                &own
+            }
+            (None, None) => return [0.0; 3],
+        };
+        self.emission_of_channel(ce, &ray, absorb, t_max, scratch)
     }
 }
 
