@@ -205,6 +205,144 @@ fn main() {
             println!("| {n} | {w}×{h} | {g} | {per} | {:.1} |", median(wall));
         }
     }
+    coverage(
+        &device,
+        &queue,
+        &mut drawer,
+        timer.as_ref(),
+        (centre, radius),
+    );
+}
+
+/// Cost follows screen coverage: at 640×360, one flat instance filling the view against the same
+/// instance shrunk to cover about 1% of the pixels, each timed as above; the dispatch and the
+/// composite cover only the pixels the instance's projected box reaches
+/// (`PreparedDraw::covered`).
+fn coverage(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    drawer: &mut VolumeDrawer,
+    timer: Option<&GpuTimer>,
+    (centre, radius): (Vec3, f32),
+) {
+    let (w, h) = (640u32, 360u32);
+    let tex = |format, usage| {
+        device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some("engine bench coverage"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+    };
+    let color = tex(
+        drawer.color_format(),
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    let depth = tex(
+        wgpu::TextureFormat::Depth32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+    );
+    let fov = 40f32.to_radians();
+    // Close enough that the box overflows the view: every pixel covered.
+    let dist = 0.6 * radius / (0.5 * fov).tan();
+    let view = View::look_at(
+        centre + Vec3::new(0.0, 0.0, dist),
+        centre,
+        Vec3::Y,
+        fov,
+        w as f32 / h as f32,
+        0.1,
+        (w, h),
+    )
+    .expect("view");
+    let medium = Shading::default();
+    let target = DrawTarget {
+        color: &color,
+        depth: Some(&depth),
+    };
+    // Scaled about the asset's centre.
+    let scaled = |scale: f32| {
+        Instance::at(
+            Affine3A::from_translation(centre)
+                * Affine3A::from_scale(Vec3::splat(scale))
+                * Affine3A::from_translation(-centre),
+        )
+    };
+    let share = |scale: f32, drawer: &mut VolumeDrawer| {
+        let p = drawer
+            .prepare(device, queue, &target, &view, &[scaled(scale)], &medium)
+            .expect("prepare");
+        let c = p.covered();
+        (c[2] * c[3]) as f64 / (w * h) as f64
+    };
+    // The scale whose covered rectangle is 1% of the pixels (bisection on log scale).
+    let (mut lo, mut hi) = (1e-3f32, 1.0f32);
+    for _ in 0..20 {
+        let mid = (lo * hi).sqrt();
+        if share(mid, drawer) < 0.01 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    println!();
+    println!("| instance | covered pixels | GPU ms (timestamps) | submit+wait ms |");
+    println!("|---|---:|---:|---:|");
+    let mut rows = Vec::new();
+    for (name, scale) in [("full screen", 1.0f32), ("1% of the screen", hi)] {
+        let inst = scaled(scale);
+        let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+        let mut covered = [0u32; 4];
+        for run in 0..=RUNS {
+            let start = Instant::now();
+            let mut enc = device.create_command_encoder(&Default::default());
+            clear(&mut enc, &color, &depth, 0.0);
+            let prepared = drawer
+                .prepare(device, queue, &target, &view, &[inst], &medium)
+                .expect("prepare");
+            covered = prepared.covered();
+            if let Some(t) = timer {
+                t.begin(&mut enc);
+            }
+            drawer.record(&mut enc, &prepared);
+            if let Some(t) = timer {
+                t.end(&mut enc);
+            }
+            queue.submit([enc.finish()]);
+            device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .expect("poll");
+            let elapsed = start.elapsed().as_secs_f64() * 1e3;
+            let ms = timer.and_then(|t| t.read_ms(device));
+            if run > 0 {
+                wall.push(elapsed);
+                gpu.extend(ms);
+            }
+        }
+        let share = (covered[2] * covered[3]) as f64 / (w * h) as f64;
+        let g = (!gpu.is_empty()).then(|| median(gpu));
+        println!(
+            "| {name} | {:.1}% | {} | {:.1} |",
+            100.0 * share,
+            g.map_or("–".into(), |g| format!("{g:.2}")),
+            median(wall.clone())
+        );
+        rows.push((g, median(wall)));
+    }
+    if let (Some(full), Some(small)) = (rows[0].0, rows[1].0) {
+        println!("1% / full screen GPU time: {:.3}", small / full);
+    }
+    println!("1% / full screen wall time: {:.3}", rows[1].1 / rows[0].1);
 }
 
 /// Clears the colour target and sets the depth buffer to the plane `depth`.
