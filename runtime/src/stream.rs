@@ -1,6 +1,9 @@
 //! Streaming under a byte budget: a [`StreamingVolume`] keeps a *window* of consecutive frames
 //! on the GPU — the bricks they use in a fixed pool of slots sized from the budget, and the
-//! window's topology — and moving the window writes only the bricks it newly uses.
+//! window's topology (every level of detail of its frames, every channel) — and moving the
+//! window writes only the bricks it newly uses. It is the one uploader: [`GpuVolume::upload`]
+//! is a pool holding every brick with the whole asset as its window
+//! ([`StreamingVolume::upload_whole`]).
 //!
 //! # How the unchanged `volume.wgsl` reads a streamed pool
 //! The shader reads brick `b` at a place derived from `b` alone (`vdb_brick_voxel`: its format
@@ -57,7 +60,8 @@ pub struct WindowStats {
 
 /// A window of an asset's frames on the GPU under a byte budget (see the module docs).
 pub struct StreamingVolume {
-    asset: Arc<Asset>,
+    /// The asset streamed (`None` for the whole-asset upload, which borrows it once).
+    asset: Option<Arc<Asset>>,
     budget: u64,
     /// Bytes allocated for the pool (slots and their 16 bytes of ranges).
     pool_bytes: u64,
@@ -89,6 +93,8 @@ pub struct StreamingVolume {
     brick_box_known: Vec<bool>,
     /// Per asset frame, once computed: stored box and content box.
     frame_boxes: Vec<Option<FrameBoxes>>,
+    /// Channels 1.. of the asset: background and per-frame boxes above it (all frames).
+    channel_boxes: Vec<ChannelBoxes>,
     window: (usize, usize),
     stats: WindowStats,
     volume: Option<GpuVolume>,
@@ -109,12 +115,16 @@ struct WindowUse {
 }
 
 fn window_use(asset: &Asset, first: usize, last: usize) -> WindowUse {
+    let nch = asset.channel_count();
     let mut seen = HashSet::new();
     let mut nodes = Vec::new();
-    for f in first..=last {
-        for &e in asset.frame_roots(f) {
-            if e != EMPTY && e & TILE_BIT == 0 && seen.insert(e) {
-                nodes.push(e);
+    // Every level of detail of the window's frames (level 0 first), as the topology lays them.
+    for level in 0..asset.level_count() {
+        for f in first..=last {
+            for &e in asset.frame_roots(asset.lod_set(f, level)) {
+                if e != EMPTY && e & TILE_BIT == 0 && seen.insert(e) {
+                    nodes.push(e);
+                }
             }
         }
     }
@@ -122,8 +132,8 @@ fn window_use(asset: &Asset, first: usize, last: usize) -> WindowUse {
     let mut refs = 0;
     for &n in &nodes {
         let (lo, count) = node_refs(asset, n);
-        refs += count;
-        for &r in &asset.l3_refs[lo..lo + count] {
+        refs += count * nch;
+        for &r in &asset.l3_refs[lo * nch..(lo + count) * nch] {
             if r != EMPTY && r & TILE_BIT == 0 {
                 bricks.insert(r);
             }
@@ -136,7 +146,8 @@ fn window_use(asset: &Asset, first: usize, last: usize) -> WindowUse {
     }
 }
 
-/// First ref and ref count of L2 node `n`.
+/// First leaf slot and slot count of L2 node `n` (its refs: `channels` per slot from
+/// `first · channels`).
 fn node_refs(asset: &Asset, n: u32) -> (usize, usize) {
     let count = asset
         .l2_mask(n as usize)
@@ -146,10 +157,16 @@ fn node_refs(asset: &Asset, n: u32) -> (usize, usize) {
     (asset.l2_base[n as usize] as usize, count)
 }
 
-/// Topology words of a window, without the per-slot ranges.
+/// Topology words of a window, without the per-slot ranges: the roots of every level, the
+/// nodes (masks, base, prefixes, a range per channel), the refs, the tiles, the channels'
+/// backgrounds.
 fn topology_words(asset: &Asset, frames: usize, u: &WindowUse) -> u64 {
-    (frames * asset.root_len() + u.nodes.len() * (2 * L2_WORDS + 1 + L2_WORDS + 2) + u.refs) as u64
+    let nch = asset.channel_count();
+    (asset.level_count() * frames * asset.root_len()
+        + u.nodes.len() * (2 * L2_WORDS + 1 + L2_WORDS + 2 * nch)
+        + u.refs) as u64
         + asset.tiles.len() as u64
+        + if nch > 1 { nch as u64 } else { 0 }
 }
 
 /// Bytes of a slot's ranges (`brick_ranges` and `brick_quant` pairs) in the topology.
@@ -181,24 +198,7 @@ impl StreamingVolume {
         options: UploadOptions,
     ) -> Result<StreamingVolume> {
         let (first, last) = check_window(&asset, &window)?;
-        if asset.channel_count() > 1 {
-            return Err(RuntimeError::Unsupported(format!(
-                "streaming a multi-channel asset ({} channels) is not supported yet; upload it \
-                 whole with GpuVolume::upload",
-                asset.channel_count()
-            )));
-        }
-        let limits = device.limits();
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        if limits.max_storage_buffers_per_shader_stage < 1 + PAYLOAD_BINDINGS as u32
-            || limits.max_sampled_textures_per_shader_stage < TEXTURE_BINDINGS
-        {
-            return Err(RuntimeError::Limits(
-                "too few storage buffer or texture bindings per stage".into(),
-            ));
-        }
+        let max_binding = check_limits(device)?;
         let counts = asset.header.brick_counts;
         let frames = asset.frame_count();
         // Per format, the most bricks one frame uses.
@@ -263,11 +263,34 @@ impl StreamingVolume {
         };
 
         let caps = pool.caps;
+        let mut s = Self::build(device, &asset, caps, &pool.plan, budget, first)?;
+        s.load(device, queue, &asset, first, last)?;
+        s.asset = Some(asset);
+        log::info!(
+            "vdbcook: streaming pool for a budget of {budget} bytes: slots per format {caps:?} \
+             ({} bytes), {}",
+            s.pool_bytes,
+            s.volume().describe()
+        );
+        Ok(s)
+    }
+
+    /// The pool of `caps` slots per format laid out by `plan` (its buffers and textures empty),
+    /// under `budget` bytes, its window not loaded yet (`load` loads it).
+    fn build(
+        device: &wgpu::Device,
+        asset: &Asset,
+        caps: [u32; 5],
+        plan: &FullPlan,
+        budget: u64,
+        first: usize,
+    ) -> Result<StreamingVolume> {
+        let last = first;
+        let frames = asset.frame_count();
         let mut firsts = [0u32; 5];
         for i in 1..5 {
             firsts[i] = firsts[i - 1] + caps[i - 1];
         }
-        let plan = &pool.plan;
         let mut groups = [GroupInfo::default(); GROUPS];
         let mut buffered_before = 0u32;
         for slot in 0..GROUPS {
@@ -340,7 +363,7 @@ impl StreamingVolume {
             brick_words * 4
         });
         let total_slots = firsts[4] + caps[4];
-        let mut s = StreamingVolume {
+        let s = StreamingVolume {
             budget,
             pool_bytes,
             plan_textures: plan.textures,
@@ -363,6 +386,7 @@ impl StreamingVolume {
             brick_boxes: vec![None; asset.brick_count()],
             brick_box_known: vec![false; asset.brick_count()],
             frame_boxes: vec![None; frames],
+            channel_boxes: ChannelBoxes::of(asset),
             window: (first, first),
             stats: WindowStats {
                 window: (first, last),
@@ -373,16 +397,74 @@ impl StreamingVolume {
                 evicted: 0,
             },
             volume: None,
-            asset,
+            asset: None,
         };
-        s.load(device, queue, first, last)?;
-        log::info!(
-            "vdbcook: streaming pool for a budget of {budget} bytes: slots per format {caps:?} \
-             ({} bytes), {}",
-            s.pool_bytes,
-            s.volume().describe()
-        );
         Ok(s)
+    }
+
+    /// Every frame of `asset` as the one window of a pool holding every brick: what
+    /// [`GpuVolume::upload_with`] uploads (one uploader: the whole-asset volume is the
+    /// streamed volume whose window is the whole asset). Layout: the forced one, or the first of
+    /// [`Layout::automatic_order`] the device's features and limits take.
+    pub(crate) fn upload_whole(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        asset: &Asset,
+        options: UploadOptions,
+    ) -> Result<GpuVolume> {
+        let max_binding = check_limits(device)?;
+        let counts = asset.header.brick_counts;
+        if counts.iter().sum::<u64>() > u32::MAX as u64 / 2 {
+            return Err(RuntimeError::Limits(format!(
+                "{} bricks",
+                counts.iter().sum::<u64>()
+            )));
+        }
+        let plan = match options.force {
+            Some(layout) => plan_layout(device, &counts, layout, max_binding).map_err(|e| {
+                RuntimeError::Limits(format!("forced layout {}: {e}", layout.name()))
+            })?,
+            None => {
+                let mut refusals = Vec::new();
+                let mut chosen = None;
+                for layout in Layout::automatic_order(device) {
+                    match plan_layout(device, &counts, layout, max_binding) {
+                        Ok(p) => {
+                            chosen = Some(p);
+                            break;
+                        }
+                        Err(e) => refusals.push(format!("{}: {e}", layout.name())),
+                    }
+                }
+                match chosen {
+                    Some(p) => {
+                        if !refusals.is_empty() {
+                            log::info!("vdbcook: layouts passed over: {}", refusals.join("; "));
+                        }
+                        p
+                    }
+                    None => {
+                        return Err(RuntimeError::Limits(format!(
+                            "no payload layout fits: {}",
+                            refusals.join("; ")
+                        )))
+                    }
+                }
+            }
+        };
+        let caps = counts.map(|c| c as u32);
+        let last = asset.frame_count() - 1;
+        let mut s = Self::build(device, asset, caps, &plan, u64::MAX, 0)?;
+        s.load(device, queue, asset, 0, last)?;
+        let volume = s.volume.take().expect("loaded");
+        log::info!(
+            "vdbcook: uploaded {} frames, {} bricks: {} (device BC features: {:?})",
+            asset.frame_count(),
+            asset.brick_count(),
+            volume.describe(),
+            device.features() & OPTIONAL_FEATURES
+        );
+        Ok(volume)
     }
 
     /// Makes `window` (first and last frame) resident: evicts the bricks it does not use and
@@ -393,8 +475,9 @@ impl StreamingVolume {
         queue: &wgpu::Queue,
         window: RangeInclusive<usize>,
     ) -> Result<WindowStats> {
-        let (first, last) = check_window(&self.asset, &window)?;
-        self.load(device, queue, first, last)?;
+        let asset = Arc::clone(self.asset.as_ref().expect("a stream holds its asset"));
+        let (first, last) = check_window(&asset, &window)?;
+        self.load(device, queue, &asset, first, last)?;
         Ok(self.stats.clone())
     }
 
@@ -448,11 +531,11 @@ impl StreamingVolume {
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
+        asset: &Asset,
         first: usize,
         last: usize,
     ) -> Result<()> {
-        let asset = Arc::clone(&self.asset);
-        let u = window_use(&asset, first, last);
+        let u = window_use(asset, first, last);
         // Checks first: slots per format, topology bytes.
         let mut need = [0u32; 5];
         for &b in &u.bricks {
@@ -471,7 +554,7 @@ impl StreamingVolume {
             }
         }
         let total_slots = self.slot_brick.len() as u64;
-        let topo_bytes = topology_words(&asset, last - first + 1, &u) * 4
+        let topo_bytes = topology_words(asset, last - first + 1, &u) * 4
             + total_slots * SLOT_RANGE_BYTES
             + INFO_BYTES;
         let topo_room = self.budget - self.pool_bytes + total_slots * SLOT_RANGE_BYTES;
@@ -532,8 +615,8 @@ impl StreamingVolume {
         for f in first..=last {
             if self.frame_boxes[f].is_none() {
                 self.frame_boxes[f] = Some(FrameBoxes {
-                    stored: frame_box(&asset, f, &self.brick_boxes),
-                    content: vdbcook_scene::content_box(&asset, f),
+                    stored: frame_box(asset, f, &self.brick_boxes),
+                    content: vdbcook_scene::content_box(asset, f),
                 });
             }
         }
@@ -544,14 +627,17 @@ impl StreamingVolume {
             node_index.insert(n, i as u32);
         }
         let mut topo: Vec<u32> = Vec::with_capacity((topo_bytes / 4) as usize);
-        for f in first..=last {
-            topo.extend(asset.frame_roots(f).iter().map(|&e| {
-                if e == EMPTY || e & TILE_BIT != 0 {
-                    e
-                } else {
-                    node_index[&e]
-                }
-            }));
+        // Level k of window frame i at root set i + k·frames (`GpuVolume::levels`).
+        for level in 0..asset.level_count() {
+            for f in first..=last {
+                topo.extend(asset.frame_roots(asset.lod_set(f, level)).iter().map(|&e| {
+                    if e == EMPTY || e & TILE_BIT != 0 {
+                        e
+                    } else {
+                        node_index[&e]
+                    }
+                }));
+            }
         }
         let off_masks = topo.len();
         for &n in &u.nodes {
@@ -566,7 +652,7 @@ impl StreamingVolume {
         let mut base = 0u32;
         for &n in &u.nodes {
             topo.push(base);
-            base += node_refs(&asset, n).1 as u32;
+            base += node_refs(asset, n).1 as u32;
         }
         let off_prefix = topo.len();
         for &n in &u.nodes {
@@ -577,21 +663,28 @@ impl StreamingVolume {
                     .map(|&p| p as u32),
             );
         }
+        let nch = asset.channel_count();
         let off_l2_ranges = topo.len();
         for &n in &u.nodes {
-            let r = asset.l2_ranges[n as usize];
-            topo.extend([r[0].to_bits(), r[1].to_bits()]);
+            for c in 0..nch {
+                let r = asset.l2_range(n as usize, c);
+                topo.extend([r[0].to_bits(), r[1].to_bits()]);
+            }
         }
         let off_refs = topo.len();
         for &n in &u.nodes {
-            let (lo, count) = node_refs(&asset, n);
-            topo.extend(asset.l3_refs[lo..lo + count].iter().map(|&r| {
-                if r == EMPTY || r & TILE_BIT != 0 {
-                    r
-                } else {
-                    self.slot_of[&r]
-                }
-            }));
+            let (lo, count) = node_refs(asset, n);
+            topo.extend(
+                asset.l3_refs[lo * nch..(lo + count) * nch]
+                    .iter()
+                    .map(|&r| {
+                        if r == EMPTY || r & TILE_BIT != 0 {
+                            r
+                        } else {
+                            self.slot_of[&r]
+                        }
+                    }),
+            );
         }
         let off_tiles = topo.len();
         topo.extend(asset.tiles.iter().map(|t| t.to_bits()));
@@ -612,6 +705,10 @@ impl StreamingVolume {
         topo.extend(per_slot(&asset.brick_ranges));
         let off_brick_quant = topo.len();
         topo.extend(per_slot(&asset.brick_quant));
+        let off_channel_bg = topo.len();
+        if nch > 1 {
+            topo.extend((0..nch).map(|c| asset.header.channel_background(c).to_bits()));
+        }
         if topo.is_empty() {
             topo.push(0);
         }
@@ -622,7 +719,7 @@ impl StreamingVolume {
 
         let frames = last - first + 1;
         let info = VolumeInfo::new(
-            &asset,
+            asset,
             [
                 off_masks,
                 off_base,
@@ -632,8 +729,7 @@ impl StreamingVolume {
                 off_tiles,
                 off_brick_ranges,
                 off_brick_quant,
-                // No channel backgrounds: a streamed asset has one channel (`new` refuses more).
-                off_brick_quant,
+                off_channel_bg,
             ],
             self.buffers.bricks_per_buffer(),
             self.buffers.code(),
@@ -704,18 +800,22 @@ impl StreamingVolume {
                     .collect(),
             },
             frames,
-            levels: vdbcook_scene::LevelChain::NONE,
+            levels: vdbcook_scene::LevelChain::of(asset),
             root_len: asset.root_len(),
             root_dims: asset.header.root_dims,
             index_to_world: asset.header.index_to_world,
             bboxes: boxes.iter().map(|b| b.stored).collect(),
             content: boxes.iter().map(|b| b.content).collect(),
-            frame_max: asset.frame_ranges[first..=last]
-                .iter()
-                .map(|r| r[1])
-                .collect(),
+            frame_max: (first..=last).map(|f| asset.frame_range(f, 0)[1]).collect(),
             gpu_bytes: self.pool_bytes - total_slots * SLOT_RANGE_BYTES + topo_bytes,
-            channels: Vec::new(),
+            channels: self
+                .channel_boxes
+                .iter()
+                .map(|c| ChannelBoxes {
+                    background: c.background,
+                    boxes: c.boxes[first..=last].to_vec(),
+                })
+                .collect(),
         });
         self.window = (first, last);
         self.stats = WindowStats {

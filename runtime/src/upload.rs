@@ -330,10 +330,6 @@ fn brick_box(values: &[f32; BRICK_VOXELS], background: f32) -> Option<([u8; 3], 
     (lo[0] < hi[0]).then_some((lo, hi))
 }
 
-fn words_of_f32(v: &[[f32; 2]]) -> impl Iterator<Item = u32> + '_ {
-    v.iter().flat_map(|p| [p[0].to_bits(), p[1].to_bits()])
-}
-
 /// A texture group's geometry before it exists: texel format, bytes per storage unit (a BC
 /// block or a texel), unit edge in texels (4 for BC, 1 otherwise), slices per brick.
 #[derive(Debug, Clone, Copy)]
@@ -473,73 +469,6 @@ fn brick_units(plan: &Plan, format: PayloadFormat, bytes: &[u8], out: &mut Vec<u
         }
         (f, _) => unreachable!("{} is not a texture format", f.name()),
     }
-}
-
-/// Creates the texture of `plan` and writes every brick of its format, one tile layer at a time.
-fn create_group_texture(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    asset: &Asset,
-    plan: &Plan,
-    first_brick: u32,
-) -> wgpu::TextureView {
-    let [w, h, _] = plan.size();
-    let (texture, view) = empty_group_texture(device, plan, "vdbcook brick texture");
-    let ud = plan.unit_dim as usize;
-    let (units_x, units_y) = (w as usize / ud, h as usize / ud);
-    let tile_units = 8 / ud;
-    let slices = plan.slices as usize;
-    let row_bytes = units_x * plan.unit_bytes;
-    let [tx, ty, tz] = plan.tiles.map(|t| t as usize);
-    let mut layer = vec![0u8; row_bytes * units_y * slices];
-    let mut units = Vec::new();
-    for cz in 0..tz {
-        layer.fill(0);
-        for cy in 0..ty {
-            for cx in 0..tx {
-                let local = (cz * ty + cy) * tx + cx;
-                if local >= plan.bricks as usize {
-                    continue;
-                }
-                let (format, bytes) = asset.brick_bytes(first_brick + local as u32);
-                brick_units(plan, format, bytes, &mut units);
-                let ub = plan.unit_bytes;
-                for s in 0..slices {
-                    for uy in 0..tile_units {
-                        let src = ((s * tile_units + uy) * tile_units) * ub;
-                        let dst =
-                            (s * units_y + cy * tile_units + uy) * row_bytes + cx * tile_units * ub;
-                        layer[dst..dst + tile_units * ub]
-                            .copy_from_slice(&units[src..src + tile_units * ub]);
-                    }
-                }
-            }
-        }
-        queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d {
-                    x: 0,
-                    y: 0,
-                    z: (cz * slices) as u32,
-                },
-                aspect: wgpu::TextureAspect::All,
-            },
-            &layer,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(row_bytes as u32),
-                rows_per_image: Some(units_y as u32),
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: plan.slices,
-            },
-        );
-    }
-    view
 }
 
 /// The (empty) texture of `plan` and its view: 3D or a 2D array, written with `COPY_DST`.
@@ -691,299 +620,16 @@ impl GpuVolume {
         Self::upload_with(device, queue, asset, UploadOptions::default())
     }
 
-    /// [`GpuVolume::upload`] with options (e.g. a forced [`Layout`]).
+    /// [`GpuVolume::upload`] with options (e.g. a forced [`Layout`]). The whole asset is the one
+    /// window of a pool holding every brick: the streamed volume's own upload
+    /// ([`crate::StreamingVolume`]), so there is one uploader.
     pub fn upload_with(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         asset: &Asset,
         options: UploadOptions,
     ) -> Result<GpuVolume> {
-        let limits = device.limits();
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        if limits.max_storage_buffers_per_shader_stage < 1 + PAYLOAD_BINDINGS as u32 {
-            return Err(RuntimeError::Limits(format!(
-                "max_storage_buffers_per_shader_stage {} (need {})",
-                limits.max_storage_buffers_per_shader_stage,
-                1 + PAYLOAD_BINDINGS
-            )));
-        }
-        if limits.max_sampled_textures_per_shader_stage < TEXTURE_BINDINGS {
-            return Err(RuntimeError::Limits(format!(
-                "max_sampled_textures_per_shader_stage {} (need {TEXTURE_BINDINGS})",
-                limits.max_sampled_textures_per_shader_stage
-            )));
-        }
-
-        // Topology: one u32 buffer, sections at word offsets.
-        let mut topo: Vec<u32> = Vec::new();
-        topo.extend_from_slice(&asset.roots);
-        let off_masks = topo.len();
-        topo.extend(
-            asset
-                .l2_masks
-                .iter()
-                .flat_map(|&w| [w as u32, (w >> 32) as u32]),
-        );
-        let off_base = topo.len();
-        topo.extend_from_slice(&asset.l2_base);
-        let off_prefix = topo.len();
-        topo.extend(asset.l2_prefix.iter().map(|&p| p as u32));
-        let off_l2_ranges = topo.len();
-        topo.extend(words_of_f32(&asset.l2_ranges));
-        let off_refs = topo.len();
-        topo.extend_from_slice(&asset.l3_refs);
-        let off_tiles = topo.len();
-        topo.extend(asset.tiles.iter().map(|t| t.to_bits()));
-        let off_brick_ranges = topo.len();
-        topo.extend(words_of_f32(&asset.brick_ranges));
-        let off_brick_quant = topo.len();
-        topo.extend(words_of_f32(&asset.brick_quant));
-        let off_channel_bg = topo.len();
-        if asset.channel_count() > 1 {
-            topo.extend(
-                (0..asset.channel_count()).map(|c| asset.header.channel_background(c).to_bits()),
-            );
-        }
-        if topo.is_empty() {
-            topo.push(0);
-        }
-        let topo_bytes = topo.len() as u64 * 4;
-        if topo_bytes > max_binding || topo.len() > u32::MAX as usize {
-            return Err(RuntimeError::Limits(format!(
-                "topology takes {topo_bytes} bytes, one storage binding holds {max_binding}"
-            )));
-        }
-        debug_assert_eq!(asset.l2_masks.len(), asset.l2_count() * L2_WORDS);
-        let bricks = asset.brick_count() as u64;
-        if bricks > u32::MAX as u64 / 2 {
-            return Err(RuntimeError::Limits(format!("{bricks} bricks")));
-        }
-
-        // Layout: the forced one, or the first that works.
-        let plan = match options.force {
-            Some(layout) => plan_layout(device, &asset.header.brick_counts, layout, max_binding)
-                .map_err(|e| {
-                    RuntimeError::Limits(format!("forced layout {}: {e}", layout.name()))
-                })?,
-            None => {
-                let mut refusals = Vec::new();
-                let mut chosen = None;
-                for layout in Layout::automatic_order(device) {
-                    match plan_layout(device, &asset.header.brick_counts, layout, max_binding) {
-                        Ok(p) => {
-                            chosen = Some(p);
-                            break;
-                        }
-                        Err(e) => refusals.push(format!("{}: {e}", layout.name())),
-                    }
-                }
-                match chosen {
-                    Some(p) => {
-                        if !refusals.is_empty() {
-                            log::info!("vdbcook: layouts passed over: {}", refusals.join("; "));
-                        }
-                        p
-                    }
-                    None => {
-                        return Err(RuntimeError::Limits(format!(
-                            "no payload layout fits: {}",
-                            refusals.join("; ")
-                        )))
-                    }
-                }
-            }
-        };
-
-        // Per-group bookkeeping: first brick of each format, and where it is read.
-        let counts = asset.header.brick_counts;
-        let mut firsts = [0u32; 5];
-        for i in 1..5 {
-            firsts[i] = firsts[i - 1] + counts[i - 1] as u32;
-        }
-        let mut groups = [GroupInfo::default(); GROUPS];
-        let mut buffered_before = 0u32;
-        for slot in 0..GROUPS {
-            groups[slot].first = firsts[slot];
-            let n: u32 = if slot < 3 {
-                counts[slot] as u32
-            } else {
-                (counts[3] + counts[4]) as u32
-            };
-            match plan.textures.get(slot).copied().flatten() {
-                Some(p) => {
-                    groups[slot].kind = if p.dim3 { KIND_3D } else { KIND_ARRAY };
-                    groups[slot].tiles_x = p.tiles[0];
-                    groups[slot].tiles_y = p.tiles[1];
-                }
-                None => {
-                    groups[slot].kind = KIND_BUFFER;
-                    groups[slot].base = buffered_before;
-                    buffered_before += n;
-                }
-            }
-        }
-
-        // Buffered bricks (in brick order) and every brick's stored box, decoded once.
-        let per = plan.buffers.bricks_per_buffer();
-        let buffers = match plan.buffers {
-            BufferLayout::None => 0,
-            BufferLayout::F32 { buffers, .. } | BufferLayout::F16 { buffers, .. } => buffers,
-        };
-        let half_layout = matches!(plan.buffers, BufferLayout::F16 { .. });
-        let background = asset.header.background;
-        let mut boxes = Vec::with_capacity(bricks as usize);
-        let mut payload: Vec<Vec<u32>> = vec![Vec::new(); buffers];
-        let mut values = [0.0f32; BRICK_VOXELS];
-        let mut local = 0u32;
-        for b in 0..bricks as u32 {
-            asset.decode_brick(b, &mut values);
-            boxes.push(brick_box(&values, background));
-            let slot = PayloadFormat::ORDER
-                .iter()
-                .position(|f| *f == asset.brick_format(b).0)
-                .expect("in ORDER")
-                .min(3);
-            if slot < 3 && plan.textures[slot].is_some() {
-                continue;
-            }
-            let out = &mut payload[(local / per) as usize];
-            local += 1;
-            let (format, bytes) = asset.brick_bytes(b);
-            push_brick_words(out, format, bytes, &values, half_layout);
-        }
-
-        // Per-frame stored boxes (for the depth mode's range and the default framing).
-        let bboxes = (0..asset.frame_count())
-            .map(|f| frame_box(asset, f, &boxes))
-            .collect();
-        let frame_max = (0..asset.frame_count())
-            .map(|f| asset.frame_range(f, 0)[1])
-            .collect();
-        let content = (0..asset.frame_count())
-            .map(|f| vdbcook_scene::content_box(asset, f))
-            .collect();
-
-        let info = VolumeInfo::new(
-            asset,
-            [
-                off_masks,
-                off_base,
-                off_prefix,
-                off_l2_ranges,
-                off_refs,
-                off_tiles,
-                off_brick_ranges,
-                off_brick_quant,
-                off_channel_bg,
-            ],
-            per,
-            plan.buffers.code(),
-            asset.frame_count(),
-            groups,
-        );
-        let storage = wgpu::BufferUsages::STORAGE;
-        let info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vdbcook volume info"),
-            contents: bytemuck::bytes_of(&info),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let topo_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vdbcook topology"),
-            contents: bytemuck::cast_slice(&topo),
-            usage: storage,
-        });
-        let mut gpu_bytes = topo_bytes + std::mem::size_of::<VolumeInfo>() as u64;
-        let mut buffer_bytes = 0;
-        let payload_buffers: Vec<wgpu::Buffer> = (0..PAYLOAD_BINDINGS)
-            .map(|i| {
-                let words = payload.get(i).filter(|w| !w.is_empty());
-                let dummy = [0u32];
-                let contents: &[u32] = words.map(|w| w.as_slice()).unwrap_or(&dummy);
-                buffer_bytes += words.map_or(0, |w| w.len() as u64 * 4);
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("vdbcook brick pool"),
-                    contents: bytemuck::cast_slice(contents),
-                    usage: storage,
-                })
-            })
-            .collect();
-        gpu_bytes += buffer_bytes;
-
-        // Textures: one per texture-backed group, 1-texel dummies in the other bindings.
-        let dummy3 = dummy_view(device, true);
-        let dummy_array = dummy_view(device, false);
-        let mut views: Vec<Option<wgpu::TextureView>> = Vec::new();
-        for (slot, p) in plan.textures.iter().enumerate() {
-            views.push(p.map(|p| create_group_texture(device, queue, asset, &p, firsts[slot])));
-            gpu_bytes += p.map_or(0, |p| p.bytes());
-        }
-
-        let bind_group_layout = volume_bind_group_layout(device);
-        let mut entries = vec![
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: info_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: topo_buffer.as_entire_binding(),
-            },
-        ];
-        for (i, b) in payload_buffers.iter().enumerate() {
-            entries.push(wgpu::BindGroupEntry {
-                binding: 2 + i as u32,
-                resource: b.as_entire_binding(),
-            });
-        }
-        // Bindings 6..11: (BC7, BC4, unorm8) × (3D, 2D array).
-        for (slot, (p, v)) in plan.textures.iter().zip(&views).enumerate() {
-            for dim3 in [true, false] {
-                let own = p.filter(|p| p.dim3 == dim3).and(v.as_ref());
-                let view = own.unwrap_or(if dim3 { &dummy3 } else { &dummy_array });
-                entries.push(wgpu::BindGroupEntry {
-                    binding: FIRST_TEXTURE_BINDING + 2 * slot as u32 + (!dim3) as u32,
-                    resource: wgpu::BindingResource::TextureView(view),
-                });
-            }
-        }
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vdbcook volume"),
-            layout: &bind_group_layout,
-            entries: &entries,
-        });
-
-        let layout = PayloadLayout {
-            layout: plan.layout,
-            buffers: plan.buffers,
-            buffer_bytes,
-            textures: plan.textures.iter().flatten().map(|p| p.group()).collect(),
-        };
-        let volume = GpuVolume {
-            bind_group_layout,
-            bind_group,
-            layout,
-            frames: asset.frame_count(),
-            levels: LevelChain::of(asset),
-            root_len: asset.root_len(),
-            root_dims: asset.header.root_dims,
-            index_to_world: asset.header.index_to_world,
-            bboxes,
-            content,
-            frame_max,
-            gpu_bytes,
-            channels: ChannelBoxes::of(asset),
-        };
-        let bc = device.features() & OPTIONAL_FEATURES;
-        log::info!(
-            "vdbcook: uploaded {} frames, {} bricks: {} (device BC features: {:?})",
-            asset.frame_count(),
-            bricks,
-            volume.describe(),
-            bc
-        );
-        Ok(volume)
+        stream::StreamingVolume::upload_whole(device, queue, asset, options)
     }
 
     /// The payload layout chosen at upload.
@@ -1152,6 +798,28 @@ impl Bound {
             Some(([0.0; 3], self.extent))
         })
     }
+}
+
+/// Checks that `device` binds what a volume needs (its storage buffers and textures per stage);
+/// returns the largest storage binding in bytes.
+pub(crate) fn check_limits(device: &wgpu::Device) -> Result<u64> {
+    let limits = device.limits();
+    if limits.max_storage_buffers_per_shader_stage < 1 + PAYLOAD_BINDINGS as u32 {
+        return Err(RuntimeError::Limits(format!(
+            "max_storage_buffers_per_shader_stage {} (need {})",
+            limits.max_storage_buffers_per_shader_stage,
+            1 + PAYLOAD_BINDINGS
+        )));
+    }
+    if limits.max_sampled_textures_per_shader_stage < TEXTURE_BINDINGS {
+        return Err(RuntimeError::Limits(format!(
+            "max_sampled_textures_per_shader_stage {} (need {TEXTURE_BINDINGS})",
+            limits.max_sampled_textures_per_shader_stage
+        )));
+    }
+    Ok(limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size))
 }
 
 /// A compute-stage buffer binding of `ty` at `binding` (no dynamic offset, no minimum size).
