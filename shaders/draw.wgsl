@@ -6,7 +6,8 @@
 //   through the engine's projection, cuts the ray at the engine's depth (a `Depth32Float`
 //   texture, standard or reversed Z, `textureLoad`), and marches every instance of the volume
 //   with the density march (`vdb_optical_depth` in `volume.wgsl`: the CPU tracer's Density mode),
-//   front to back in the order the CPU sorted them, writing premultiplied radiance and
+//   front to back in the order the CPU sorted them — or, where instances' bounds overlap
+//   (`DRAW_INTERLEAVE`), interleaved along the ray (`draw_pieces`) — writing premultiplied radiance and
 //   transmittance (L, T) to an `Rgba16Float` storage texture. With lighting (`DRAW_LIT`, a
 //   second pipeline) each lit instance is marched as the tracer's lit mode (`lit_primary` in
 //   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest or
@@ -69,7 +70,8 @@ struct DrawInstance {
     frame_root1: u32,
     // 1: marched lit (`place` holds its light volumes), 0: the flat density march.
     lit: u32,
-    _pad: u32,
+    // The instance's asset in the volume set (`vdb_select`).
+    asset: u32,
     // The lit march's medium and light volumes in the instance's cell space (`lit.wgsl`).
     place: VdbLitPlace,
 }
@@ -82,6 +84,11 @@ struct DrawInstance {
 
 // Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
 const DRAW_LIT: bool = {{DRAW_LIT}};
+// Whether instances may overlap along a ray, so that the march interleaves them (a pipeline
+// variant: the sweep costs about twice the plain march on software Vulkan).
+const DRAW_INTERLEAVE: bool = {{DRAW_INTERLEAVE}};
+// Whether the draw has an emission pass (`emit_flat` or `emit_lit`; a pipeline variant).
+const DRAW_EMIT: bool = {{DRAW_EMIT}};
 // Whether the lit march reads trilinear density (a pipeline variant).
 const DRAW_TRILINEAR: bool = {{DRAW_TRILINEAR}};
 // Whether the lit march can walk the near field toward the sun (`Lighting::sun_near` > 0;
@@ -165,6 +172,198 @@ fn draw_emission(inst: DrawInstance, ray: VdbRay, ext: f32, t_end: f32) -> vec3<
     return e;
 }
 
+// Instance `i`'s ray in its cell space (t stays the world distance along `dw`). The
+// instances are read field by field where the whole struct is not needed (a copy of it is
+// large).
+fn draw_ray(i: u32, ow: vec3<f32>, dw: vec3<f32>) -> VdbRay {
+    var ray: VdbRay;
+    let o4 = vec4<f32>(ow, 1.0);
+    let d4 = vec4<f32>(dw, 0.0);
+    let r0 = draw_instances[i].cell_from_world0;
+    let r1 = draw_instances[i].cell_from_world1;
+    let r2 = draw_instances[i].cell_from_world2;
+    ray.o = vec3<f32>(dot(r0, o4), dot(r1, o4), dot(r2, o4));
+    ray.d = vec3<f32>(dot(r0, d4), dot(r1, d4), dot(r2, d4));
+    ray.per_t = select(1.0, length(ray.d), draw_view.shading.voxel_units != 0u);
+    return ray;
+}
+
+// Whether the instance is marched lit.
+fn draw_is_lit(inst: DrawInstance) -> bool {
+    return DRAW_LIT && inst.lit != 0u;
+}
+
+// The extinction the emission pass attenuates by.
+fn draw_ext(inst: DrawInstance) -> f32 {
+    return select(inst.tint_absorb.w, inst.place.sun_cell.w, draw_is_lit(inst));
+}
+
+// The t interval where the instance's density lies (its content box, cut at the scene depth);
+// x ≥ y when none.
+fn draw_span(i: u32, ray: VdbRay, t_max: f32) -> vec2<f32> {
+    let clip = vdb_clip_box(ray, draw_instances[i].box_lo.xyz, draw_instances[i].box_hi.xyz);
+    return vec2<f32>(clip.x, min(clip.y, t_max));
+}
+
+// Where the instance's emission pass is added along the ray (its light behind its own density,
+// in front of what lies behind its entry): the entry into its content or emission box, or
+// VDB_BIG when it has no emission pass or the ray misses both before the scene depth.
+fn draw_glow_at(i: u32, ray: VdbRay, t_max: f32) -> f32 {
+    let lit = DRAW_LIT && draw_instances[i].lit != 0u;
+    if (!DRAW_EMIT || select(draw_view.emit_flat, draw_view.emit_lit, lit) == 0u) {
+        return VDB_BIG;
+    }
+    let ce = draw_span(i, ray, VDB_BIG);
+    let ee = vdb_clip_box(ray, draw_instances[i].emit_lo.xyz, draw_instances[i].emit_hi.xyz);
+    var g = VDB_BIG;
+    if (ce.y > ce.x) {
+        g = ce.x;
+    }
+    if (ee.y > ee.x) {
+        g = min(g, ee.x);
+    }
+    return select(VDB_BIG, g, g <= t_max);
+}
+
+// One instance over [t0, t1] of the ray: (tinted radiance, transmittance) of the lit march or
+// of the flat density march (`L = tint·(1 − T)`).
+fn draw_march(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pixel: u32) -> vec4<f32> {
+    vdb_select(inst.asset);
+    if (draw_is_lit(inst)) {
+        let r = draw_lit(inst, ray, t0, t1, dw, pixel);
+        return vec4<f32>(inst.tint_absorb.xyz * r.xyz, r.w);
+    }
+    let absorb = inst.tint_absorb.w;
+    var tau = draw_tau(inst.frame_root0, ray, t0, t1, absorb);
+    let a = inst.box_lo.w;
+    if (a > 0.0) {
+        tau = mix(tau, draw_tau(inst.frame_root1, ray, t0, t1, absorb), a);
+    }
+    let ti = exp(-absorb * tau);
+    return vec4<f32>(inst.tint_absorb.xyz * (1.0 - ti), ti);
+}
+
+// The flat march's optical depth over [t0, t1]: the hierarchical walk, or in the interleaving
+// variant for a stretch of a few voxels (a piece of `draw_pieces`) the flat voxel walk.
+fn draw_tau(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32) -> f32 {
+    if (DRAW_INTERLEAVE && (t1 - t0) * length(ray.d) < 4.0) {
+        return vdb_optical_depth_near(frame_root, ray, t0, t1, absorb);
+    }
+    return vdb_optical_depth(frame_root, ray, t0, t1, absorb);
+}
+
+// Most pieces `draw_pieces` cuts one stretch into.
+const DRAW_MAX_PIECES: f32 = 1024.0;
+// Most covering instances `draw_pieces` lists (more are found again per piece).
+const DRAW_COVER_LIST: u32 = 8u;
+// The optical depth of a piece (all media together) below which `draw_pieces` cuts no finer.
+const DRAW_PIECE_DEPTH: f32 = 0.05;
+
+// The stretch [t0, t1] where several instances overlap, in pieces: as many as the stretch's
+// optical depth X over DRAW_PIECE_DEPTH, none shorter than a cell of the finest instance, at
+// most DRAW_MAX_PIECES. In each piece every instance's own march gives (L_i, T_i); with optical
+// depths x_i = −ln T_i and X = Σ x_i the piece's light is the mixture
+// (1 − e^−X) Σ (x_i / X)·L_i / (1 − T_i): exact when each medium's density and source are
+// constant over the piece (the media then add their extinction and share attenuation), and
+// the closer the thinner the piece.
+fn draw_pieces(ow: vec3<f32>, dw: vec3<f32>, t0: f32, t1: f32, t_max: f32, pixel: u32, whole: bool) -> vec4<f32> {
+    // The instances covering the stretch (listed when at most DRAW_COVER_LIST do, else found
+    // again per piece).
+    let n = draw_view.instance_count;
+    var list: array<u32, DRAW_COVER_LIST>;
+    var m = 0u;
+    var cells = 0.0;
+    var depth = 0.0;
+    for (var i = 0u; i < n; i++) {
+        let span = draw_span_of(i, ow, dw, t_max);
+        if (!(span.x <= t0 && span.y >= t1)) {
+            continue;
+        }
+        if (m < DRAW_COVER_LIST) {
+            list[m] = i;
+        }
+        m += 1u;
+        if (!whole) {
+            let ray = draw_ray(i, ow, dw);
+            cells = max(cells, length(ray.d));
+            let inst = draw_instances[i];
+            vdb_select(inst.asset);
+            let ext = draw_ext(inst);
+            var tau = vdb_optical_depth(inst.frame_root0, ray, t0, t1, ext);
+            if (inst.box_lo.w > 0.0) {
+                tau = mix(tau, vdb_optical_depth(inst.frame_root1, ray, t0, t1, ext), inst.box_lo.w);
+            }
+            depth += ext * tau;
+        }
+    }
+    let listed = m <= DRAW_COVER_LIST;
+    let by_depth = min(ceil(depth / DRAW_PIECE_DEPTH), ceil((t1 - t0) * cells));
+    let count = select(clamp(by_depth, 1.0, DRAW_MAX_PIECES), 1.0, whole);
+    let h = (t1 - t0) / count;
+    var lt = vec4<f32>(vec3<f32>(0.0), 1.0);
+    for (var k = 0.0; k < count; k += 1.0) {
+        let a = t0 + k * h;
+        let b = select(t0 + (k + 1.0) * h, t1, k + 1.0 >= count);
+        var x_sum = 0.0;
+        var src = vec3<f32>(0.0);
+        var l_sum = vec3<f32>(0.0);
+        for (var j = 0u; j < select(n, m, listed); j++) {
+            var i = j;
+            if (listed) {
+                i = list[j];
+            } else {
+                let span = draw_span_of(i, ow, dw, t_max);
+                if (!(span.x <= t0 && span.y >= t1)) {
+                    continue;
+                }
+            }
+            let r = draw_march(draw_instances[i], draw_ray(i, ow, dw), a, b, dw, pixel);
+            let x = -log(max(r.w, 1.0e-30));
+            x_sum += x;
+            l_sum += r.xyz;
+            src += x * r.xyz / max(1.0 - r.w, 1.0e-30);
+        }
+        var l = l_sum;
+        if (x_sum > 1.0e-4) {
+            l = (1.0 - exp(-x_sum)) * src / x_sum;
+        }
+        lt = vec4<f32>(lt.xyz + lt.w * l, lt.w * exp(-x_sum));
+        if (lt.w < 1.0e-6) {
+            break;
+        }
+    }
+    return lt;
+}
+
+// The interleaving sweep's spans and glow entries of the first DRAW_SPAN_CACHE instances, per
+// invocation (the sweep reads them once per cut; later instances are computed again).
+const DRAW_SPAN_CACHE: u32 = 32u;
+var<private> draw_spans: array<vec3<f32>, DRAW_SPAN_CACHE>;
+
+// Fills the cache for the ray from `ow` along `dw`.
+fn draw_cache_spans(ow: vec3<f32>, dw: vec3<f32>, t_max: f32) {
+    for (var i = 0u; i < min(draw_view.instance_count, DRAW_SPAN_CACHE); i++) {
+        let ray = draw_ray(i, ow, dw);
+        draw_spans[i] = vec3<f32>(draw_span(i, ray, t_max), draw_glow_at(i, ray, t_max));
+    }
+}
+
+// Instance i's span (`draw_span`).
+fn draw_span_of(i: u32, ow: vec3<f32>, dw: vec3<f32>, t_max: f32) -> vec2<f32> {
+    if (i < DRAW_SPAN_CACHE) {
+        return draw_spans[i].xy;
+    }
+    return draw_span(i, draw_ray(i, ow, dw), t_max);
+}
+
+// Instance i's glow entry (`draw_glow_at`).
+fn draw_glow_of(i: u32, ow: vec3<f32>, dw: vec3<f32>, t_max: f32) -> f32 {
+    if (i < DRAW_SPAN_CACHE) {
+        return draw_spans[i].z;
+    }
+    return draw_glow_at(i, draw_ray(i, ow, dw), t_max);
+}
+
 // The view-space point of NDC `(xy, z)`, or w = 0 when it is at infinity.
 fn draw_unproject(xy: vec2<f32>, z: f32) -> vec4<f32> {
     let h = draw_view.view_from_clip * vec4<f32>(xy, z, 1.0);
@@ -213,47 +412,76 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
         t_max *= s;
     }
 
-    var lum = vec3<f32>(0.0);
-    var trans = 1.0;
-    for (var i = 0u; i < draw_view.instance_count; i++) {
-        let inst = draw_instances[i];
-        var ray: VdbRay;
-        let o4 = vec4<f32>(ow, 1.0);
-        let d4 = vec4<f32>(dw, 0.0);
-        ray.o = vec3<f32>(dot(inst.cell_from_world0, o4), dot(inst.cell_from_world1, o4),
-                          dot(inst.cell_from_world2, o4));
-        ray.d = vec3<f32>(dot(inst.cell_from_world0, d4), dot(inst.cell_from_world1, d4),
-                          dot(inst.cell_from_world2, d4));
-        ray.per_t = select(1.0, length(ray.d), draw_view.shading.voxel_units != 0u);
-        let lit = DRAW_LIT && inst.lit != 0u;
-        // The emission pass (its box may reach past the density's): light behind the instance's
-        // own density, added before the instance attenuates what lies behind it.
-        var glow = vec3<f32>(0.0);
-        if (select(draw_view.emit_flat, draw_view.emit_lit, lit) != 0u) {
-            glow = draw_emission(inst, ray, select(inst.tint_absorb.w, inst.place.sun_cell.w, lit), t_max);
+    let n = draw_view.instance_count;
+    var lt = vec4<f32>(vec3<f32>(0.0), 1.0);
+    if (!DRAW_INTERLEAVE) {
+        // No two instances' boxes overlap (`VolumeDrawer::prepare` checks): each is marched
+        // whole, front to back in the order the CPU sorted them.
+        for (var i = 0u; i < n; i++) {
+            let inst = draw_instances[i];
+            let ray = draw_ray(i, ow, dw);
+            // The emission pass (its box may reach past the density's): light behind the
+            // instance's own density, added before the instance attenuates what lies behind.
+            var glow = vec3<f32>(0.0);
+            if (DRAW_EMIT && select(draw_view.emit_flat, draw_view.emit_lit, draw_is_lit(inst)) != 0u) {
+                vdb_select(inst.asset);
+                glow = inst.tint_absorb.xyz * draw_emission(inst, ray, draw_ext(inst), t_max);
+            }
+            let span = draw_span(i, ray, t_max);
+            var r = vec4<f32>(vec3<f32>(0.0), 1.0);
+            if (span.y > span.x) {
+                r = draw_march(inst, ray, span.x, span.y, dw, pix.y * size.x + pix.x);
+            }
+            lt = vec4<f32>(lt.xyz + lt.w * (r.xyz + glow), lt.w * r.w);
         }
-        let clip = vdb_clip_box(ray, inst.box_lo.xyz, inst.box_hi.xyz);
-        let t1 = min(clip.y, t_max);
-        if (!(t1 > clip.x)) {
-            lum += trans * inst.tint_absorb.xyz * glow;
-            continue;
+    } else {
+        // The instances interleaved along the ray: the ray is cut at every instance's entry and
+        // exit (`draw_span`) and glow entry (`draw_glow_at`); a stretch inside one instance is
+        // marched whole, one inside several in pieces of at most a cell of the finest
+        // (`draw_pieces`). Light and transmittance compose front to back across stretches.
+        draw_cache_spans(ow, dw, t_max);
+        var t = 0.0;
+        for (var guard = 0u; guard < 3u * n + 2u; guard++) {
+            // The next cut after t.
+            var e = VDB_BIG;
+            for (var i = 0u; i < n; i++) {
+                let span = draw_span_of(i, ow, dw, t_max);
+                if (span.y > span.x) {
+                    e = select(e, min(e, span.x), span.x > t);
+                    e = select(e, min(e, span.y), span.y > t);
+                }
+                let g = draw_glow_of(i, ow, dw, t_max);
+                e = select(e, min(e, g), g > t && g < VDB_BIG);
+            }
+            // The glows entering in [t, e), then the instances covering [t, e).
+            var covering = 0u;
+            for (var i = 0u; i < n; i++) {
+                let g = draw_glow_of(i, ow, dw, t_max);
+                if (g >= t && g < e && g < VDB_BIG) {
+                    let inst = draw_instances[i];
+                    vdb_select(inst.asset);
+                    let glow = draw_emission(inst, draw_ray(i, ow, dw), draw_ext(inst), t_max);
+                    lt = vec4<f32>(lt.xyz + lt.w * inst.tint_absorb.xyz * glow, lt.w);
+                }
+                let span = draw_span_of(i, ow, dw, t_max);
+                if (span.x <= t && span.y >= e && span.y > span.x && e < VDB_BIG) {
+                    covering += 1u;
+                }
+            }
+            if (!(e < VDB_BIG)) {
+                break;
+            }
+            if (covering > 0u) {
+                let r = draw_pieces(ow, dw, t, e, t_max, pix.y * size.x + pix.x, covering == 1u);
+                lt = vec4<f32>(lt.xyz + lt.w * r.xyz, lt.w * r.w);
+            }
+            t = e;
+            if (lt.w < 1.0e-6) {
+                break;
+            }
         }
-        if (lit) {
-            let r = draw_lit(inst, ray, clip.x, t1, dw, pix.y * size.x + pix.x);
-            lum += trans * inst.tint_absorb.xyz * (r.xyz + glow);
-            trans *= r.w;
-            continue;
-        }
-        let absorb = inst.tint_absorb.w;
-        var tau = vdb_optical_depth(inst.frame_root0, ray, clip.x, t1, absorb);
-        let a = inst.box_lo.w;
-        if (a > 0.0) {
-            let tau1 = vdb_optical_depth(inst.frame_root1, ray, clip.x, t1, absorb);
-            tau = mix(tau, tau1, a);
-        }
-        let ti = exp(-absorb * tau);
-        lum += trans * inst.tint_absorb.xyz * (1.0 - ti + glow);
-        trans *= ti;
     }
+    let lum = lt.xyz;
+    let trans = lt.w;
     textureStore(draw_out, vec2<i32>(pix), vec4<f32>(lum, trans));
 }

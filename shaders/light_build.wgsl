@@ -23,7 +23,8 @@ struct LightParams {
     // Level of detail the density pass reads (`LightGrid::density_level`); `frame_root` is that
     // level's root set.
     level: u32,
-    _pad2: u32,
+    // The asset of the volume set whose density it reads (`vdb_select`).
+    asset: u32,
 }
 
 @group(1) @binding(0) var<uniform> lp: LightParams;
@@ -37,6 +38,7 @@ const LV_MAX_SLICES: u32 = 256u;
 
 @compute @workgroup_size(4, 4, 4)
 fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    vdb_select(lp.asset);
     let dims = lp.dims.xyz;
     if (any(gid >= dims)) {
         return;

@@ -101,7 +101,7 @@ fn lit_near_depth(P: VdbLitPlace, root: u32, lo: vec4<f32>, dims: vec4<u32>, q: 
     ray.o = q;
     ray.d = P.sun_cell.xyz;
     ray.per_t = select(1.0, length(ray.d), {{SHADING}}.voxel_units != 0u);
-    let c = vdb_clip(ray, vec3<f32>(vdb_info.root_dims * 128u));
+    let c = vdb_clip(ray, vdb_extent());
     if (!(c.y > c.x)) {
         return 0.0;
     }
@@ -204,7 +204,7 @@ fn lit_emission(v: f32) -> vec3<f32> {
 // no attenuation (delta tracking's track-length estimator over one flight).
 fn lit_channel_emission(root: u32, ray: VdbRay, ext: f32, t_end: f32, channel: u32, box_lo: vec3<f32>, box_hi: vec3<f32>) -> vec3<f32> {
     var light = vec3<f32>(0.0);
-    let c = vdb_clip(ray, vec3<f32>(vdb_info.root_dims * 128u));
+    let c = vdb_clip(ray, vdb_extent());
     let b = vdb_clip_box(ray, box_lo, box_hi);
     let a0 = max(c.x, b.x);
     let a1 = min(min(c.y, b.y), t_end);

@@ -153,8 +153,8 @@ fn vis_uniform(ta: f32, tb: f32, v: f32, holder: u32) -> bool {
 
 // The hierarchical walk of frame `params.frame_root` along `ray` for t in [t0, t1].
 fn walk(ray: VdbRay, t0: f32, t1: f32) {
-    let bg = vdb_info.background;
-    let dims = vec3<i32>(vdb_info.root_dims);
+    let bg = vdb_background();
+    let dims = vec3<i32>(vdb_root_dims());
     var rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), dims, t0, t1);
     for (var ri = 0; ri < REGION_ITERS; ri++) {
         let rs = vdb_dda_next(ray, &rd);
@@ -257,7 +257,7 @@ struct WkSpan {
 
 fn wk_init(ray: VdbRay, t0: f32, t1: f32) -> Walker {
     var w: Walker;
-    w.rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), vec3<i32>(vdb_info.root_dims), t0, t1);
+    w.rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), vec3<i32>(vdb_root_dims()), t0, t1);
     w.ld = w.rd;
     w.ld.budget = 0;
     w.node = 0u;
@@ -285,7 +285,7 @@ fn wk_const(ta: f32, tb: f32, v: f32) -> WkSpan {
 fn wk_next(ray: VdbRay, w: ptr<function, Walker>, lo: f32) -> WkSpan {
     var out: WkSpan;
     out.ok = false;
-    let bg = vdb_info.background;
+    let bg = vdb_background();
     for (var g = 0; g < WALK_SPANS; g++) {
         if ((*w).in_node) {
             var ld = (*w).ld;

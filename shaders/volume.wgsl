@@ -7,10 +7,12 @@
 // Everything mirrors `crates/asset` (layout, sampler) and `crates/trace` (DDA rules): the CPU
 // reference is the definition; this file follows it in f32.
 //
-// Group 0 (created by `GpuVolume::upload`):
-//   binding 0: `vdb_info` (uniform): section offsets into `vdb_topo`, root dims, background,
-//              buffer payload layout, brick groups;
-//   binding 1: `vdb_topo` (storage, u32 words): roots of all frames, L2 masks (each u64 as two
+// Group 0 (created by `GpuVolume::upload`, or `upload_set` for a volume set of several assets):
+//   binding 0: `vdb_info` (uniform): per asset (`VdbAsset`, at most 16) its section offsets into
+//              `vdb_topo`, root dims, frames, channels, background; the buffer payload layout,
+//              the per-slot brick ranges and the brick groups, shared by the set's assets.
+//              `vdb_select(a)` picks the asset the lookups that follow read (0 by default);
+//   binding 1: `vdb_topo` (storage, u32 words), per asset: roots of all frames, L2 masks (each u64 as two
 //              u32, low word first), L2 bases, L2 prefixes (one u32 each), L2 ranges and brick
 //              ranges (f32 bits, [min, max] pairs), L3 refs, tile values (f32 bits);
 //   bindings 2..5: the bricks kept in storage buffers (f16/f32 bricks; every brick with the
@@ -41,31 +43,46 @@ struct VdbGroup {
     _pad2: u32,
 }
 
-struct VolumeInfo {
+// One asset of the volume set: where its frames' roots and its nodes lie in `vdb_topo` (word
+// offsets: each asset's sections are its own; only the brick pool and its ranges are shared),
+// its extent, frames, channels and backgrounds.
+struct VdbAsset {
     root_dims: vec3<u32>,
     root_len: u32,
+    off_roots: u32,
     off_masks: u32,
     off_base: u32,
     off_prefix: u32,
     off_l2_ranges: u32,
     off_refs: u32,
     off_tiles: u32,
-    off_brick_ranges: u32,
-    bricks_per_binding: u32,
+    // Where the backgrounds of channels 1.. lie (f32 bits; channel c at + c).
+    off_channel_bg: u32,
     background: f32,
+    frames: u32,
+    // Channels per leaf slot and node range (1, or 2..8 for a multi-channel asset: channel c's
+    // ref of slot index i at refs[i·channels + c]).
+    channels: u32,
+    _pad: u32,
+}
+
+// Most assets one volume set holds.
+const VDB_MAX_ASSETS: u32 = 16u;
+
+struct VolumeInfo {
+    bricks_per_binding: u32,
     // Buffered bricks: 0: f32 bits, one per word; 1: f16 pairs.
     payload_layout: u32,
-    frames: u32,
+    // The pool's per-brick value and quantization ranges ([min, max] f32 bits).
+    off_brick_ranges: u32,
     off_brick_quant: u32,
-    // Channels per leaf slot, node range and frame range (1, or 2..8 for a multi-channel asset:
-    // channel c's ref of slot index i at refs[i·channels + c]).
-    channels: u32,
-    // Where the backgrounds of channels 1.. lie in `vdb_topo` (f32 bits; channel c at + c).
-    off_channel_bg: u32,
-    _padc0: u32,
-    _padc1: u32,
+    asset_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
     // BC7, BC4, unorm8, floats (f16 and f32).
     groups: array<VdbGroup, 4>,
+    assets: array<VdbAsset, 16>,
 }
 
 @group(0) @binding(0) var<uniform> vdb_info: VolumeInfo;
@@ -86,12 +103,41 @@ const VDB_TILE_BIT: u32 = 0x80000000u;
 // Stands for +infinity (WGSL implementations need not honour real infinities).
 const VDB_BIG: f32 = 3.0e38;
 
+// The asset of the set every lookup reads (0 unless set: a volume of one asset needs nothing).
+var<private> vdb_asset: u32;
+
+// Makes every following lookup of this invocation read asset `a` of the volume set.
+fn vdb_select(a: u32) {
+    vdb_asset = min(a, vdb_info.asset_count - 1u);
+}
+
+// The selected asset's root regions per axis, roots per frame, frames, channels, background.
+fn vdb_root_dims() -> vec3<u32> {
+    return vdb_info.assets[vdb_asset].root_dims;
+}
+fn vdb_root_len() -> u32 {
+    return vdb_info.assets[vdb_asset].root_len;
+}
+fn vdb_frames() -> u32 {
+    return vdb_info.assets[vdb_asset].frames;
+}
+fn vdb_channels() -> u32 {
+    return vdb_info.assets[vdb_asset].channels;
+}
+fn vdb_background() -> f32 {
+    return vdb_info.assets[vdb_asset].background;
+}
+// The selected asset's extent in voxels.
+fn vdb_extent() -> vec3<f32> {
+    return vec3<f32>(vdb_root_dims() * 128u);
+}
+
 // The root entry (EMPTY, TILE_BIT | tile, or an L2 node) of region `r` (in the root box) of the
 // frame whose roots start at `frame_root` (= frame · root_len).
 fn vdb_root_entry(frame_root: u32, r: vec3<i32>) -> u32 {
-    let d = vdb_info.root_dims;
+    let d = vdb_root_dims();
     let i = u32(r.x) + d.x * (u32(r.y) + d.y * u32(r.z));
-    return vdb_topo[frame_root + i];
+    return vdb_topo[vdb_info.assets[vdb_asset].off_roots + frame_root + i];
 }
 
 // The ref in slot `s` (0..4096) of L2 node `n`, or EMPTY when the mask has no such slot
@@ -103,17 +149,18 @@ fn vdb_slot_ref(n: u32, s: u32) -> u32 {
 // The background of channel `c`.
 fn vdb_channel_bg(c: u32) -> f32 {
     if (c == 0u) {
-        return vdb_info.background;
+        return vdb_background();
     }
-    return bitcast<f32>(vdb_topo[vdb_info.off_channel_bg + c]);
+    return bitcast<f32>(vdb_topo[vdb_info.assets[vdb_asset].off_channel_bg + c]);
 }
 
 // `vdb_slot_ref` of channel `c` (EMPTY also where the slot exists but `c` is its background).
 fn vdb_slot_ref_c(n: u32, s: u32, c: u32) -> u32 {
     let w = s >> 6u;
     let b = s & 63u;
-    let lo = vdb_topo[vdb_info.off_masks + n * 128u + 2u * w];
-    let hi = vdb_topo[vdb_info.off_masks + n * 128u + 2u * w + 1u];
+    let off_masks = vdb_info.assets[vdb_asset].off_masks;
+    let lo = vdb_topo[off_masks + n * 128u + 2u * w];
+    let hi = vdb_topo[off_masks + n * 128u + 2u * w + 1u];
     var below: u32;
     if (b < 32u) {
         if (((lo >> b) & 1u) == 0u) {
@@ -126,8 +173,9 @@ fn vdb_slot_ref_c(n: u32, s: u32, c: u32) -> u32 {
         }
         below = countOneBits(lo) + countOneBits(hi & ((1u << (b - 32u)) - 1u));
     }
-    let idx = vdb_topo[vdb_info.off_base + n] + vdb_topo[vdb_info.off_prefix + n * 64u + w] + below;
-    return vdb_topo[vdb_info.off_refs + idx * vdb_info.channels + c];
+    let asset = vdb_info.assets[vdb_asset];
+    let idx = vdb_topo[asset.off_base + n] + vdb_topo[asset.off_prefix + n * 64u + w] + below;
+    return vdb_topo[asset.off_refs + idx * asset.channels + c];
 }
 
 // The ref of the leaf at leaf coordinate `l` (asset index / 8) inside L2 node `n`.
@@ -137,7 +185,7 @@ fn vdb_leaf_ref(n: u32, l: vec3<i32>) -> u32 {
 }
 
 fn vdb_tile(t: u32) -> f32 {
-    return bitcast<f32>(vdb_topo[vdb_info.off_tiles + t]);
+    return bitcast<f32>(vdb_topo[vdb_info.assets[vdb_asset].off_tiles + t]);
 }
 
 // [min, max] of the stored values of L2 node `n` (over its whole 128³ region; channel 0).
@@ -147,7 +195,7 @@ fn vdb_l2_range(n: u32) -> vec2<f32> {
 
 // `vdb_l2_range` of channel `c`.
 fn vdb_l2_range_c(n: u32, c: u32) -> vec2<f32> {
-    let i = vdb_info.off_l2_ranges + 2u * (n * vdb_info.channels + c);
+    let i = vdb_info.assets[vdb_asset].off_l2_ranges + 2u * (n * vdb_channels() + c);
     return vec2<f32>(bitcast<f32>(vdb_topo[i]), bitcast<f32>(vdb_topo[i + 1u]));
 }
 
@@ -256,7 +304,7 @@ fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
 // `VDB_TILE_BIT | t` (a region's or a leaf slot's tile `t`), or a brick index. The one descent
 // root → L2 → leaf slot every point lookup takes.
 fn vdb_holder_c(frame_root: u32, a: vec3<i32>, c: u32) -> u32 {
-    let ext = vec3<i32>(vdb_info.root_dims * 128u);
+    let ext = vec3<i32>(vdb_root_dims() * 128u);
     if (any(a < vec3<i32>(0)) || any(a >= ext)) {
         return VDB_EMPTY;
     }
@@ -297,7 +345,7 @@ fn vdb_value(frame_root: u32, a: vec3<i32>) -> f32 {
 fn vdb_leaf_bound(frame_root: u32, a: vec3<i32>) -> f32 {
     let r = vdb_holder(frame_root, a);
     if (r == VDB_EMPTY) {
-        return vdb_info.background;
+        return vdb_background();
     }
     if ((r & VDB_TILE_BIT) != 0u) {
         return vdb_tile(r & ~VDB_TILE_BIT);
@@ -339,15 +387,15 @@ fn vdb_value_nearest(frame_root: u32, p: vec3<f32>) -> f32 {
 // crossfades frames floor(time) and floor(time) + 1.
 fn vdb_sample(world_to_index: mat4x4<f32>, world_pos: vec3<f32>, time: f32) -> f32 {
     let p = (world_to_index * vec4<f32>(world_pos, 1.0)).xyz;
-    let t = clamp(time, 0.0, f32(vdb_info.frames - 1u));
+    let t = clamp(time, 0.0, f32(vdb_frames() - 1u));
     let f0 = u32(floor(t));
-    let f1 = min(f0 + 1u, vdb_info.frames - 1u);
+    let f1 = min(f0 + 1u, vdb_frames() - 1u);
     let a = t - f32(f0);
-    let v0 = vdb_value_nearest(f0 * vdb_info.root_len, p);
+    let v0 = vdb_value_nearest(f0 * vdb_root_len(), p);
     if (a <= 0.0) {
         return v0;
     }
-    return mix(v0, vdb_value_nearest(f1 * vdb_info.root_len, p), a);
+    return mix(v0, vdb_value_nearest(f1 * vdb_root_len(), p), a);
 }
 
 // A ray in cell space (asset index + 1/2, so voxel `a` is the cell [a, a + 1) and `floor` finds
@@ -507,7 +555,7 @@ fn vdb_optical_depth_near_from(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, a
     }
     let pa = ray.o + t0 * ray.d;
     let pb = ray.o + t1 * ray.d;
-    let ext = vec3<i32>(vdb_info.root_dims * 128u);
+    let ext = vec3<i32>(vdb_root_dims() * 128u);
     let lo = max(vec3<i32>(floor(min(pa, pb))), vec3<i32>(0));
     let hi = min(vec3<i32>(floor(max(pa, pb))) + vec3<i32>(1), ext);
     let pos = ray.d > vec3<f32>(0.0);
@@ -534,7 +582,7 @@ fn vdb_optical_depth_near_from(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, a
                 leaf = l;
                 r = vdb_holder(frame_root, cell);
             }
-            var v = vdb_info.background;
+            var v = vdb_background();
             if ((r & VDB_TILE_BIT) != 0u && r != VDB_EMPTY) {
                 v = vdb_tile(r & ~VDB_TILE_BIT);
             } else if (r != VDB_EMPTY) {
@@ -567,8 +615,8 @@ fn vdb_optical_depth_near_from(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, a
 // tracer's Density mode (`vdbcook_trace::Tracer::optical_depth`); nodes, leaves and bricks whose
 // max is ≤ 0 are passed over in one step.
 fn vdb_optical_depth(frame_root: u32, ray: VdbRay, t0: f32, t1: f32, absorb: f32) -> f32 {
-    let bg = vdb_info.background;
-    let dims = vec3<i32>(vdb_info.root_dims);
+    let bg = vdb_background();
+    let dims = vec3<i32>(vdb_root_dims());
     var tau = 0.0;
     var rd = vdb_dda_init(ray, 128.0, vec3<i32>(0), dims, t0, t1);
     for (var ri = 0; ri < 99; ri++) {

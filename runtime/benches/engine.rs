@@ -18,7 +18,8 @@ use std::time::Instant;
 
 use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
 use vdbcook_runtime::{
-    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Lighting, Shading, View, VolumeDrawer,
+    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Interleave, Lighting, Shading, View,
+    VolumeDrawer,
 };
 
 const RUNS: usize = 3;
@@ -66,6 +67,12 @@ fn main() {
     let volume = GpuVolume::upload(&device, &queue, &asset).expect("upload");
     let format = wgpu::TextureFormat::Rgba8UnormSrgb;
     let mut drawer = VolumeDrawer::new(&device, &volume, format).expect("drawer");
+    // `VDBCOOK_BENCH_INTERLEAVE=always|never`: force the interleaving sweep on or off.
+    drawer.set_interleave(match std::env::var("VDBCOOK_BENCH_INTERLEAVE").as_deref() {
+        Ok("always") => Interleave::Always,
+        Ok("never") => Interleave::Never,
+        _ => Interleave::Auto,
+    });
     let timer = GpuTimer::new(&device, &queue);
     println!(
         "adapter: {} ({:?}); timestamp queries: {timestamps}; {}; median of {RUNS}",
@@ -129,9 +136,15 @@ fn main() {
             ..Default::default()
         };
         for n in COUNTS {
-            // A k×k×k lattice (k = ⌈∛n⌉), spacing 2.2 radii, the first n sites.
+            // A k×k×k lattice (k = ⌈∛n⌉), spacing 2.2 radii (`VDBCOOK_BENCH_SPACING`: another
+            // number of radii; below 2 the boxes overlap and the draw interleaves them), the
+            // first n sites.
             let k = (1..).find(|k| k * k * k >= n).unwrap();
-            let spacing = 2.2 * radius;
+            let spacing = std::env::var("VDBCOOK_BENCH_SPACING")
+                .ok()
+                .and_then(|v| v.parse::<f32>().ok())
+                .unwrap_or(2.2)
+                * radius;
             let instances: Vec<Instance> = (0..n)
                 .map(|i| {
                     let c = Vec3::new((i % k) as f32, ((i / k) % k) as f32, (i / (k * k)) as f32)

@@ -195,6 +195,7 @@ pub fn render_scene(
             time: 0.6 * last,
             density_scale: 6.0,
             tint: Vec3::new(1.0, 0.78, 0.6),
+            ..Instance::default()
         },
     ];
     let clouds: Vec<Aabb> = instances

@@ -33,7 +33,7 @@ use vdbcook_scene::{
 
 use std::sync::Arc;
 
-use crate::light::{LightEntry, LightParams, LightPass};
+use crate::light::{FrameAt, LightEntry, LightParams, LightPass};
 use crate::shading::{LitPlace, ShadingUniform};
 
 /// The light volumes one draw needs (deduplicated), and the diffusion inputs of each
@@ -293,13 +293,16 @@ impl ViewRays {
 /// `index_to_world` image — into the engine's world), when (`time` in frames: an integer shows
 /// that frame, a fraction crossfades frames `⌊time⌋` and `⌊time⌋ + 1` by the per-voxel density
 /// lerp; must lie in `[0, frames − 1]`), how dense (`density_scale` ≥ 0 multiplies the medium's
-/// absorption) and which colour (`tint` ≥ 0: the flat-lit radiance is `tint·(1 − T)`).
+/// absorption) and which colour (`tint` ≥ 0: the flat-lit radiance is `tint·(1 − T)`). On a
+/// volume set ([`GpuVolume::upload_set`]) `asset` picks the asset (its index in the set; 0 for
+/// a volume of one asset); `time` counts that asset's frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Instance {
     pub world_from_volume: Affine3A,
     pub time: f32,
     pub density_scale: f32,
     pub tint: Vec3,
+    pub asset: usize,
 }
 
 impl Default for Instance {
@@ -309,6 +312,7 @@ impl Default for Instance {
             time: 0.0,
             density_scale: 1.0,
             tint: Vec3::ONE,
+            asset: 0,
         }
     }
 }
@@ -448,9 +452,17 @@ pub struct DrawTarget<'a> {
     pub depth: Option<&'a wgpu::TextureView>,
 }
 
-/// The drawer's WGSL: the volume, the light-volume helpers, the drawer with the lit march and
-/// its trilinear density compiled in or out.
-fn draw_source(lit: bool, trilinear: bool, near: bool) -> String {
+/// The drawer's WGSL: the volume, the light-volume helpers, the drawer with the lit march, its
+/// trilinear density, its near field, the interleaving sweep and the emission pass compiled in
+/// or out.
+fn draw_source(v: Variant) -> String {
+    let Variant {
+        lit,
+        trilinear,
+        near,
+        interleave,
+        emit,
+    } = v;
     let flag = |on: bool| if on { "true" } else { "false" };
     format!(
         "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
@@ -461,6 +473,8 @@ fn draw_source(lit: bool, trilinear: bool, near: bool) -> String {
             .replace("{{DRAW_LIT}}", flag(lit))
             .replace("{{DRAW_TRILINEAR}}", flag(trilinear))
             .replace("{{LIT_NEAR}}", flag(near))
+            .replace("{{DRAW_INTERLEAVE}}", flag(interleave))
+            .replace("{{DRAW_EMIT}}", flag(emit))
     )
 }
 
@@ -501,7 +515,8 @@ struct DrawInstance {
     frame_root1: u32,
     /// 1: lit (`place` holds its light volumes), 0: flat.
     lit: u32,
-    _pad: u32,
+    /// The instance's asset in the volume set.
+    asset: u32,
     /// The lit march's medium and light volumes in the instance's cell space.
     place: LitPlace,
 }
@@ -547,8 +562,8 @@ struct DrawSlot {
 pub struct PreparedDraw {
     /// Nothing to draw: no instance has content where the view looks.
     empty: bool,
-    /// `None`: the flat pipeline; else the lit variant's index.
-    lit_variant: Option<usize>,
+    /// The pipeline variant (`Variant::index`).
+    variant: usize,
     group: wgpu::BindGroup,
     light_group: wgpu::BindGroup,
     composite_group: wgpu::BindGroup,
@@ -563,7 +578,7 @@ impl std::fmt::Debug for PreparedDraw {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PreparedDraw")
             .field("empty", &self.empty)
-            .field("lit_variant", &self.lit_variant)
+            .field("variant", &Variant::of_index(self.variant))
             .field("covered", &self.rect)
             .finish_non_exhaustive()
     }
@@ -588,12 +603,11 @@ struct LtTexture {
 /// once; [`VolumeDrawer::record`] each frame (any number of times per encoder).
 pub struct VolumeDrawer {
     /// The flat pipeline (the lit march compiled out).
-    draw_pipeline: wgpu::ComputePipeline,
-    /// The lit pipelines: index 1 for trilinear density, 2 for the near field toward the sun
-    /// (code a draw cannot reach is left out: software Vulkan pays for it). Index 2 is made with
-    /// the drawer, the others by [`VolumeDrawer::warm_up`] or the first `prepare` that needs
-    /// them; `record` never compiles.
-    lit_pipelines: [Option<wgpu::ComputePipeline>; 4],
+    /// The draw pipelines by [`Variant::index`] (code a draw cannot reach is left out:
+    /// software Vulkan pays for it). The flat one and the default lighting's are made with the
+    /// drawer, the others by [`VolumeDrawer::warm_up`] or the first `prepare` that needs them;
+    /// `record` never compiles.
+    pipelines: Vec<Option<wgpu::ComputePipeline>>,
     /// The draws' uniforms (see [`DrawSlot`]).
     slots: Vec<Arc<DrawSlot>>,
     /// The lit instances' light volumes.
@@ -607,6 +621,23 @@ pub struct VolumeDrawer {
     color_format: wgpu::TextureFormat,
     dummy_depth: wgpu::TextureView,
     lt: Option<LtTexture>,
+    interleave: Interleave,
+}
+
+/// When a draw interleaves its instances along each ray (the sweep that cuts rays where
+/// instances overlap and mixes their media there) rather than marching each whole, front to
+/// back in the order of their distance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Interleave {
+    /// When two instances' world bounds overlap (the default; exact wherever instances do not
+    /// overlap, where the sweep is not needed and costs more).
+    #[default]
+    Auto,
+    /// Always (the sweep: right whatever overlaps, slower).
+    Always,
+    /// Never: each instance marched whole in distance order (wrong where instances overlap
+    /// along a ray; for a caller that knows they do not).
+    Never,
 }
 
 impl VolumeDrawer {
@@ -624,12 +655,6 @@ impl VolumeDrawer {
         }
         // Refuses a non-affine or singular index_to_world up front.
         Affine::cells(volume.index_to_world())?;
-        let module = |lit: bool| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("vdbcook draw"),
-                source: wgpu::ShaderSource::Wgsl(draw_source(lit, false, false).into()),
-            })
-        };
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -678,26 +703,6 @@ impl VolumeDrawer {
             ],
         });
         let light = LightPass::new(device, volume);
-        let layouts = [&draw_layout, &light.read_layout];
-        let draw_pipeline = volume.compute_pipeline(
-            device,
-            "vdbcook draw",
-            &module(false),
-            "draw_main",
-            &layouts,
-        );
-        // The default lighting's lit pipeline (nearest density, the near field), made now.
-        let lit_pipeline = volume.compute_pipeline(
-            device,
-            "vdbcook draw (lit)",
-            &device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("vdbcook draw"),
-                source: wgpu::ShaderSource::Wgsl(draw_source(true, false, true).into()),
-            }),
-            "draw_main",
-            &layouts,
-        );
-
         let composite_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("vdbcook composite"),
             source: wgpu::ShaderSource::Wgsl(COMPOSITE_WGSL.into()),
@@ -787,9 +792,8 @@ impl VolumeDrawer {
                 count: None,
             }),
         });
-        Ok(VolumeDrawer {
-            draw_pipeline,
-            lit_pipelines: [None, None, Some(lit_pipeline), None],
+        let mut drawer = VolumeDrawer {
+            pipelines: vec![None; Variant::COUNT],
             shadow_layout,
             light,
             draw_layout,
@@ -800,7 +804,19 @@ impl VolumeDrawer {
             dummy_depth,
             lt: None,
             slots: Vec::new(),
-        })
+            interleave: Interleave::Auto,
+        };
+        // The flat pipeline and the default lighting's (nearest density, the near field).
+        drawer.pipeline(device, Variant::default());
+        drawer.pipeline(
+            device,
+            Variant {
+                lit: true,
+                near: true,
+                ..Default::default()
+            },
+        );
+        Ok(drawer)
     }
 
     /// Draws from `volume` from now on, keeping the pipelines: for a [`crate::StreamingVolume`]
@@ -1032,8 +1048,17 @@ impl VolumeDrawer {
         for (i, inst) in instances.iter().enumerate() {
             inst.validate()
                 .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
-            let (f0, f1, a) = inst.frames(self.vol.frames())?;
-            let xf = Affine::cells(&inst.index_to_world(&self.vol.index_to_world))
+            let Some(meta) = self.vol.assets.get(inst.asset) else {
+                return Err(RuntimeError::Setting(format!(
+                    "instance {i}: asset {} is not in the volume ({} asset(s))",
+                    inst.asset,
+                    self.vol.assets.len()
+                )));
+            };
+            let (f0, f1, a) = inst
+                .frames(meta.frames)
+                .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
+            let xf = Affine::cells(&inst.index_to_world(&meta.index_to_world))
                 .map_err(|e| RuntimeError::Transform(format!("instance {i}: {e}")))?;
             let union = |boxes: [Option<([f64; 3], [f64; 3])>; 2]| {
                 boxes.into_iter().flatten().reduce(|x, y| {
@@ -1044,10 +1069,10 @@ impl VolumeDrawer {
                 })
             };
             let emit_box = match &medium.emission {
-                Some(e) => union([self.vol.emission_box(e, f0)?, self.vol.emission_box(e, f1)?]),
+                Some(e) => union([meta.emission_box(e, f0)?, meta.emission_box(e, f1)?]),
                 None => None,
             };
-            let content = union([self.vol.content[f0], self.vol.content[f1]]);
+            let content = union([meta.content[f0], meta.content[f1]]);
             // An instance with nothing > 0 in its frames and nothing glowing draws nothing.
             let Some((lo, hi)) = content.or(emit_box) else {
                 continue;
@@ -1069,7 +1094,7 @@ impl VolumeDrawer {
             let (clo, chi) = content.map_or(([1.0; 4], [0.0; 4]), |(l, h)| (v4(l, a), v4(h, 0.0)));
             let absorb = medium.absorb * inst.density_scale;
             let t = inst.tint;
-            let roots = [f0, f1].map(|f| (f * self.vol.root_len) as u32);
+            let roots = [f0, f1].map(|f| (f * meta.root_len) as u32);
             let mut d = DrawInstance {
                 cell_from_world: [row(0), row(1), row(2)],
                 tint_absorb: [t.x, t.y, t.z, absorb],
@@ -1081,7 +1106,7 @@ impl VolumeDrawer {
                 frame_root0: roots[0],
                 frame_root1: roots[1],
                 lit: 0,
-                _pad: 0,
+                asset: inst.asset as u32,
                 place: LitPlace::zeroed(),
             };
             if let Some(l) = &shading.lighting {
@@ -1095,9 +1120,8 @@ impl VolumeDrawer {
                 };
                 // A light volume per frame of the crossfade, in the instance's cell space; the
                 // bases hold their indices in `volumes` until `record` places them.
-                let grids = [f0, f1].map(|f| {
-                    LightGrid::with_levels(self.vol.content[f], l.light_res, self.vol.lod.0)
-                });
+                let grids = [f0, f1]
+                    .map(|f| LightGrid::with_levels(meta.content[f], l.light_res, meta.lod().0));
                 let mut idx = [0u32; 2];
                 for (n, grid) in grids.iter().enumerate() {
                     let lp = LightParams::new(
@@ -1106,8 +1130,11 @@ impl VolumeDrawer {
                         l.light_dir,
                         extinction,
                         medium.unit,
-                        roots[n],
-                        self.vol.lod,
+                        FrameAt {
+                            asset: inst.asset as u32,
+                            frame_root: roots[n],
+                            lod: meta.lod(),
+                        },
                     );
                     idx[n] = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
                         volumes.push(lp);
@@ -1143,27 +1170,45 @@ impl VolumeDrawer {
         ))
     }
 
-    /// Makes every lit pipeline variant now (trilinear density and the near field on or off),
-    /// so that no later `prepare` compiles one (seconds on software Vulkan).
+    /// Makes every pipeline variant now (lit or flat; trilinear density, the near field, the
+    /// emission pass on or off; overlapping instances interleaved or not: 20 pipelines), so
+    /// that no later `prepare` compiles one (a second or more each on software Vulkan).
+    /// [`VolumeDrawer::warm_up_for`] makes only those one shading needs.
     pub fn warm_up(&mut self, device: &wgpu::Device) {
-        for i in 0..self.lit_pipelines.len() {
-            self.lit_pipeline(device, i);
+        for i in 0..Variant::COUNT {
+            let v = Variant::of_index(i);
+            if v.index() == i {
+                self.pipeline(device, v);
+            }
         }
     }
 
-    /// The lit pipeline variant `i` (bit 0: trilinear, bit 1: near field), made if missing.
-    fn lit_pipeline(&mut self, device: &wgpu::Device, i: usize) {
-        if self.lit_pipelines[i].is_some() {
+    /// Sets when draws interleave their instances ([`Interleave`]; `Auto` by default).
+    pub fn set_interleave(&mut self, interleave: Interleave) {
+        self.interleave = interleave;
+    }
+
+    /// Makes the pipelines draws under `shading` use (with and without overlapping instances).
+    pub fn warm_up_for(&mut self, device: &wgpu::Device, shading: &Shading) {
+        for interleave in [false, true] {
+            let v = Variant::of_shading(shading, interleave);
+            self.pipeline(device, v);
+        }
+    }
+
+    /// The pipeline of variant `v`, made if missing.
+    fn pipeline(&mut self, device: &wgpu::Device, v: Variant) {
+        let i = v.index();
+        if self.pipelines[i].is_some() {
             return;
         }
-        let (trilinear, near) = (i & 1 != 0, i & 2 != 0);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("vdbcook draw (lit variant)"),
-            source: wgpu::ShaderSource::Wgsl(draw_source(true, trilinear, near).into()),
+            label: Some("vdbcook draw"),
+            source: wgpu::ShaderSource::Wgsl(draw_source(v).into()),
         });
-        self.lit_pipelines[i] = Some(self.vol.compute_pipeline(
+        self.pipelines[i] = Some(self.vol.compute_pipeline(
             device,
-            "vdbcook draw (lit variant)",
+            "vdbcook draw",
             &module,
             "draw_main",
             &[&self.draw_layout, &self.light.read_layout],
@@ -1253,14 +1298,13 @@ impl VolumeDrawer {
         let light_group = build
             .as_ref()
             .map_or_else(|| self.light.empty_group.clone(), |b| b.read.clone());
-        let lit_variant = shading.lighting.as_ref().map(|l| {
-            let trilinear = shading.integrator.filter == vdbcook_scene::Filter::Trilinear;
-            let near = l.sun_near > 0.0;
-            trilinear as usize | (near as usize) << 1
-        });
-        if let Some(i) = lit_variant {
-            self.lit_pipeline(device, i);
-        }
+        let interleave = match self.interleave {
+            Interleave::Auto => boxes_overlap(&corners),
+            Interleave::Always => true,
+            Interleave::Never => false,
+        };
+        let variant = Variant::of_shading(shading, interleave);
+        self.pipeline(device, variant);
         let m4 = |m: &DMat4| m.as_mat4().to_cols_array_2d();
         // The emission pass: every flat instance's, and lit ones' from another channel (the lit
         // march glows its own).
@@ -1322,7 +1366,7 @@ impl VolumeDrawer {
         });
         Ok(PreparedDraw {
             empty: gpu_instances.is_empty() || rect[2] == 0 || rect[3] == 0,
-            lit_variant,
+            variant: variant.index(),
             group,
             light_group,
             composite_group,
@@ -1350,10 +1394,11 @@ impl VolumeDrawer {
                 label: Some("vdbcook draw"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(match draw.lit_variant {
-                None => &self.draw_pipeline,
-                Some(i) => self.lit_pipelines[i].as_ref().expect("made by prepare"),
-            });
+            pass.set_pipeline(
+                self.pipelines[draw.variant]
+                    .as_ref()
+                    .expect("made by prepare"),
+            );
             pass.set_bind_group(0, &self.vol.group, &[]);
             pass.set_bind_group(1, &draw.group, &[]);
             pass.set_bind_group(2, &draw.light_group, &[]);
@@ -1403,6 +1448,86 @@ impl VolumeDrawer {
 /// The pixels (x, y, width, height) boxes of world corners `boxes` can cover seen through
 /// `view`: the union of their projections grown by two pixels (the jitter and the rasterizing
 /// of edges), clamped to the viewport; the whole viewport where a box reaches behind the eye.
+/// Which `draw_main` a draw runs: lit or flat, and the code a draw may skip compiled out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct Variant {
+    lit: bool,
+    /// Trilinear density in the lit march (flat draws read no density by point).
+    trilinear: bool,
+    /// The near field toward the sun (lit only).
+    near: bool,
+    /// Some instances' boxes overlap: the sweep that interleaves them along each ray.
+    interleave: bool,
+    /// The emission pass (flat: any emission; lit: emission from another channel than the
+    /// density, which the lit march does not glow itself).
+    emit: bool,
+}
+
+impl Variant {
+    const COUNT: usize = 32;
+    /// Its slot in `VolumeDrawer::pipelines` (flat variants ignore the lit flags).
+    fn index(self) -> usize {
+        let lit = self.lit as usize;
+        lit | (lit & self.trilinear as usize) << 1
+            | (lit & self.near as usize) << 2
+            | (self.interleave as usize) << 3
+            | (self.emit as usize) << 4
+    }
+    /// The variant draws under `shading` run (`interleave`: some instances' boxes overlap).
+    fn of_shading(shading: &Shading, interleave: bool) -> Variant {
+        let lit = shading.lighting.is_some();
+        Variant {
+            lit,
+            trilinear: shading.integrator.filter == vdbcook_scene::Filter::Trilinear,
+            near: shading.lighting.as_ref().is_some_and(|l| l.sun_near > 0.0),
+            interleave,
+            emit: shading
+                .medium
+                .emission
+                .is_some_and(|e| !lit || e.channel > 0),
+        }
+    }
+    fn of_index(i: usize) -> Variant {
+        Variant {
+            lit: i & 1 != 0,
+            trilinear: i & 2 != 0,
+            near: i & 4 != 0,
+            interleave: i & 8 != 0,
+            emit: i & 16 != 0,
+        }
+    }
+}
+
+/// Whether any two of the instances' boxes (eight world corners each) overlap, by their
+/// world-axis bounds (conservative: a rotated box's bounds are larger than the box).
+fn boxes_overlap(boxes: &[[DVec3; 8]]) -> bool {
+    let bounds: Vec<(DVec3, DVec3)> = boxes
+        .iter()
+        .map(|c| {
+            c.iter()
+                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(*p), hi.max(*p))
+                })
+        })
+        .collect();
+    // Sweep along x: each box against those that start before it ends.
+    let mut order: Vec<usize> = (0..bounds.len()).collect();
+    order.sort_by(|&a, &b| bounds[a].0.x.total_cmp(&bounds[b].0.x));
+    for (k, &a) in order.iter().enumerate() {
+        for &b in &order[k + 1..] {
+            if bounds[b].0.x >= bounds[a].1.x {
+                break;
+            }
+            let (la, ha) = bounds[a];
+            let (lb, hb) = bounds[b];
+            if la.y < hb.y && lb.y < ha.y && la.z < hb.z && lb.z < ha.z {
+                return true;
+            }
+        }
+    }
+    false
+}
+
 fn coverage(view: &View, boxes: &[[DVec3; 8]]) -> [u32; 4] {
     let (w, h) = view.viewport;
     let clip = view.proj.as_dmat4() * view.view.as_dmat4();
@@ -1453,7 +1578,7 @@ mod tests {
     #[test]
     fn draw_structs_mirror_the_wgsl() {
         use crate::layout_check::{assert_mirrors, rust_layout};
-        let source = draw_source(true, true, true);
+        let source = draw_source(Variant::of_index(Variant::COUNT - 1));
         assert_mirrors(
             &source,
             "DrawView",
@@ -1486,7 +1611,7 @@ mod tests {
                 frame_root0,
                 frame_root1,
                 lit,
-                _pad,
+                asset,
                 place,
             }),
         );

@@ -60,15 +60,16 @@ mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, PreparedDraw, Shading, SunShadows, View, ViewRays, VolumeDrawer,
-    COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, Interleave, PreparedDraw, Shading, SunShadows, View, ViewRays,
+    VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
 pub use timer::GpuTimer;
 pub use upload::stream::{StreamingVolume, WindowStats};
 pub use upload::{
-    BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, OPTIONAL_FEATURES,
+    BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, MAX_ASSETS,
+    OPTIONAL_FEATURES,
 };
 pub use vdbcook_asset::Asset;
 pub use vdbcook_scene::{

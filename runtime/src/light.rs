@@ -45,22 +45,37 @@ pub(crate) struct LightParams {
     /// The density pass's level of detail (`LightGrid::density_level`'s shift): full-resolution
     /// indices shift right by it.
     pub level: u32,
-    pub _pad2: u32,
+    /// The asset of the volume set whose density it reads.
+    pub asset: u32,
+}
+
+/// The frame a light volume reads: its asset in the volume set, its root offset at full
+/// resolution and the asset's levels of detail with their root-offset stride
+/// (`AssetMeta::lod`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FrameAt {
+    pub asset: u32,
+    pub frame_root: u32,
+    pub lod: (LevelChain, usize),
 }
 
 impl LightParams {
     /// The pass's uniform for `grid` (`vdbcook_scene::light_dirs` in f64, then f32):
     /// the cell space of `xf`, the world direction `light_dir` toward the light, `extinction`
-    /// per unit density per length `unit`.
+    /// per unit density per length `unit`, over the frame `at` names.
     pub fn new(
         grid: &LightGrid,
         xf: &Affine,
         light_dir: [f32; 3],
         extinction: f64,
         unit: LengthUnit,
-        frame_root: u32,
-        (levels, level_stride): (LevelChain, usize),
+        at: FrameAt,
     ) -> LightParams {
+        let FrameAt {
+            asset,
+            frame_root,
+            lod: (levels, level_stride),
+        } = at;
         let ((l, sun_len), axis) = light_dirs(xf, light_dir, unit);
         let (level, shift, sub) = grid.density_level(levels);
         LightParams {
@@ -71,7 +86,7 @@ impl LightParams {
             frame_root: frame_root + (level * level_stride) as u32,
             base: 0,
             level: shift,
-            _pad2: 0,
+            asset,
         }
     }
 
@@ -599,7 +614,7 @@ mod tests {
                 frame_root,
                 base,
                 level,
-                _pad2,
+                asset,
             }),
         );
         assert_mirrors(

@@ -11,7 +11,7 @@ use vdbcook_scene::{
     Mode, MsModel, MAX_SIDE,
 };
 
-use crate::light::{LightParams, LightPass};
+use crate::light::{FrameAt, LightParams, LightPass};
 use crate::shading::{LitPlace, ShadingUniform};
 use crate::upload::{buffer_entry, Bound, GpuVolume};
 use crate::{
@@ -527,8 +527,11 @@ impl Renderer {
                 settings.lighting.light_dir,
                 extinction,
                 settings.medium.unit,
-                params.frame_root,
-                self.vol.lod,
+                FrameAt {
+                    asset: 0,
+                    frame_root: params.frame_root,
+                    lod: self.vol.lod(),
+                },
             );
             let diffusion = (settings.lighting.ms_model == MsModel::Diffusion)
                 .then(|| DiffusionInputs::of_settings(&grid, &self.xf, settings));
@@ -605,7 +608,7 @@ impl Renderer {
         let basis = camera.basis(width, height)?;
         let eye = self.xf.index_of(camera.eye);
         // Depth range: nearest and farthest corner of the frame's stored box (0 inside it).
-        let bbox = self.vol.bboxes[frame].unwrap_or(([0.0; 3], self.vol.extent));
+        let bbox = self.vol.bboxes[frame].unwrap_or(([0.0; 3], self.vol.extent()));
         let [near, far] = depth_range(&self.xf, bbox, camera.eye);
         let vmax = self.vol.frame_max[frame];
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
@@ -613,7 +616,7 @@ impl Renderer {
         let grid = LightGrid::with_levels(
             self.vol.content[frame],
             settings.lighting.light_res,
-            self.vol.lod.0,
+            self.vol.lod().0,
         );
         // Emission from another channel: the modes' own emission is off (`emission.w = 0`) and
         // `channel_emission` draws it over the channel's box (as `vdbcook_trace::Tracer`).
@@ -630,7 +633,7 @@ impl Renderer {
             inv_a0: v4(inv[0]),
             inv_a1: v4(inv[1]),
             inv_a2: v4(inv[2]),
-            extent: v4(self.vol.extent),
+            extent: v4(self.vol.extent()),
             content_lo: self.vol.content[frame].map_or([1.0, 1.0, 1.0, 0.0], |b| v4(b.0)),
             content_hi: self.vol.content[frame].map_or([0.0; 4], |b| v4(b.1)),
             width,
@@ -653,11 +656,11 @@ impl Renderer {
             emit_hi: emit_box.map_or([0.0; 4], |b| v4(b.1)),
             lod: [
                 if settings.integrator.mode == Mode::Lit && settings.integrator.primary_lod {
-                    self.vol.lod.0.consecutive() as u32
+                    self.vol.lod().0.consecutive() as u32
                 } else {
                     1
                 },
-                self.vol.lod.1 as u32,
+                self.vol.lod().1 as u32,
                 (pixel_angle(camera.fov_y_deg, height) as f32).to_bits(),
                 // 1: the voxel march (`March::resolve`; trilinear density marches in steps).
                 (March::resolve(settings, vmax) == March::Voxels) as u32,

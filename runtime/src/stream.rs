@@ -3,7 +3,8 @@
 //! window's topology (every level of detail of its frames, every channel) — and moving the
 //! window writes only the bricks it newly uses. It is the one uploader: [`GpuVolume::upload`]
 //! is a pool holding every brick with the whole asset as its window
-//! ([`StreamingVolume::upload_whole`]).
+//! ([`StreamingVolume::upload_whole`]), and [`GpuVolume::upload_set`] one pool holding several
+//! assets, each with its whole flip-book as its window and its own topology section.
 //!
 //! # How the unchanged `volume.wgsl` reads a streamed pool
 //! The shader reads brick `b` at a place derived from `b` alone (`vdb_brick_voxel`: its format
@@ -83,24 +84,45 @@ pub struct StreamingVolume {
     bind_group_layout: wgpu::BindGroupLayout,
     /// Free slots (within the format) per format.
     free: [BTreeSet<u32>; 5],
-    /// Resident asset brick → slot number.
-    slot_of: HashMap<u32, u32>,
-    /// Slot number → resident asset brick (`u32::MAX`: free).
-    slot_brick: Vec<u32>,
-    /// Per asset brick: the box of its non-background voxels, once known (computed when the
-    /// brick is first written).
-    brick_boxes: Vec<Option<([u8; 3], [u8; 3])>>,
-    brick_box_known: Vec<bool>,
-    /// Per asset frame, once computed: stored box and content box.
-    frame_boxes: Vec<Option<FrameBoxes>>,
-    /// Channels 1.. of the asset: background and per-frame boxes above it (all frames).
-    channel_boxes: Vec<ChannelBoxes>,
+    /// Resident (asset, brick) → slot number.
+    slot_of: HashMap<(u32, u32), u32>,
+    /// Slot number → resident (asset, brick) (`FREE`: free).
+    slot_brick: Vec<(u32, u32)>,
+    /// Per asset of the pool: what is known of it.
+    residents: Vec<Resident>,
+    /// The (first) asset's window.
     window: (usize, usize),
     stats: WindowStats,
     volume: Option<GpuVolume>,
 }
 
 type Box3 = Option<([f64; 3], [f64; 3])>;
+
+/// A free slot in `slot_brick`.
+const FREE: (u32, u32) = (u32::MAX, u32::MAX);
+
+/// One asset of the pool: what is known of it, filled in as its bricks and frames are loaded.
+struct Resident {
+    /// Per brick: the box of its non-background voxels, once known (computed when the brick is
+    /// first written).
+    brick_boxes: Vec<Option<([u8; 3], [u8; 3])>>,
+    brick_box_known: Vec<bool>,
+    /// Per frame, once computed: stored box and content box.
+    frame_boxes: Vec<Option<FrameBoxes>>,
+    /// Channels 1..: background and per-frame boxes above it (all frames).
+    channel_boxes: Vec<ChannelBoxes>,
+}
+
+impl Resident {
+    fn of(asset: &Asset) -> Resident {
+        Resident {
+            brick_boxes: vec![None; asset.brick_count()],
+            brick_box_known: vec![false; asset.brick_count()],
+            frame_boxes: vec![None; asset.frame_count()],
+            channel_boxes: ChannelBoxes::of(asset),
+        }
+    }
+}
 #[derive(Clone, Copy)]
 struct FrameBoxes {
     stored: Box3,
@@ -263,8 +285,8 @@ impl StreamingVolume {
         };
 
         let caps = pool.caps;
-        let mut s = Self::build(device, &asset, caps, &pool.plan, budget, first)?;
-        s.load(device, queue, &asset, first, last)?;
+        let mut s = Self::build(device, &[&asset], caps, &pool.plan, budget, first)?;
+        s.load(device, queue, &[(&asset, first, last)])?;
         s.asset = Some(asset);
         log::info!(
             "vdbcook: streaming pool for a budget of {budget} bytes: slots per format {caps:?} \
@@ -279,14 +301,13 @@ impl StreamingVolume {
     /// under `budget` bytes, its window not loaded yet (`load` loads it).
     fn build(
         device: &wgpu::Device,
-        asset: &Asset,
+        assets: &[&Asset],
         caps: [u32; 5],
         plan: &FullPlan,
         budget: u64,
         first: usize,
     ) -> Result<StreamingVolume> {
         let last = first;
-        let frames = asset.frame_count();
         let mut firsts = [0u32; 5];
         for i in 1..5 {
             firsts[i] = firsts[i - 1] + caps[i - 1];
@@ -382,11 +403,8 @@ impl StreamingVolume {
             bind_group_layout: volume_bind_group_layout(device),
             free: std::array::from_fn(|i| (0..caps[i]).collect()),
             slot_of: HashMap::new(),
-            slot_brick: vec![u32::MAX; total_slots as usize],
-            brick_boxes: vec![None; asset.brick_count()],
-            brick_box_known: vec![false; asset.brick_count()],
-            frame_boxes: vec![None; frames],
-            channel_boxes: ChannelBoxes::of(asset),
+            slot_brick: vec![FREE; total_slots as usize],
+            residents: assets.iter().map(|a| Resident::of(a)).collect(),
             window: (first, first),
             stats: WindowStats {
                 window: (first, last),
@@ -402,18 +420,30 @@ impl StreamingVolume {
         Ok(s)
     }
 
-    /// Every frame of `asset` as the one window of a pool holding every brick: what
-    /// [`GpuVolume::upload_with`] uploads (one uploader: the whole-asset volume is the
-    /// streamed volume whose window is the whole asset). Layout: the forced one, or the first of
-    /// [`Layout::automatic_order`] the device's features and limits take.
+    /// Every frame of each of `assets` as the windows of one pool holding every brick: what
+    /// [`GpuVolume::upload_with`] (one asset) and [`GpuVolume::upload_set`] upload (one
+    /// uploader: the whole-asset volume is the streamed volume whose window is the whole asset).
+    /// Layout: the forced one, or the first of [`Layout::automatic_order`] the device's features
+    /// and limits take.
     pub(crate) fn upload_whole(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        asset: &Asset,
+        assets: &[&Asset],
         options: UploadOptions,
     ) -> Result<GpuVolume> {
+        if assets.is_empty() || assets.len() > MAX_ASSETS {
+            return Err(RuntimeError::Setting(format!(
+                "a volume set holds 1 to {MAX_ASSETS} assets, not {}",
+                assets.len()
+            )));
+        }
         let max_binding = check_limits(device)?;
-        let counts = asset.header.brick_counts;
+        let mut counts = [0u64; 5];
+        for a in assets {
+            for (c, n) in counts.iter_mut().zip(a.header.brick_counts) {
+                *c += n;
+            }
+        }
         if counts.iter().sum::<u64>() > u32::MAX as u64 / 2 {
             return Err(RuntimeError::Limits(format!(
                 "{} bricks",
@@ -453,14 +483,18 @@ impl StreamingVolume {
             }
         };
         let caps = counts.map(|c| c as u32);
-        let last = asset.frame_count() - 1;
-        let mut s = Self::build(device, asset, caps, &plan, u64::MAX, 0)?;
-        s.load(device, queue, asset, 0, last)?;
+        let mut s = Self::build(device, assets, caps, &plan, u64::MAX, 0)?;
+        let windows: Vec<(&Asset, usize, usize)> = assets
+            .iter()
+            .map(|&a| (a, 0, a.frame_count() - 1))
+            .collect();
+        s.load(device, queue, &windows)?;
         let volume = s.volume.take().expect("loaded");
         log::info!(
-            "vdbcook: uploaded {} frames, {} bricks: {} (device BC features: {:?})",
-            asset.frame_count(),
-            asset.brick_count(),
+            "vdbcook: uploaded {} asset(s), {} frames, {} bricks: {} (device BC features: {:?})",
+            assets.len(),
+            assets.iter().map(|a| a.frame_count()).sum::<usize>(),
+            counts.iter().sum::<u64>(),
             volume.describe(),
             device.features() & OPTIONAL_FEATURES
         );
@@ -477,7 +511,7 @@ impl StreamingVolume {
     ) -> Result<WindowStats> {
         let asset = Arc::clone(self.asset.as_ref().expect("a stream holds its asset"));
         let (first, last) = check_window(&asset, &window)?;
-        self.load(device, queue, &asset, first, last)?;
+        self.load(device, queue, &[(&asset, first, last)])?;
         Ok(self.stats.clone())
     }
 
@@ -527,25 +561,44 @@ impl StreamingVolume {
         self.layout
     }
 
+    /// Makes the windows `windows` (per asset of the pool, in pool order: the asset, its first
+    /// and last frame) resident: evicts the bricks they do not use and writes those they newly
+    /// use, then writes the topology of every asset's window. On error nothing changed.
     fn load(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        asset: &Asset,
-        first: usize,
-        last: usize,
+        windows: &[(&Asset, usize, usize)],
     ) -> Result<()> {
-        let u = window_use(asset, first, last);
+        debug_assert_eq!(windows.len(), self.residents.len());
+        let uses: Vec<WindowUse> = windows
+            .iter()
+            .map(|&(asset, first, last)| window_use(asset, first, last))
+            .collect();
+        let span = |i: usize| {
+            let (_, first, last) = windows[i];
+            if windows.len() == 1 {
+                format!("window {first}..={last}")
+            } else {
+                format!("asset {i}'s window {first}..={last}")
+            }
+        };
         // Checks first: slots per format, topology bytes.
         let mut need = [0u32; 5];
-        for &b in &u.bricks {
-            need[asset.brick_format(b).0.rank()] += 1;
+        for (&(asset, ..), u) in windows.iter().zip(&uses) {
+            for &b in &u.bricks {
+                need[asset.brick_format(b).0.rank()] += 1;
+            }
         }
         for (i, f) in PayloadFormat::ORDER.iter().enumerate() {
             if need[i] > self.caps[i] {
+                let what = if windows.len() == 1 {
+                    span(0)
+                } else {
+                    "the windows".to_string()
+                };
                 return Err(RuntimeError::Budget(format!(
-                    "window {first}..={last} uses {} {} bricks, the budget of {} bytes holds {} \
-                     of them",
+                    "{what} use {} {} bricks, the budget of {} bytes holds {} of them",
                     need[i],
                     f.name(),
                     self.budget,
@@ -554,14 +607,18 @@ impl StreamingVolume {
             }
         }
         let total_slots = self.slot_brick.len() as u64;
-        let topo_bytes = topology_words(asset, last - first + 1, &u) * 4
-            + total_slots * SLOT_RANGE_BYTES
-            + INFO_BYTES;
+        let topo_words: u64 = windows
+            .iter()
+            .zip(&uses)
+            .map(|(&(asset, first, last), u)| topology_words(asset, last - first + 1, u))
+            .sum();
+        let topo_bytes = topo_words * 4 + total_slots * SLOT_RANGE_BYTES + INFO_BYTES;
         let topo_room = self.budget - self.pool_bytes + total_slots * SLOT_RANGE_BYTES;
         if topo_bytes > topo_room {
             return Err(RuntimeError::Budget(format!(
-                "window {first}..={last} needs {topo_bytes} bytes of topology, the budget of {} \
-                 bytes leaves {topo_room} beside the pool",
+                "{} needs {topo_bytes} bytes of topology, the budget of {} bytes leaves \
+                 {topo_room} beside the pool",
+                span(0),
                 self.budget
             )));
         }
@@ -571,62 +628,187 @@ impl StreamingVolume {
             .min(limits.max_buffer_size);
         if topo_bytes - INFO_BYTES > max_binding {
             return Err(RuntimeError::Limits(format!(
-                "window topology takes {topo_bytes} bytes, one storage binding holds {max_binding}"
+                "topology takes {topo_bytes} bytes, one storage binding holds {max_binding}"
             )));
         }
 
-        // Evict, then write the new bricks (ascending, each into the lowest free slot).
-        let wanted: HashSet<u32> = u.bricks.iter().copied().collect();
-        let leaving: Vec<u32> = self
+        // Evict, then write the new bricks (per asset, ascending, each into the lowest free
+        // slot of its format).
+        let wanted: HashSet<(u32, u32)> = uses
+            .iter()
+            .enumerate()
+            .flat_map(|(a, u)| u.bricks.iter().map(move |&b| (a as u32, b)))
+            .collect();
+        let mut leaving: Vec<(u32, u32)> = self
             .slot_of
             .keys()
             .copied()
-            .filter(|b| !wanted.contains(b))
+            .filter(|k| !wanted.contains(k))
             .collect();
-        for b in &leaving {
-            let slot = self.slot_of.remove(b).expect("resident");
-            let f = asset.brick_format(*b).0.rank();
+        leaving.sort_unstable();
+        for k in &leaving {
+            let slot = self.slot_of.remove(k).expect("resident");
+            let f = windows[k.0 as usize].0.brick_format(k.1).0.rank();
             self.free[f].insert(slot - self.firsts[f]);
-            self.slot_brick[slot as usize] = u32::MAX;
+            self.slot_brick[slot as usize] = FREE;
         }
         let (mut uploaded, mut uploaded_bytes) = (0, 0);
         let mut values = [0.0f32; BRICK_VOXELS];
         let mut units = Vec::new();
-        for &b in &u.bricks {
-            if self.slot_of.contains_key(&b) {
-                continue;
-            }
-            let (format, bytes) = asset.brick_bytes(b);
-            let f = format.rank();
-            let local = self.free[f].pop_first().expect("checked against the caps");
-            let slot = self.firsts[f] + local;
-            self.slot_of.insert(b, slot);
-            self.slot_brick[slot as usize] = b;
-            asset.decode_brick(b, &mut values);
-            if !self.brick_box_known[b as usize] {
-                self.brick_boxes[b as usize] = brick_box(&values, asset.header.background);
-                self.brick_box_known[b as usize] = true;
-            }
-            uploaded += 1;
-            uploaded_bytes += self.write_brick(queue, slot, format, bytes, &values, &mut units);
-        }
-
-        // Per-frame boxes (every brick of the window's frames is known now).
-        for f in first..=last {
-            if self.frame_boxes[f].is_none() {
-                self.frame_boxes[f] = Some(FrameBoxes {
-                    stored: frame_box(asset, f, &self.brick_boxes),
-                    content: vdbcook_scene::content_box(asset, f),
-                });
+        for (a, (&(asset, ..), u)) in windows.iter().zip(&uses).enumerate() {
+            for &b in &u.bricks {
+                let key = (a as u32, b);
+                if self.slot_of.contains_key(&key) {
+                    continue;
+                }
+                let (format, bytes) = asset.brick_bytes(b);
+                let f = format.rank();
+                let local = self.free[f].pop_first().expect("checked against the caps");
+                let slot = self.firsts[f] + local;
+                self.slot_of.insert(key, slot);
+                self.slot_brick[slot as usize] = key;
+                asset.decode_brick(b, &mut values);
+                let r = &mut self.residents[a];
+                if !r.brick_box_known[b as usize] {
+                    r.brick_boxes[b as usize] = brick_box(&values, asset.header.background);
+                    r.brick_box_known[b as usize] = true;
+                }
+                uploaded += 1;
+                uploaded_bytes += self.write_brick(queue, slot, format, bytes, &values, &mut units);
             }
         }
 
-        // The window's topology, bricks numbered by slot.
+        // Per-frame boxes (every brick of the windows' frames is known now).
+        for (a, &(asset, first, last)) in windows.iter().enumerate() {
+            let r = &mut self.residents[a];
+            for f in first..=last {
+                if r.frame_boxes[f].is_none() {
+                    r.frame_boxes[f] = Some(FrameBoxes {
+                        stored: frame_box(asset, f, &r.brick_boxes),
+                        content: vdbcook_scene::content_box(asset, f),
+                    });
+                }
+            }
+        }
+
+        // Each asset's window topology in turn (bricks numbered by slot), then the per-slot
+        // ranges of the whole pool.
+        let mut topo: Vec<u32> = Vec::with_capacity((topo_bytes / 4) as usize);
+        let mut infos = [AssetInfo::default(); MAX_ASSETS];
+        for (a, (&(asset, first, last), u)) in windows.iter().zip(&uses).enumerate() {
+            infos[a] = self.write_topology(&mut topo, a as u32, asset, first, last, u);
+        }
+        let per_slot = |pick: fn(&Asset) -> &Vec<[f32; 2]>| -> Vec<u32> {
+            self.slot_brick
+                .iter()
+                .flat_map(|&(a, b)| {
+                    let r = if (a, b) == FREE {
+                        [0.0, 0.0]
+                    } else {
+                        pick(windows[a as usize].0)[b as usize]
+                    };
+                    [r[0].to_bits(), r[1].to_bits()]
+                })
+                .collect()
+        };
+        let off_brick_ranges = topo.len();
+        topo.extend(per_slot(|a| &a.brick_ranges));
+        let off_brick_quant = topo.len();
+        topo.extend(per_slot(|a| &a.brick_quant));
+        if topo.is_empty() {
+            topo.push(0);
+        }
+        debug_assert_eq!(
+            topo.len() as u64 * 4 + INFO_BYTES,
+            topo_bytes.max(4 + INFO_BYTES)
+        );
+
+        let info = VolumeInfo {
+            bricks_per_binding: self.buffers.bricks_per_buffer(),
+            payload_layout: self.buffers.code(),
+            off_brick_ranges: off_brick_ranges as u32,
+            off_brick_quant: off_brick_quant as u32,
+            asset_count: windows.len() as u32,
+            _pad: [0; 3],
+            groups: self.groups,
+            assets: infos,
+        };
+        let bind_group = self.bind(device, &info, &topo);
+        let assets = windows
+            .iter()
+            .zip(&self.residents)
+            .map(|(&(asset, first, last), r)| {
+                let boxes: Vec<FrameBoxes> = (first..=last)
+                    .map(|f| r.frame_boxes[f].expect("computed above"))
+                    .collect();
+                AssetMeta {
+                    frames: last - first + 1,
+                    levels: vdbcook_scene::LevelChain::of(asset),
+                    root_len: asset.root_len(),
+                    root_dims: asset.header.root_dims,
+                    index_to_world: asset.header.index_to_world,
+                    bboxes: boxes.iter().map(|b| b.stored).collect(),
+                    content: boxes.iter().map(|b| b.content).collect(),
+                    frame_max: (first..=last).map(|f| asset.frame_range(f, 0)[1]).collect(),
+                    channels: r
+                        .channel_boxes
+                        .iter()
+                        .map(|c| ChannelBoxes {
+                            background: c.background,
+                            boxes: c.boxes[first..=last].to_vec(),
+                        })
+                        .collect(),
+                }
+            })
+            .collect();
+        self.volume = Some(GpuVolume {
+            bind_group_layout: self.bind_group_layout.clone(),
+            bind_group,
+            layout: PayloadLayout {
+                layout: self.layout,
+                buffers: self.buffers,
+                buffer_bytes: self.buffer_bytes,
+                textures: self
+                    .plan_textures
+                    .iter()
+                    .flatten()
+                    .map(|p| p.group())
+                    .collect(),
+            },
+            gpu_bytes: self.pool_bytes - total_slots * SLOT_RANGE_BYTES + topo_bytes,
+            assets,
+        });
+        let (_, first, last) = windows[0];
+        self.window = (first, last);
+        self.stats = WindowStats {
+            window: (first, last),
+            uploaded_bricks: uploaded,
+            uploaded_bytes,
+            topology_bytes: topo_bytes,
+            resident_bricks: self.slot_of.len(),
+            evicted: leaving.len(),
+        };
+        Ok(())
+    }
+
+    /// Appends asset `a`'s window topology to `topo` — the roots of every level, the nodes the
+    /// window uses (renumbered in first use order: masks, base, prefixes, ranges per channel),
+    /// their refs with bricks numbered by slot, the tiles, the channels' backgrounds — and
+    /// returns where its sections lie.
+    fn write_topology(
+        &self,
+        topo: &mut Vec<u32>,
+        a: u32,
+        asset: &Asset,
+        first: usize,
+        last: usize,
+        u: &WindowUse,
+    ) -> AssetInfo {
         let mut node_index = HashMap::new();
         for (i, &n) in u.nodes.iter().enumerate() {
             node_index.insert(n, i as u32);
         }
-        let mut topo: Vec<u32> = Vec::with_capacity((topo_bytes / 4) as usize);
+        let off_roots = topo.len();
         // Level k of window frame i at root set i + k·frames (`GpuVolume::levels`).
         for level in 0..asset.level_count() {
             for f in first..=last {
@@ -681,72 +863,48 @@ impl StreamingVolume {
                         if r == EMPTY || r & TILE_BIT != 0 {
                             r
                         } else {
-                            self.slot_of[&r]
+                            self.slot_of[&(a, r)]
                         }
                     }),
             );
         }
         let off_tiles = topo.len();
         topo.extend(asset.tiles.iter().map(|t| t.to_bits()));
-        let per_slot = |v: &Vec<[f32; 2]>| -> Vec<u32> {
-            self.slot_brick
-                .iter()
-                .flat_map(|&b| {
-                    let r = if b == u32::MAX {
-                        [0.0, 0.0]
-                    } else {
-                        v[b as usize]
-                    };
-                    [r[0].to_bits(), r[1].to_bits()]
-                })
-                .collect()
-        };
-        let off_brick_ranges = topo.len();
-        topo.extend(per_slot(&asset.brick_ranges));
-        let off_brick_quant = topo.len();
-        topo.extend(per_slot(&asset.brick_quant));
         let off_channel_bg = topo.len();
         if nch > 1 {
             topo.extend((0..nch).map(|c| asset.header.channel_background(c).to_bits()));
         }
-        if topo.is_empty() {
-            topo.push(0);
+        AssetInfo {
+            root_dims: asset.header.root_dims,
+            root_len: asset.root_len() as u32,
+            off_roots: off_roots as u32,
+            off_masks: off_masks as u32,
+            off_base: off_base as u32,
+            off_prefix: off_prefix as u32,
+            off_l2_ranges: off_l2_ranges as u32,
+            off_refs: off_refs as u32,
+            off_tiles: off_tiles as u32,
+            off_channel_bg: off_channel_bg as u32,
+            background: asset.header.background,
+            frames: (last - first + 1) as u32,
+            channels: nch as u32,
+            _pad: 0,
         }
-        debug_assert_eq!(
-            topo.len() as u64 * 4 + INFO_BYTES,
-            topo_bytes.max(4 + INFO_BYTES)
-        );
+    }
 
-        let frames = last - first + 1;
-        let info = VolumeInfo::new(
-            asset,
-            [
-                off_masks,
-                off_base,
-                off_prefix,
-                off_l2_ranges,
-                off_refs,
-                off_tiles,
-                off_brick_ranges,
-                off_brick_quant,
-                off_channel_bg,
-            ],
-            self.buffers.bricks_per_buffer(),
-            self.buffers.code(),
-            frames,
-            self.groups,
-        );
+    /// The bind group of the pool with this `info` and topology (the bindings of
+    /// `volume_bind_group_layout`).
+    fn bind(&self, device: &wgpu::Device, info: &VolumeInfo, topo: &[u32]) -> wgpu::BindGroup {
         let info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vdbcook streamed volume info"),
-            contents: bytemuck::bytes_of(&info),
+            label: Some("vdbcook volume info"),
+            contents: bytemuck::bytes_of(info),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let topo_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("vdbcook streamed topology"),
-            contents: bytemuck::cast_slice(&topo),
+            label: Some("vdbcook volume topology"),
+            contents: bytemuck::cast_slice(topo),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        // The same bindings as `GpuVolume::upload_with`.
         let mut entries = vec![
             wgpu::BindGroupEntry {
                 binding: 0,
@@ -777,56 +935,11 @@ impl StreamingVolume {
                 });
             }
         }
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vdbcook streamed volume"),
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook volume"),
             layout: &self.bind_group_layout,
             entries: &entries,
-        });
-        let boxes: Vec<FrameBoxes> = (first..=last)
-            .map(|f| self.frame_boxes[f].expect("computed above"))
-            .collect();
-        self.volume = Some(GpuVolume {
-            bind_group_layout: self.bind_group_layout.clone(),
-            bind_group,
-            layout: PayloadLayout {
-                layout: self.layout,
-                buffers: self.buffers,
-                buffer_bytes: self.buffer_bytes,
-                textures: self
-                    .plan_textures
-                    .iter()
-                    .flatten()
-                    .map(|p| p.group())
-                    .collect(),
-            },
-            frames,
-            levels: vdbcook_scene::LevelChain::of(asset),
-            root_len: asset.root_len(),
-            root_dims: asset.header.root_dims,
-            index_to_world: asset.header.index_to_world,
-            bboxes: boxes.iter().map(|b| b.stored).collect(),
-            content: boxes.iter().map(|b| b.content).collect(),
-            frame_max: (first..=last).map(|f| asset.frame_range(f, 0)[1]).collect(),
-            gpu_bytes: self.pool_bytes - total_slots * SLOT_RANGE_BYTES + topo_bytes,
-            channels: self
-                .channel_boxes
-                .iter()
-                .map(|c| ChannelBoxes {
-                    background: c.background,
-                    boxes: c.boxes[first..=last].to_vec(),
-                })
-                .collect(),
-        });
-        self.window = (first, last);
-        self.stats = WindowStats {
-            window: (first, last),
-            uploaded_bricks: uploaded,
-            uploaded_bytes,
-            topology_bytes: topo_bytes,
-            resident_bricks: self.slot_of.len(),
-            evicted: leaving.len(),
-        };
-        Ok(())
+        })
     }
 
     /// Writes one brick into `slot`; returns the bytes written.

@@ -195,7 +195,7 @@ const KIND_ARRAY: u32 = 2;
 /// 2D array) with `tiles` tiles per row / rows per slice.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, Default)]
-struct GroupInfo {
+pub(crate) struct GroupInfo {
     first: u32,
     base: u32,
     kind: u32,
@@ -204,66 +204,42 @@ struct GroupInfo {
     _pad: [u32; 3],
 }
 
+/// `VdbAsset` of `volume.wgsl`: where one asset's sections lie in the topology (word offsets),
+/// its extent, frames, channels and background.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, Default)]
+pub(crate) struct AssetInfo {
+    pub root_dims: [u32; 3],
+    pub root_len: u32,
+    pub off_roots: u32,
+    pub off_masks: u32,
+    pub off_base: u32,
+    pub off_prefix: u32,
+    pub off_l2_ranges: u32,
+    pub off_refs: u32,
+    pub off_tiles: u32,
+    pub off_channel_bg: u32,
+    pub background: f32,
+    pub frames: u32,
+    pub channels: u32,
+    pub _pad: u32,
+}
+
+/// Most assets one volume set holds (`VDB_MAX_ASSETS` of `volume.wgsl`).
+pub const MAX_ASSETS: usize = 16;
+
 /// The `VolumeInfo` uniform of `volume.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct VolumeInfo {
-    root_dims: [u32; 3],
-    root_len: u32,
-    off_masks: u32,
-    off_base: u32,
-    off_prefix: u32,
-    off_l2_ranges: u32,
-    off_refs: u32,
-    off_tiles: u32,
-    off_brick_ranges: u32,
-    bricks_per_binding: u32,
-    background: f32,
-    payload_layout: u32,
-    frames: u32,
-    off_brick_quant: u32,
-    /// Channels per slot, node and frame (`Asset::channel_count`).
-    channels: u32,
-    /// Word offset of the channel backgrounds (channel `c` at `+ c`; unused for one channel).
-    off_channel_bg: u32,
-    _padc: [u32; 2],
-    groups: [GroupInfo; GROUPS],
-}
-
-impl VolumeInfo {
-    /// The uniform of a topology laid out in `topo` with its sections starting at the word
-    /// offsets `[masks, base, prefix, l2_ranges, refs, tiles, brick_ranges, brick_quant,
-    /// channel_bg]` (the full upload and a streamed window lay out the same sections).
-    fn new(
-        asset: &Asset,
-        offsets: [usize; 9],
-        bricks_per_binding: u32,
-        payload_layout: u32,
-        frames: usize,
-        groups: [GroupInfo; GROUPS],
-    ) -> VolumeInfo {
-        let o = offsets.map(|x| x as u32);
-        VolumeInfo {
-            root_dims: asset.header.root_dims,
-            root_len: asset.root_len() as u32,
-            off_masks: o[0],
-            off_base: o[1],
-            off_prefix: o[2],
-            off_l2_ranges: o[3],
-            off_refs: o[4],
-            off_tiles: o[5],
-            off_brick_ranges: o[6],
-            bricks_per_binding,
-            background: asset.header.background,
-            payload_layout,
-            frames: frames as u32,
-            off_brick_quant: o[7],
-            channels: asset.channel_count() as u32,
-            off_channel_bg: o[8],
-            _padc: [0; 2],
-            groups,
-        }
-    }
+pub(crate) struct VolumeInfo {
+    pub bricks_per_binding: u32,
+    pub payload_layout: u32,
+    pub off_brick_ranges: u32,
+    pub off_brick_quant: u32,
+    pub asset_count: u32,
+    pub _pad: [u32; 3],
+    pub groups: [GroupInfo; GROUPS],
+    pub assets: [AssetInfo; MAX_ASSETS],
 }
 
 /// An asset on the GPU: all frames and the whole brick pool, with the bind group (group 0 of
@@ -272,23 +248,67 @@ pub struct GpuVolume {
     pub(crate) bind_group_layout: wgpu::BindGroupLayout,
     pub(crate) bind_group: wgpu::BindGroup,
     layout: PayloadLayout,
-    frames: usize,
-    /// Levels of detail uploaded (`LevelChain::of`; none for a streamed window): stored level
-    /// `k` of frame `f` is root set `f + k·frames`.
-    levels: LevelChain,
-    root_len: usize,
-    root_dims: [u32; 3],
-    index_to_world: [[f64; 4]; 4],
-    /// Per frame, the index-space box `[lo, hi)` of what it stores (`vdbcook_scene::stored_bbox`).
-    bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
-    /// Per frame: `vdbcook_scene::content_box` (the sampling modes clip their rays to it).
-    content: Vec<Option<([f64; 3], [f64; 3])>>,
-    frame_max: Vec<f32>,
     gpu_bytes: u64,
+    /// The assets on the volume's pool (one, or the assets of a volume set), in set order.
+    pub(crate) assets: Vec<AssetMeta>,
+}
+
+/// What the CPU side knows of one asset of a volume: its frames (a streamed window's, window
+/// local), transform, levels, per-frame boxes and ranges, and its channels' boxes.
+#[derive(Debug, Clone)]
+pub(crate) struct AssetMeta {
+    pub frames: usize,
+    /// Levels of detail uploaded (`LevelChain::of`): stored level `k` of frame `f` is root set
+    /// `f + k·frames`.
+    pub levels: LevelChain,
+    pub root_len: usize,
+    pub root_dims: [u32; 3],
+    pub index_to_world: [[f64; 4]; 4],
+    /// Per frame, the index-space box `[lo, hi)` of what it stores (`vdbcook_scene::stored_bbox`).
+    pub bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
+    /// Per frame: `vdbcook_scene::content_box` (the sampling modes clip their rays to it).
+    pub content: Vec<Option<([f64; 3], [f64; 3])>>,
+    pub frame_max: Vec<f32>,
     /// Channels 1.. of a multi-channel asset (empty for one channel): per channel, its
     /// background and per frame the box where it exceeds it (`vdbcook_scene::content_box_above`),
     /// for emission read from that channel.
-    pub(crate) channels: Vec<ChannelBoxes>,
+    pub channels: Vec<ChannelBoxes>,
+}
+
+impl AssetMeta {
+    pub fn extent(&self) -> [f64; 3] {
+        self.root_dims.map(|d| d as f64 * 128.0)
+    }
+    /// Levels of detail and the root-offset stride between levels (`frames · root_len`), for
+    /// `LightParams::new`.
+    pub fn lod(&self) -> (LevelChain, usize) {
+        (self.levels, self.frames * self.root_len)
+    }
+    /// The cell box of `frame` where emission `e` may glow (`None`: nowhere): its channel's
+    /// voxels above the channel's background, or everywhere when the background glows itself
+    /// (`vdbcook_trace::Tracer` takes the same box); the density's content box for channel 0
+    /// (emission ranges start at 0 K or above, and the content box holds every value above 0).
+    pub fn emission_box(
+        &self,
+        e: &vdbcook_scene::Emission,
+        frame: usize,
+    ) -> crate::Result<Option<([f64; 3], [f64; 3])>> {
+        if e.channel == 0 {
+            return Ok(self.content[frame]);
+        }
+        let Some(ch) = self.channels.get(e.channel - 1) else {
+            return Err(crate::RuntimeError::Setting(format!(
+                "emission channel {} is not in the asset ({} channel(s))",
+                e.channel,
+                self.channels.len() + 1
+            )));
+        };
+        Ok(if e.range[0] >= ch.background {
+            ch.boxes[frame]
+        } else {
+            Some(([0.0; 3], self.extent()))
+        })
+    }
 }
 
 /// [`GpuVolume::channels`]' entry of one channel.
@@ -629,7 +649,21 @@ impl GpuVolume {
         asset: &Asset,
         options: UploadOptions,
     ) -> Result<GpuVolume> {
-        stream::StreamingVolume::upload_whole(device, queue, asset, options)
+        stream::StreamingVolume::upload_whole(device, queue, &[asset], options)
+    }
+
+    /// Several assets on one pool: a *volume set* (at most [`MAX_ASSETS`]). Their bricks share
+    /// the payload buffers and textures, each keeps its own topology section, frames, transform
+    /// and levels; a [`crate::VolumeDrawer`] built on the set draws instances of any of them
+    /// in one pass (`Instance::asset`), so overlapping volumes blend where they overlap and
+    /// one sun's shadows fall from every asset on every other.
+    pub fn upload_set(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        assets: &[&Asset],
+        options: UploadOptions,
+    ) -> Result<GpuVolume> {
+        stream::StreamingVolume::upload_whole(device, queue, assets, options)
     }
 
     /// The payload layout chosen at upload.
@@ -690,8 +724,13 @@ impl GpuVolume {
         parts.push(format!("{} bytes on the GPU in all", self.gpu_bytes));
         parts.join(", ")
     }
+    /// Frames of the volume's (first) asset.
     pub fn frame_count(&self) -> usize {
-        self.frames
+        self.assets[0].frames
+    }
+    /// Assets on the volume (1, or a volume set's).
+    pub fn asset_count(&self) -> usize {
+        self.assets.len()
     }
     /// Bytes uploaded (topology, pool, info).
     pub fn gpu_bytes(&self) -> u64 {
@@ -718,20 +757,19 @@ impl GpuVolume {
     }
     /// Index-space box `[lo, hi)` of what `frame` stores (`None`: nothing, or no such frame).
     pub fn frame_bbox(&self, frame: usize) -> Option<([f64; 3], [f64; 3])> {
-        self.bboxes.get(frame).copied().flatten()
+        self.assets[0].bboxes.get(frame).copied().flatten()
     }
+    /// [`GpuVolume::frame_bbox`] of asset `asset` of a volume set.
+    pub fn asset_frame_bbox(&self, asset: usize, frame: usize) -> Option<([f64; 3], [f64; 3])> {
+        self.assets.get(asset)?.bboxes.get(frame).copied().flatten()
+    }
+    /// The (first) asset's `index_to_world`.
     pub fn index_to_world(&self) -> &[[f64; 4]; 4] {
-        &self.index_to_world
+        &self.assets[0].index_to_world
     }
-    pub(crate) fn root_extent(&self) -> [f64; 3] {
-        self.root_dims.map(|d| d as f64 * 128.0)
-    }
-    /// The box the sampling modes clip their rays to (`vdbcook_scene::content_box`).
-    pub(crate) fn content_box(&self, frame: usize) -> Option<([f64; 3], [f64; 3])> {
-        self.content.get(frame).copied().flatten()
-    }
-    pub(crate) fn frame_max(&self, frame: usize) -> f32 {
-        self.frame_max[frame]
+    /// Asset `asset`'s `index_to_world` (a volume set's), `None` past the last asset.
+    pub fn asset_index_to_world(&self, asset: usize) -> Option<&[[f64; 4]; 4]> {
+        self.assets.get(asset).map(|a| &a.index_to_world)
     }
     /// Whether the specs guarantee that the GPU reads every brick exactly as the CPU decoder
     /// does, up to f32 rounding of the dequantization: false for rounded f16 buffers and for
@@ -758,45 +796,15 @@ pub(crate) struct Bound {
     pub layout: wgpu::BindGroupLayout,
     pub group: wgpu::BindGroup,
     constants: Vec<(&'static str, f64)>,
-    pub index_to_world: [[f64; 4]; 4],
-    pub root_len: usize,
-    /// Levels of detail and the root-offset stride between levels (`frames · root_len`), for
-    /// `LightParams::new`.
-    pub lod: (LevelChain, usize),
-    pub extent: [f64; 3],
-    /// Per frame: `GpuVolume::frame_bbox`, `content_box`, `frame_max`.
-    pub bboxes: Vec<Option<([f64; 3], [f64; 3])>>,
-    pub content: Vec<Option<([f64; 3], [f64; 3])>>,
-    pub frame_max: Vec<f32>,
-    /// `GpuVolume::channels`.
-    pub channels: Vec<ChannelBoxes>,
+    /// The volume's assets (`GpuVolume::assets`).
+    pub assets: Vec<AssetMeta>,
 }
 
-impl Bound {
-    /// The cell box of `frame` where emission `e` may glow (`None`: nowhere): its channel's
-    /// voxels above the channel's background, or everywhere when the background glows itself
-    /// (`vdbcook_trace::Tracer` takes the same box); the density's content box for channel 0
-    /// (emission ranges start at 0 K or above, and the content box holds every value above 0).
-    pub fn emission_box(
-        &self,
-        e: &vdbcook_scene::Emission,
-        frame: usize,
-    ) -> crate::Result<Option<([f64; 3], [f64; 3])>> {
-        if e.channel == 0 {
-            return Ok(self.content[frame]);
-        }
-        let Some(ch) = self.channels.get(e.channel - 1) else {
-            return Err(crate::RuntimeError::Setting(format!(
-                "emission channel {} is not in the asset ({} channel(s))",
-                e.channel,
-                self.channels.len() + 1
-            )));
-        };
-        Ok(if e.range[0] >= ch.background {
-            ch.boxes[frame]
-        } else {
-            Some(([0.0; 3], self.extent))
-        })
+impl std::ops::Deref for Bound {
+    type Target = AssetMeta;
+    /// The first asset: a renderer's, and a drawer's of one asset.
+    fn deref(&self) -> &AssetMeta {
+        &self.assets[0]
     }
 }
 
@@ -893,33 +901,31 @@ impl Bound {
     }
 
     pub fn of(volume: &GpuVolume) -> Bound {
-        let frames = 0..volume.frame_count();
         Bound {
             layout: volume.bind_group_layout.clone(),
             group: volume.bind_group.clone(),
             constants: volume.pipeline_constants(),
-            index_to_world: volume.index_to_world,
-            root_len: volume.root_len,
-            lod: (volume.levels, volume.frames * volume.root_len),
-            extent: volume.root_extent(),
-            bboxes: frames.clone().map(|f| volume.frame_bbox(f)).collect(),
-            content: frames.clone().map(|f| volume.content_box(f)).collect(),
-            frame_max: frames.map(|f| volume.frame_max(f)).collect(),
-            channels: volume.channels.clone(),
+            assets: volume.assets.clone(),
         }
     }
 
+    /// Frames of the (first) asset.
     pub fn frames(&self) -> usize {
-        self.content.len()
+        self.assets[0].frames
     }
 
     /// Binds `volume` instead, if the pipelines built for the current one can read it: the same
-    /// bind-group layout object, pipeline constants, transform and root extent.
+    /// bind-group layout object and pipeline constants, and the same assets (transform and root
+    /// extent).
     pub fn rebind(&mut self, volume: &GpuVolume) -> Result<()> {
+        let same_assets =
+            volume.assets.len() == self.assets.len()
+                && volume.assets.iter().zip(&self.assets).all(|(a, b)| {
+                    a.index_to_world == b.index_to_world && a.root_dims == b.root_dims
+                });
         if volume.bind_group_layout != self.layout
             || volume.pipeline_constants() != self.constants
-            || volume.index_to_world != self.index_to_world
-            || volume.root_extent() != self.extent
+            || !same_assets
         {
             return Err(RuntimeError::Rebind(
                 "the volume is not laid out like the one the pipelines were built for (a \
@@ -1069,24 +1075,34 @@ mod tests {
             crate::VOLUME_WGSL,
             "VolumeInfo",
             rust_layout!(VolumeInfo {
+                bricks_per_binding,
+                payload_layout,
+                off_brick_ranges,
+                off_brick_quant,
+                asset_count,
+                _pad,
+                groups,
+                assets,
+            }),
+        );
+        assert_mirrors(
+            crate::VOLUME_WGSL,
+            "VdbAsset",
+            rust_layout!(AssetInfo {
                 root_dims,
                 root_len,
+                off_roots,
                 off_masks,
                 off_base,
                 off_prefix,
                 off_l2_ranges,
                 off_refs,
                 off_tiles,
-                off_brick_ranges,
-                bricks_per_binding,
-                background,
-                payload_layout,
-                frames,
-                off_brick_quant,
-                channels,
                 off_channel_bg,
-                _padc,
-                groups,
+                background,
+                frames,
+                channels,
+                _pad,
             }),
         );
     }

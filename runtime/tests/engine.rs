@@ -243,6 +243,28 @@ fn cpu_instance<'a>(moved: &'a Asset, inst: &Instance, shading: &Shading) -> Cpu
     }
 }
 
+/// The CPU references of `insts`, each on its asset already moved by it (`moved`).
+fn cpu_instances<'a>(
+    insts: &[Instance],
+    moved: &'a [Asset],
+    shading: &Shading,
+) -> Vec<CpuInstance<'a>> {
+    insts
+        .iter()
+        .zip(moved)
+        .map(|(i, m)| {
+            cpu_instance(
+                m,
+                &Instance {
+                    world_from_volume: Affine3A::IDENTITY,
+                    ..*i
+                },
+                shading,
+            )
+        })
+        .collect()
+}
+
 /// The asset as the instance places it (what the CPU tracer gets).
 fn moved(asset: &Asset, inst: &Instance) -> Asset {
     let mut a = asset.clone();
@@ -259,20 +281,12 @@ fn cpu_lt(rays: &ViewRays, instances: &[CpuInstance], depth: Option<f32>) -> Vec
         for x in 0..W {
             let (o, d) = rays.ray(x, y);
             let t_max = depth.map_or(f64::INFINITY, |z| rays.depth_distance(x, y, z));
-            let (mut l, mut t) = ([0.0f64; 3], 1.0f64);
-            for inst in instances {
-                let tau: f64 = inst
-                    .tracers
-                    .iter()
-                    .map(|(tr, w)| w * tr.optical_depth(o.into(), d.into(), t_max, &mut scratch))
-                    .sum();
-                let ti = (-inst.absorb * tau).exp();
-                for (c, lc) in l.iter_mut().enumerate() {
-                    *lc += t * inst.tint[c] as f64 * (1.0 - ti);
-                }
-                t *= ti;
-            }
-            out.push([l[0], l[1], l[2], t]);
+            out.push(cpu_lt_one_ray(
+                instances,
+                (o.into(), d.into()),
+                t_max,
+                &mut scratch,
+            ));
         }
     }
     out
@@ -746,22 +760,197 @@ fn overlapping_instances_in_one_draw_multiply_transmittances() {
     let z = ndc_depth(&view.proj, 1.1 * centre_distance(&cam));
     let g = gpu.draw(&mut drawer, &f, &view, &insts, &medium, BG, Some(z));
     let movedv: Vec<Asset> = insts.iter().map(|i| moved(&asset, i)).collect();
-    let cpu_insts: Vec<CpuInstance> = insts
-        .iter()
-        .zip(&movedv)
-        .map(|(i, m)| {
-            cpu_instance(
-                m,
-                &Instance {
-                    world_from_volume: Affine3A::IDENTITY,
-                    ..*i
-                },
-                &medium,
-            )
-        })
-        .collect();
+    let cpu_insts = cpu_instances(&insts, &movedv, &medium);
     let cpu = cpu_lt(&view.rays().unwrap(), &cpu_insts, Some(z));
     assert_matches("three overlapping instances", &g, &cpu, TOL);
+}
+
+/// A small dense ember (one 128³ root, voxels 0.3 world units, turned): a second asset for the
+/// volume-set tests, in another payload format than the cloud.
+fn ember() -> Asset {
+    build(
+        [1, 1, 1],
+        rotated(-40.0, [0.3, 0.3, 0.3], [0.0, 0.0, 0.0]),
+        0.0,
+        &[blob_frame([40.0, 40.0, 40.0], 24.0, 0.6, None)],
+        PayloadFormat::F16,
+    )
+}
+
+/// World point of index point `p` of `asset`.
+fn world_of(asset: &Asset, p: [f64; 3]) -> Vec3 {
+    let w = vdbcook_trace::Affine::cells(&asset.header.index_to_world)
+        .unwrap()
+        .world_of(p);
+    Vec3::new(w[0] as f32, w[1] as f32, w[2] as f32)
+}
+
+/// `(L, T)` of flat media that overlap along one ray, integrated on the CPU in f64: each
+/// medium's optical depth from its tracer (`optical_depth` to t, differenced), the ray cut into
+/// pieces halved wherever two media are both present until a piece is `h` long, each piece
+/// composited as the exact mixture of media of constant density there
+/// (`(1 − e^−X)·Σ (x_i/X)·tint_i`, X = Σ x_i).
+fn mixture_lt(
+    insts: &[CpuInstance],
+    (o, d): ([f64; 3], [f64; 3]),
+    t_far: f64,
+    h: f64,
+    scratch: &mut Scratch,
+) -> [f64; 4] {
+    let mut x_at = |t: f64| -> Vec<f64> {
+        insts
+            .iter()
+            .map(|inst| {
+                inst.absorb
+                    * inst
+                        .tracers
+                        .iter()
+                        .map(|(tr, w)| w * tr.optical_depth(o, d, t, scratch))
+                        .sum::<f64>()
+            })
+            .collect()
+    };
+    let mut out = [0.0, 0.0, 0.0, 1.0];
+    // Depth-first over pieces, front to back.
+    let mut stack = vec![(0.0, t_far, x_at(0.0), x_at(t_far))];
+    while let Some((a, b, xa, xb)) = stack.pop() {
+        let dx: Vec<f64> = xa.iter().zip(&xb).map(|(p, q)| (q - p).max(0.0)).collect();
+        let present = dx.iter().filter(|x| **x > 1e-12).count();
+        if present >= 2 && b - a > h {
+            let m = 0.5 * (a + b);
+            let xm = x_at(m);
+            stack.push((m, b, xm.clone(), xb));
+            stack.push((a, m, xa, xm));
+            continue;
+        }
+        let total: f64 = dx.iter().sum();
+        if total > 0.0 {
+            let k = out[3] * (1.0 - (-total).exp()) / total;
+            for (inst, x) in insts.iter().zip(&dx) {
+                for (o, tint) in out.iter_mut().zip(inst.tint.to_array()) {
+                    *o += k * x * tint as f64;
+                }
+            }
+            out[3] *= (-total).exp();
+        }
+    }
+    out
+}
+
+/// An instance of one asset inside a cloud of another, both of one volume set, in one draw:
+/// the drawer interleaves them along each ray (cloud in front, ember, cloud behind) and
+/// matches the CPU's f64 mixture of the two media; composited one after the other (the sorted
+/// order) the picture would be far off, so the test tells interleaving from sorting.
+#[test]
+fn an_instance_inside_a_cloud_of_another_asset_interleaves() {
+    let Some(gpu) = Gpu::new("an_instance_inside_a_cloud_of_another_asset_interleaves") else {
+        return;
+    };
+    let (cloud, ember) = (cloud(PayloadFormat::F32), ember());
+    let vol = GpuVolume::upload_set(
+        &gpu.device,
+        &gpu.queue,
+        &[&cloud, &ember],
+        Default::default(),
+    )
+    .expect("upload the set");
+    assert_eq!(vol.asset_count(), 2);
+    let mut drawer = VolumeDrawer::new(&gpu.device, &vol, FORMAT).expect("drawer");
+    // The ember's centre on the cloud's (frame 0: blob at index (120, 100, 40)).
+    let shift = world_of(&cloud, [120.0, 100.0, 40.0]) - world_of(&ember, [40.0, 40.0, 40.0]);
+    let insts = [
+        Instance {
+            density_scale: 0.5,
+            tint: Vec3::new(0.9, 0.95, 1.0),
+            ..Instance::default()
+        },
+        Instance {
+            asset: 1,
+            density_scale: 1.0,
+            tint: Vec3::new(1.0, 0.35, 0.05),
+            ..Instance::at(Affine3A::from_translation(shift))
+        },
+    ];
+    let medium = Shading::default();
+    let f = gpu.frame();
+    let (view, cam) = framing_view(&cloud);
+    let g = gpu.draw(&mut drawer, &f, &view, &insts, &medium, BG, None);
+
+    let moved_assets = [moved(&cloud, &insts[0]), moved(&ember, &insts[1])];
+    let cpu_insts = cpu_instances(&insts, &moved_assets, &medium);
+    let rays = view.rays().unwrap();
+    let t_far = 2.0 * centre_distance(&cam) as f64;
+    let mut scratch = Scratch::default();
+    let (mut worst, mut at, mut inside) = (0.0f32, String::new(), 0);
+    let mut sorted_worst = 0.0f64;
+    for y in (0..H).step_by(2) {
+        for x in (0..W).step_by(2) {
+            let (o, d) = rays.ray(x, y);
+            let ray = (o.into(), d.into());
+            // A twentieth of the ember's voxel (0.3 world units).
+            let lt = mixture_lt(&cpu_insts, ray, t_far, 0.015, &mut scratch);
+            let p = (y * W + x) as usize;
+            for c in 0..3 {
+                let want = (lt[c] + lt[3] * BG[c]) as f32;
+                let diff = (g[4 * p + c] - want).abs();
+                if diff.is_nan() || diff > worst {
+                    worst = diff;
+                    let only = cpu_lt_one_ray(&cpu_insts[..1], ray, f64::INFINITY, &mut scratch);
+                    at = format!(
+                        "pixel ({x}, {y}) channel {c}: gpu {}, cpu {want}, cloud alone {}",
+                        g[4 * p + c],
+                        only[c] + only[3] * BG[c]
+                    );
+                }
+            }
+            // The ember seen through the cloud: where sorting would go wrong.
+            let ember_tau =
+                cpu_insts[1].tracers[0]
+                    .0
+                    .optical_depth(o.into(), d.into(), t_far, &mut scratch);
+            if ember_tau > 0.5 {
+                inside += 1;
+                let sorted = cpu_lt_one_ray(&cpu_insts, ray, f64::INFINITY, &mut scratch);
+                for c in 0..3 {
+                    sorted_worst = sorted_worst.max((sorted[c] - lt[c]).abs());
+                }
+            }
+        }
+    }
+    eprintln!(
+        "ember inside a cloud: max diff {worst:.2e} {at}; {inside} rays through the ember, \
+         sorted compositing off by up to {sorted_worst:.3}"
+    );
+    assert!(inside > 20, "the ember is in view ({inside} rays)");
+    assert!(
+        sorted_worst > 10.0 * TOL as f64,
+        "the scene tells interleaving from sorting"
+    );
+    assert!(worst <= TOL, "{at}");
+}
+
+/// `(L, T)` of the instances composited one after the other (the order given), along one ray
+/// cut at `t_max`.
+fn cpu_lt_one_ray(
+    insts: &[CpuInstance],
+    (o, d): ([f64; 3], [f64; 3]),
+    t_max: f64,
+    scratch: &mut Scratch,
+) -> [f64; 4] {
+    let (mut l, mut t) = ([0.0f64; 3], 1.0f64);
+    for inst in insts {
+        let tau: f64 = inst
+            .tracers
+            .iter()
+            .map(|(tr, w)| w * tr.optical_depth(o, d, t_max, scratch))
+            .sum();
+        let ti = (-inst.absorb * tau).exp();
+        for (c, lc) in l.iter_mut().enumerate() {
+            *lc += t * inst.tint[c] as f64 * (1.0 - ti);
+        }
+        t *= ti;
+    }
+    [l[0], l[1], l[2], t]
 }
 
 /// Draws of two volumes, flat and lit, prepared and recorded into one encoder composite as they
@@ -1383,7 +1572,26 @@ fn sun_shadows_match_the_cpu() {
         return;
     };
     let asset = cloud(PayloadFormat::F32);
-    let (_vol, mut drawer) = setup(&gpu, &asset);
+    sun_shadows_case(&gpu, &[&asset], [0, 0]);
+}
+
+/// Two assets of one volume set cast their shadows through one binding, read by one function
+/// in the engine's shader.
+#[test]
+fn sun_shadows_of_two_assets_in_one_shader() {
+    let Some(gpu) = Gpu::new("sun_shadows_of_two_assets_in_one_shader") else {
+        return;
+    };
+    let (b, a) = (cloud(PayloadFormat::F32), ember());
+    sun_shadows_case(&gpu, &[&b, &a], [1, 0]);
+}
+
+/// Two lit instances (of `assets[which[0]]` and `assets[which[1]]`) shadow a lattice of world
+/// points: the GPU's `vdb_sun_transmittance` against the product of the CPU tracers'.
+fn sun_shadows_case(gpu: &Gpu, assets: &[&Asset], which: [usize; 2]) {
+    let vol =
+        GpuVolume::upload_set(&gpu.device, &gpu.queue, assets, Default::default()).expect("upload");
+    let mut drawer = VolumeDrawer::new(&gpu.device, &vol, FORMAT).expect("drawer");
     let lighting = Lighting {
         light_res: 24,
         light_dir: [0.3, 0.9, -0.2],
@@ -1396,11 +1604,17 @@ fn sun_shadows_match_the_cpu() {
     let instances = [
         Instance {
             density_scale: 1.0,
+            asset: which[0],
             ..Instance::at(Affine3A::from_translation(Vec3::new(30.0, -12.0, 7.0)))
         },
         Instance {
             density_scale: 1.5,
-            time: 1.5,
+            time: if assets[which[1]].frame_count() > 2 {
+                1.5
+            } else {
+                0.0
+            },
+            asset: which[1],
             ..Instance::at(Affine3A::from_scale_rotation_translation(
                 Vec3::splat(1.3),
                 Quat::from_euler(EulerRot::XYZ, 0.4, -0.9, 1.7),
@@ -1418,7 +1632,8 @@ fn sun_shadows_match_the_cpu() {
     // The CPU: per instance and frame a lit tracer on the moved asset.
     let mut tracers = Vec::new();
     for inst in &instances {
-        let m = moved(&asset, inst);
+        let asset = assets[inst.asset];
+        let m = moved(asset, inst);
         let (f0, f1, a) = inst.frames(asset.frame_count()).unwrap();
         let base = medium.settings();
         let s = RenderSettings {

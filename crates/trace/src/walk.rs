@@ -87,6 +87,9 @@ impl<T: SpanSampler> Visitor for T {
 /// Decoded bricks, direct-mapped by index: rays of one row (and shadow rays from neighbouring
 /// samples) cross the same bricks.
 pub struct BrickCache {
+    /// The asset whose bricks the cache holds (its address): a cache handed another asset
+    /// forgets what it held, so one `Scratch` may serve tracers of several assets.
+    owner: usize,
     keys: Vec<u32>,
     values: Vec<[f32; BRICK_VOXELS]>,
 }
@@ -96,6 +99,7 @@ const CACHE_SLOTS: usize = 64;
 impl Default for BrickCache {
     fn default() -> Self {
         BrickCache {
+            owner: 0,
             keys: vec![u32::MAX; CACHE_SLOTS],
             values: vec![[0.0; BRICK_VOXELS]; CACHE_SLOTS],
         }
@@ -104,6 +108,11 @@ impl Default for BrickCache {
 
 impl BrickCache {
     pub fn get(&mut self, asset: &Asset, b: u32) -> &[f32; BRICK_VOXELS] {
+        let owner = asset as *const Asset as usize;
+        if owner != self.owner {
+            self.keys.fill(u32::MAX);
+            self.owner = owner;
+        }
         let s = (b as usize).wrapping_mul(0x9E37_79B9) % CACHE_SLOTS;
         if self.keys[s] != b {
             asset.decode_brick(b, &mut self.values[s]);
