@@ -9,11 +9,11 @@
 //   front to back in the order the CPU sorted them — or, where instances' bounds overlap
 //   (`DRAW_INTERLEAVE`), interleaved along the ray (`draw_pieces`) — writing premultiplied radiance and
 //   transmittance (L, T) to an `Rgba16Float` storage texture. With lighting (`DRAW_LIT`, a
-//   second pipeline) each lit instance is marched as the tracer's lit mode (`lit_primary` in
+//   pipeline variant) each lit instance is marched as the tracer's lit mode (`lit_primary` in
 //   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest or
 //   trilinear lookup (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
 //   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths and light), the
-//   near field toward the sun walked per frame of a crossfade (`DRAW_NEAR`; both frames gated on
+//   near field toward the sun walked per frame of a crossfade (`LIT_NEAR`; both frames gated on
 //   the lerped density and the one transmittance: the CPU draws single frames only).
 // The composite that blends (L, T) over the engine's colour target is `composite.wgsl`.
 //
@@ -38,15 +38,14 @@ struct DrawView {
     near_ndc: f32,
     instance_count: u32,
     has_depth: u32,
-    // The channel whose emission the voxel-exact emission pass draws (`lit_channel_emission`)
-    // for flat instances (any channel, `emit_flat`) and for lit ones (another channel than the
-    // density, `emit_lit`; the lit march glows its own channel itself).
+    // The channel whose emission the voxel-exact emission pass draws (`lit_channel_emission`;
+    // the pass runs in the `DRAW_EMIT` variant: flat draws with any emission, lit ones with
+    // emission from another channel than the density, as the lit march glows its own).
     emit_channel: u32,
-    emit_flat: u32,
-    emit_lit: u32,
     // The pixel of the dispatch's first invocation: the dispatch covers only the pixels the
     // instances can reach (`PreparedDraw::covered`).
     origin: vec2<u32>,
+    _pad: vec2<u32>,
     // The light, phase, emission, step and seed (`lit.wgsl`; the renderer's packing too).
     shading: VdbShading,
 }
@@ -87,7 +86,7 @@ const DRAW_LIT: bool = {{DRAW_LIT}};
 // Whether instances may overlap along a ray, so that the march interleaves them (a pipeline
 // variant: the sweep costs about twice the plain march on software Vulkan).
 const DRAW_INTERLEAVE: bool = {{DRAW_INTERLEAVE}};
-// Whether the draw has an emission pass (`emit_flat` or `emit_lit`; a pipeline variant).
+// Whether the draw has an emission pass (a pipeline variant: `Variant::emit`).
 const DRAW_EMIT: bool = {{DRAW_EMIT}};
 // Whether the lit march reads trilinear density (a pipeline variant).
 const DRAW_TRILINEAR: bool = {{DRAW_TRILINEAR}};
@@ -209,8 +208,7 @@ fn draw_span(i: u32, ray: VdbRay, t_max: f32) -> vec2<f32> {
 // in front of what lies behind its entry): the entry into its content or emission box, or
 // VDB_BIG when it has no emission pass or the ray misses both before the scene depth.
 fn draw_glow_at(i: u32, ray: VdbRay, t_max: f32) -> f32 {
-    let lit = DRAW_LIT && draw_instances[i].lit != 0u;
-    if (!DRAW_EMIT || select(draw_view.emit_flat, draw_view.emit_lit, lit) == 0u) {
+    if (!DRAW_EMIT) {
         return VDB_BIG;
     }
     let ce = draw_span(i, ray, VDB_BIG);
@@ -271,6 +269,7 @@ fn draw_pieces(ow: vec3<f32>, dw: vec3<f32>, t0: f32, t1: f32, t_max: f32, pixel
     // again per piece).
     let n = draw_view.instance_count;
     var list: array<u32, DRAW_COVER_LIST>;
+    var rays: array<VdbRay, DRAW_COVER_LIST>;
     var m = 0u;
     var cells = 0.0;
     var depth = 0.0;
@@ -279,12 +278,13 @@ fn draw_pieces(ow: vec3<f32>, dw: vec3<f32>, t0: f32, t1: f32, t_max: f32, pixel
         if (!(span.x <= t0 && span.y >= t1)) {
             continue;
         }
+        let ray = draw_ray(i, ow, dw);
         if (m < DRAW_COVER_LIST) {
             list[m] = i;
+            rays[m] = ray;
         }
         m += 1u;
         if (!whole) {
-            let ray = draw_ray(i, ow, dw);
             cells = max(cells, length(ray.d));
             let inst = draw_instances[i];
             vdb_select(inst.asset);
@@ -309,15 +309,18 @@ fn draw_pieces(ow: vec3<f32>, dw: vec3<f32>, t0: f32, t1: f32, t_max: f32, pixel
         var l_sum = vec3<f32>(0.0);
         for (var j = 0u; j < select(n, m, listed); j++) {
             var i = j;
+            var ray: VdbRay;
             if (listed) {
                 i = list[j];
+                ray = rays[j];
             } else {
                 let span = draw_span_of(i, ow, dw, t_max);
                 if (!(span.x <= t0 && span.y >= t1)) {
                     continue;
                 }
+                ray = draw_ray(i, ow, dw);
             }
-            let r = draw_march(draw_instances[i], draw_ray(i, ow, dw), a, b, dw, pixel);
+            let r = draw_march(draw_instances[i], ray, a, b, dw, pixel);
             let x = -log(max(r.w, 1.0e-30));
             x_sum += x;
             l_sum += r.xyz;
@@ -423,7 +426,7 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
             // The emission pass (its box may reach past the density's): light behind the
             // instance's own density, added before the instance attenuates what lies behind.
             var glow = vec3<f32>(0.0);
-            if (DRAW_EMIT && select(draw_view.emit_flat, draw_view.emit_lit, draw_is_lit(inst)) != 0u) {
+            if (DRAW_EMIT) {
                 vdb_select(inst.asset);
                 glow = inst.tint_absorb.xyz * draw_emission(inst, ray, draw_ext(inst), t_max);
             }

@@ -183,10 +183,13 @@ impl Args {
                     self.bc7_quality
                 ))
             })?,
-            clustering: self.clusters.map(|k| Clustering {
-                clusters: k,
-                iterations: self.iterations.unwrap_or(5),
-                variance_threshold: self.variance_threshold.unwrap_or(0.1),
+            clustering: self.clusters.map(|k| {
+                let d = Clustering::new(k);
+                Clustering {
+                    iterations: self.iterations.unwrap_or(d.iterations),
+                    variance_threshold: self.variance_threshold.unwrap_or(d.variance_threshold),
+                    ..d
+                }
             }),
             lod: match (self.lod, self.lod_from) {
                 (None, None) => None,

@@ -56,14 +56,7 @@ fn stored_bbox(asset: &Asset, frame: usize, c: usize) -> Option<([i64; 3], [i64;
 /// what the asset stores (channel `c`).
 fn mismatch(asset: &Asset, frame: usize, c: usize, grid: &FloatGrid) -> Option<String> {
     let h = &asset.header;
-    let t = &grid.transform.index_to_world;
-    let mut m = *t;
-    for (r, row) in m.iter_mut().enumerate().take(3) {
-        row[3] = t[r][3]
-            + (0..3)
-                .map(|c| t[r][c] * h.index_offset[c] as f64)
-                .sum::<f64>();
-    }
+    let m = vdbcook_cook::assemble::asset_index_to_world(&grid.transform, h.index_offset);
     let scale = h
         .index_to_world
         .iter()

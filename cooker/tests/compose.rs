@@ -8,15 +8,31 @@ mod common;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::{json, root, vdbcook as run};
+use common::{gpu_bytes, json, root, vdbcook as run};
 use serde_json::Value;
 use vdbcook_asset::{Asset, LeafRef};
 
 const FIRE: &str = "fixtures/seq/fire";
 const GRIDS: &str = "density,temperature,flame";
 
-fn gpu_bytes(c: &Value) -> u64 {
-    c["bytes"]["topology"].as_u64().unwrap() + c["bytes"]["atlas"].as_u64().unwrap()
+/// The three fire grids as BC7 under the per-channel `spec`, clustered, written to `out`: the
+/// cook's arguments after `cook` (one list, so cooks compared for identity get the same flags).
+fn clustered<'a>(spec: &'a str, out: &'a str) -> [&'a str; 13] {
+    [
+        FIRE,
+        "--grids",
+        GRIDS,
+        "--format",
+        "bc7",
+        "--max-error",
+        spec,
+        "--clusters",
+        "24",
+        "--variance-threshold",
+        "100",
+        "-o",
+        out,
+    ]
 }
 
 /// `eval`'s largest error per channel name.
@@ -74,23 +90,7 @@ fn several_grids_cluster_per_channel_within_each_budget() {
     ]);
     let out = d.path().join("k.vdbc");
     let o = out.to_str().unwrap();
-    let c = json(&[
-        "cook",
-        "--json",
-        FIRE,
-        "--grids",
-        GRIDS,
-        "--format",
-        "bc7",
-        "--max-error",
-        spec,
-        "--clusters",
-        "24",
-        "--variance-threshold",
-        "100",
-        "-o",
-        o,
-    ]);
+    let c = json(&[&["cook", "--json"][..], &clustered(spec, o)].concat());
     let k = &c["clustering"];
     assert!(k["clusters"].as_u64().unwrap() > 0, "{k}");
     // Members share centroids: fewer bricks go to the encoder than the pool holds.
@@ -115,23 +115,10 @@ fn several_grids_cluster_per_channel_within_each_budget() {
     // The same bytes at 1 and 2 threads.
     let one = d.path().join("one.vdbc");
     let (code, _, err) = run(&[
-        "--threads",
-        "1",
-        "cook",
-        FIRE,
-        "--grids",
-        GRIDS,
-        "--format",
-        "bc7",
-        "--max-error",
-        spec,
-        "--clusters",
-        "24",
-        "--variance-threshold",
-        "100",
-        "-o",
-        one.to_str().unwrap(),
-    ]);
+        &["--threads", "1", "cook"][..],
+        &clustered(spec, one.to_str().unwrap()),
+    ]
+    .concat());
     assert_eq!(code, 0, "{err}");
     assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&out).unwrap());
 }

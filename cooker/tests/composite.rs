@@ -193,11 +193,10 @@ fn lit_depth_planes_in_front_beyond_and_through_the_cloud() {
     depth_planes("lit");
 }
 
-fn depth_planes(mode: &str) {
-    let dir = tempfile::tempdir().unwrap();
-    let asset = cook_smoke(dir.path());
-    let [(plate, px), _] = plates(dir.path());
-    let json = render(&asset, &dir.path().join("x.png"), "cpu", &["--json"]).unwrap();
+/// The distance from the default camera's eye to its look-at point for `asset` (from a CPU
+/// `render --json` into `dir/x.png`).
+fn look_distance(asset: &str, dir: &Path) -> f32 {
+    let json = render(asset, &dir.join("x.png"), "cpu", &["--json"]).unwrap();
     let doc: Value = serde_json::from_str(&json).unwrap();
     let v = |k: &str| -> Vec<f64> {
         doc["camera"][k]
@@ -208,10 +207,17 @@ fn depth_planes(mode: &str) {
             .collect()
     };
     let (eye, look) = (v("eye"), v("look_at"));
-    let dist = (0..3)
+    (0..3)
         .map(|i| (look[i] - eye[i]).powi(2))
         .sum::<f64>()
-        .sqrt() as f32;
+        .sqrt() as f32
+}
+
+fn depth_planes(mode: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let [(plate, px), _] = plates(dir.path());
+    let dist = look_distance(&asset, dir.path());
     let plane = |name: &str, d: f32| {
         let p = dir.path().join(name);
         write_depth(&p, W, H, d);
@@ -434,21 +440,7 @@ fn fire_from_its_temperature_channel_glows_in_the_engine_drawer() {
     ]);
     assert_eq!(code, 0, "{err}");
     let [(plate, px), _] = plates(dir.path());
-    let json = render(&fire, &dir.path().join("x.png"), "cpu", &["--json"]).unwrap();
-    let doc: Value = serde_json::from_str(&json).unwrap();
-    let v = |k: &str| -> Vec<f64> {
-        doc["camera"][k]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
-    let (eye, look) = (v("eye"), v("look_at"));
-    let dist = (0..3)
-        .map(|i| (look[i] - eye[i]).powi(2))
-        .sum::<f64>()
-        .sqrt() as f32;
+    let dist = look_distance(&fire, dir.path());
     let mid = dir.path().join("mid.pfm");
     write_depth(&mid, W, H, dist);
     let mid = mid.display().to_string();

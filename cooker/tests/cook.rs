@@ -7,7 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{json, root, sample, vdbcook as run};
+use common::{gpu_bytes, json, root, sample, vdbcook as run};
 use serde_json::Value;
 
 fn truth_active(inputs: &[&str]) -> u64 {
@@ -636,11 +636,6 @@ fn a_lossy_cook_without_max_error_has_a_default_budget_that_holds() {
         c["max_error"].is_null() && c["max_error_source"].is_null(),
         "{c}"
     );
-}
-
-/// GPU bytes (topology + atlas) of a `cook --json` document.
-fn gpu_bytes(c: &serde_json::Value) -> u64 {
-    c["bytes"]["topology"].as_u64().unwrap() + c["bytes"]["atlas"].as_u64().unwrap()
 }
 
 #[test]

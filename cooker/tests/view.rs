@@ -170,20 +170,26 @@ fn emission_glows_in_the_density_mode() {
             "96",
         ];
         args.extend_from_slice(extra);
-        let (code, _, err) = gpu_run(&args)?;
-        assert_eq!(code, 0, "{err}");
-        let (_, _, px) = read_png(&shot);
-        Some(
-            px.chunks(4)
-                .filter(|p| p[0] > 40 && p[0] > p[1] && p[1] >= p[2])
-                .count(),
-        )
+        warm_pixels(&args, &shot)
     };
     let Some(glow) = run(&["--emission", "700,1800"]) else {
         return;
     };
     assert!(glow > 200, "only {glow} glowing pixels");
     assert_eq!(run(&[]), Some(0), "no glow without --emission");
+}
+
+/// Runs `view` with `args` (a screenshot to `shot`) and counts the glowing pixels of the
+/// screenshot (red above 40, red ≥ green ≥ blue); `None` where no GPU adapter may be skipped.
+fn warm_pixels(args: &[&str], shot: &std::path::Path) -> Option<usize> {
+    let (code, _, err) = gpu_run(args)?;
+    assert_eq!(code, 0, "{err}");
+    let (_, _, px) = read_png(shot);
+    Some(
+        px.chunks(4)
+            .filter(|p| p[0] > 40 && p[0] > p[1] && p[1] >= p[2])
+            .count(),
+    )
 }
 
 /// A multi-channel fire glows from its temperature channel in the viewer, as `render` draws it
@@ -219,14 +225,7 @@ fn a_multi_channel_fire_glows_from_its_temperature_channel() {
             "96",
         ];
         args.extend_from_slice(extra);
-        let (code, _, err) = gpu_run(&args)?;
-        assert_eq!(code, 0, "{err}");
-        let (_, _, px) = read_png(&shot);
-        Some(
-            px.chunks(4)
-                .filter(|p| p[0] > 40 && p[0] > p[1] && p[1] >= p[2])
-                .count(),
-        )
+        warm_pixels(&args, &shot)
     };
     let Some(glow) = run(&[]) else {
         return;

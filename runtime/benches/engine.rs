@@ -18,8 +18,8 @@ use std::time::Instant;
 
 use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
 use vdbcook_runtime::{
-    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Interleave, Lighting, Shading, View,
-    VolumeDrawer,
+    Asset, DrawTarget, GpuTimer, GpuVolume, Instance, Interleave, Lighting, PreparedDraw, Shading,
+    View, VolumeDrawer,
 };
 
 const RUNS: usize = 3;
@@ -96,29 +96,7 @@ fn main() {
     println!("| instances | size | GPU ms (timestamps) | GPU ms per instance | submit+wait ms |");
     println!("|---:|---|---:|---:|---:|");
     for &(w, h) in sizes {
-        let tex = |format, usage| {
-            device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some("engine bench target"),
-                    size: wgpu::Extent3d {
-                        width: w,
-                        height: h,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
-                .create_view(&Default::default())
-        };
-        let color = tex(format, wgpu::TextureUsages::RENDER_ATTACHMENT);
-        let depth = tex(
-            wgpu::TextureFormat::Depth32Float,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        );
+        let (color, depth) = targets(&device, format, (w, h));
         // `VDBCOOK_BENCH_SUN_NEAR=CELLS`: the lit march's near field (default: the tracer's).
         let sun_near = std::env::var("VDBCOOK_BENCH_SUN_NEAR")
             .ok()
@@ -173,42 +151,15 @@ fn main() {
                 let c = view.proj * Vec4::new(0.0, 0.0, -(dist + 2.0 * reach), 1.0);
                 c.z / c.w
             };
-            let (mut gpu, mut wall) = (Vec::new(), Vec::new());
-            for run in 0..=RUNS {
-                let start = Instant::now();
-                let mut enc = device.create_command_encoder(&Default::default());
-                clear(&mut enc, &color, &depth, behind);
-                if let Some(t) = &timer {
-                    t.begin(&mut enc);
-                }
-                let _held = drawer
-                    .draw(
-                        &device,
-                        &queue,
-                        &mut enc,
-                        &DrawTarget {
-                            color: &color,
-                            depth: Some(&depth),
-                        },
-                        &view,
-                        &instances,
-                        &medium,
-                    )
-                    .expect("draw");
-                if let Some(t) = &timer {
-                    t.end(&mut enc);
-                }
-                queue.submit([enc.finish()]);
-                device
-                    .poll(wgpu::PollType::wait_indefinitely())
-                    .expect("poll");
-                let elapsed = start.elapsed().as_secs_f64() * 1e3;
-                let ms = timer.as_ref().and_then(|t| t.read_ms(&device));
-                if run > 0 {
-                    wall.push(elapsed);
-                    gpu.extend(ms);
-                }
-            }
+            let target = DrawTarget {
+                color: &color,
+                depth: Some(&depth),
+            };
+            let (gpu, wall, _) = timed(&device, &queue, &mut drawer, timer.as_ref(), |d, enc| {
+                clear(enc, &color, &depth, behind);
+                d.prepare(&device, &queue, &target, &view, &instances, &medium)
+                    .expect("prepare")
+            });
             let (g, per) = if gpu.is_empty() {
                 ("–".to_string(), "–".to_string())
             } else {
@@ -239,32 +190,7 @@ fn coverage(
     (centre, radius): (Vec3, f32),
 ) {
     let (w, h) = (640u32, 360u32);
-    let tex = |format, usage| {
-        device
-            .create_texture(&wgpu::TextureDescriptor {
-                label: Some("engine bench coverage"),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-            .create_view(&Default::default())
-    };
-    let color = tex(
-        drawer.color_format(),
-        wgpu::TextureUsages::RENDER_ATTACHMENT,
-    );
-    let depth = tex(
-        wgpu::TextureFormat::Depth32Float,
-        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-    );
+    let (color, depth) = targets(device, drawer.color_format(), (w, h));
     let fov = 40f32.to_radians();
     // Close enough that the box overflows the view: every pixel covered.
     let dist = 0.6 * radius / (0.5 * fov).tan();
@@ -314,34 +240,11 @@ fn coverage(
     let mut rows = Vec::new();
     for (name, scale) in [("full screen", 1.0f32), ("1% of the screen", hi)] {
         let inst = scaled(scale);
-        let (mut gpu, mut wall) = (Vec::new(), Vec::new());
-        let mut covered = [0u32; 4];
-        for run in 0..=RUNS {
-            let start = Instant::now();
-            let mut enc = device.create_command_encoder(&Default::default());
-            clear(&mut enc, &color, &depth, 0.0);
-            let prepared = drawer
-                .prepare(device, queue, &target, &view, &[inst], &medium)
-                .expect("prepare");
-            covered = prepared.covered();
-            if let Some(t) = timer {
-                t.begin(&mut enc);
-            }
-            drawer.record(&mut enc, &prepared);
-            if let Some(t) = timer {
-                t.end(&mut enc);
-            }
-            queue.submit([enc.finish()]);
-            device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .expect("poll");
-            let elapsed = start.elapsed().as_secs_f64() * 1e3;
-            let ms = timer.and_then(|t| t.read_ms(device));
-            if run > 0 {
-                wall.push(elapsed);
-                gpu.extend(ms);
-            }
-        }
+        let (gpu, wall, covered) = timed(device, queue, drawer, timer, |d, enc| {
+            clear(enc, &color, &depth, 0.0);
+            d.prepare(device, queue, &target, &view, &[inst], &medium)
+                .expect("prepare")
+        });
         let share = (covered[2] * covered[3]) as f64 / (w * h) as f64;
         let g = (!gpu.is_empty()).then(|| median(gpu));
         println!(
@@ -356,6 +259,77 @@ fn coverage(
         println!("1% / full screen GPU time: {:.3}", small / full);
     }
     println!("1% / full screen wall time: {:.3}", rows[1].1 / rows[0].1);
+}
+
+/// A colour target of `format` and a `Depth32Float` depth buffer of `size`.
+fn targets(
+    device: &wgpu::Device,
+    format: wgpu::TextureFormat,
+    (w, h): (u32, u32),
+) -> (wgpu::TextureView, wgpu::TextureView) {
+    let tex = |format, usage| {
+        device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some("engine bench target"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+    };
+    let color = tex(format, wgpu::TextureUsages::RENDER_ATTACHMENT);
+    let depth = tex(
+        wgpu::TextureFormat::Depth32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+    );
+    (color, depth)
+}
+
+/// Runs a draw `RUNS + 1` times, the first a warm-up: each run `prepare` records the clear into
+/// a new encoder and prepares the draw, which is then recorded between the timer's stamps,
+/// submitted and waited for. Returns the timed runs' GPU ms (timestamps; none without the
+/// feature) and wall ms (prepare to the end of the wait), and the last draw's covered pixels.
+fn timed(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    drawer: &mut VolumeDrawer,
+    timer: Option<&GpuTimer>,
+    mut prepare: impl FnMut(&mut VolumeDrawer, &mut wgpu::CommandEncoder) -> PreparedDraw,
+) -> (Vec<f64>, Vec<f64>, [u32; 4]) {
+    let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+    let mut covered = [0u32; 4];
+    for run in 0..=RUNS {
+        let start = Instant::now();
+        let mut enc = device.create_command_encoder(&Default::default());
+        let prepared = prepare(drawer, &mut enc);
+        covered = prepared.covered();
+        if let Some(t) = timer {
+            t.begin(&mut enc);
+        }
+        drawer.record(&mut enc, &prepared);
+        if let Some(t) = timer {
+            t.end(&mut enc);
+        }
+        queue.submit([enc.finish()]);
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("poll");
+        let elapsed = start.elapsed().as_secs_f64() * 1e3;
+        let ms = timer.and_then(|t| t.read_ms(device));
+        if run > 0 {
+            wall.push(elapsed);
+            gpu.extend(ms);
+        }
+    }
+    (gpu, wall, covered)
 }
 
 /// Clears the colour target and sets the depth buffer to the plane `depth`.

@@ -36,14 +36,15 @@ use std::sync::Arc;
 use crate::light::{FrameAt, LightEntry, LightParams, LightPass};
 use crate::shading::{LitPlace, ShadingUniform};
 
+use crate::upload::{Bound, GpuVolume};
+use crate::{Result, RuntimeError};
+
 /// The light volumes one draw needs (deduplicated), and the diffusion inputs of each
-/// (`MsModel::Diffusion`), as `LightPass::record` takes them.
+/// (`MsModel::Diffusion`), as `LightPass::prepare` takes them.
 struct LitVolumes {
     volumes: Vec<LightParams>,
     diffusion: Vec<Option<DiffusionInputs>>,
 }
-use crate::upload::{Bound, GpuVolume};
-use crate::{Result, RuntimeError, LIGHT_WGSL, LIT_WGSL, VOLUME_WGSL};
 
 /// The engine drawer's compute shader (needs [`VOLUME_WGSL`](crate::VOLUME_WGSL) before it).
 pub const DRAW_WGSL: &str = include_str!("../../shaders/draw.wgsl");
@@ -465,10 +466,8 @@ fn draw_source(v: Variant) -> String {
     } = v;
     let flag = |on: bool| if on { "true" } else { "false" };
     format!(
-        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
-        LIT_WGSL
-            .replace("{{LIT_GROUP}}", "2")
-            .replace("{{SHADING}}", "draw_view.shading"),
+        "{}\n{}",
+        crate::shading::lit_source(2, "draw_view.shading"),
         DRAW_WGSL
             .replace("{{DRAW_LIT}}", flag(lit))
             .replace("{{DRAW_TRILINEAR}}", flag(trilinear))
@@ -490,12 +489,11 @@ struct DrawView {
     near_ndc: f32,
     instance_count: u32,
     has_depth: u32,
-    /// The emission pass: its channel, and whether it runs for flat and for lit instances.
+    /// The emission pass's channel (the pass itself is the `DRAW_EMIT` variant).
     emit_channel: u32,
-    emit_flat: u32,
-    emit_lit: u32,
     /// The pixel of the dispatch's first invocation (the covered rectangle's corner).
     origin: [u32; 2],
+    _pad: [u32; 2],
     /// The light, phase, emission, step and seed (the renderer's packing too).
     shading: ShadingUniform,
 }
@@ -560,8 +558,6 @@ struct DrawSlot {
 /// `prepare` would otherwise reuse.
 #[must_use = "a prepared draw holds what the draw reads: record it, and keep it until its encoder is submitted"]
 pub struct PreparedDraw {
-    /// Nothing to draw: no instance has content where the view looks.
-    empty: bool,
     /// The pipeline variant (`Variant::index`).
     variant: usize,
     group: wgpu::BindGroup,
@@ -577,7 +573,7 @@ pub struct PreparedDraw {
 impl std::fmt::Debug for PreparedDraw {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PreparedDraw")
-            .field("empty", &self.empty)
+            .field("empty", &self.is_empty())
             .field("variant", &Variant::of_index(self.variant))
             .field("covered", &self.rect)
             .finish_non_exhaustive()
@@ -589,6 +585,11 @@ impl PreparedDraw {
     /// scissor; nothing outside is read or written.
     pub fn covered(&self) -> [u32; 4] {
         self.rect
+    }
+    /// Nothing to draw: no instance has content where the view looks (no instance, or none
+    /// whose box projects onto a pixel).
+    fn is_empty(&self) -> bool {
+        self.rect[2] == 0 || self.rect[3] == 0
     }
 }
 
@@ -602,7 +603,6 @@ struct LtTexture {
 /// Draws instances of one uploaded volume into an engine's frame (one colour format). Create it
 /// once; [`VolumeDrawer::record`] each frame (any number of times per encoder).
 pub struct VolumeDrawer {
-    /// The flat pipeline (the lit march compiled out).
     /// The draw pipelines by [`Variant::index`] (code a draw cannot reach is left out:
     /// software Vulkan pays for it). The flat one and the default lighting's are made with the
     /// drawer, the others by [`VolumeDrawer::warm_up`] or the first `prepare` that needs them;
@@ -860,35 +860,27 @@ impl VolumeDrawer {
                 "sun shadows need Shading::lighting (the light volumes of the lit mode)".into(),
             ));
         }
-        let (draws, volumes, _) = self.instances(DVec3::ZERO, instances, shading)?;
-        let build = if volumes.volumes.is_empty() {
-            None
-        } else {
-            Some(self.light.prepare(
-                device,
-                queue,
-                &self.vol.group,
-                &volumes.volumes,
-                &volumes.diffusion,
-            )?)
-        };
-        let bases: &[u32] = build.as_ref().map_or(&[], |b| &b.bases);
+        let (mut draws, volumes, _) = self.instances(DVec3::ZERO, instances, shading)?;
+        // The unit cell-space direction toward the sun: each lit instance's light volume's.
+        let suns: Vec<[f32; 4]> = draws
+            .iter()
+            .filter(|d| d.lit != 0)
+            .map(|d| volumes.volumes[d.place.lv_dims0[3] as usize].sun)
+            .collect();
+        let build = self.build_lights(device, queue, &mut draws, &volumes)?;
         let mut casters: Vec<ShadowInstance> = draws
             .iter()
             .filter(|d| d.lit != 0)
-            .map(|d| {
+            .zip(suns)
+            .map(|(d, sun)| {
                 let p = &d.place;
-                let (i0, i1) = (p.lv_dims0[3] as usize, p.lv_dims1[3] as usize);
-                // The unit cell-space direction toward the sun: its light volume's.
-                let sun = volumes.volumes[i0].sun;
-                let with_base = |dims: [u32; 4], i: usize| [dims[0], dims[1], dims[2], bases[i]];
                 ShadowInstance {
                     cell_from_world: d.cell_from_world,
                     sun: [sun[0], sun[1], sun[2], p.sun_cell[3]],
                     lo0: p.lv_lo0,
-                    dims0: with_base(p.lv_dims0, i0),
+                    dims0: p.lv_dims0,
                     lo1: p.lv_lo1,
-                    dims1: with_base(p.lv_dims1, i1),
+                    dims1: p.lv_dims1,
                     weight: [p.misc[1], 0.0, 0.0, 0.0],
                 }
             })
@@ -1040,7 +1032,7 @@ impl VolumeDrawer {
         let medium = &shading.medium;
         shading
             .settings()
-            .validate(self.vol.frames())
+            .validate(self.vol.frames)
             .map_err(|e| RuntimeError::Setting(format!("shading: {e}")))?;
         let mut out = Vec::with_capacity(instances.len());
         let mut volumes: Vec<LightParams> = Vec::new();
@@ -1111,15 +1103,10 @@ impl VolumeDrawer {
             };
             if let Some(l) = &shading.lighting {
                 d.lit = 1;
-                let extinction =
-                    (medium.absorb as f64 + medium.scatter as f64) * inst.density_scale as f64;
-                let albedo = if medium.absorb + medium.scatter > 0.0 {
-                    medium.scatter as f64 / (medium.absorb as f64 + medium.scatter as f64)
-                } else {
-                    0.0
-                };
+                let (k, albedo) = medium.extinction_albedo();
+                let extinction = k * inst.density_scale as f64;
                 // A light volume per frame of the crossfade, in the instance's cell space; the
-                // bases hold their indices in `volumes` until `record` places them.
+                // bases hold their indices in `volumes` until `prepare` places them.
                 let grids = [f0, f1]
                     .map(|f| LightGrid::with_levels(meta.content[f], l.light_res, meta.lod().0));
                 let mut idx = [0u32; 2];
@@ -1168,6 +1155,36 @@ impl VolumeDrawer {
             LitVolumes { volumes, diffusion },
             corners,
         ))
+    }
+
+    /// Builds (and submits) the light volumes `volumes` unless a kept build has them, and points
+    /// each lit instance of `draws` at its volumes' base elements (until then they hold their
+    /// indices in `volumes`). `None` without light volumes.
+    fn build_lights(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        draws: &mut [DrawInstance],
+        volumes: &LitVolumes,
+    ) -> Result<Option<Arc<LightEntry>>> {
+        if volumes.volumes.is_empty() {
+            return Ok(None);
+        }
+        let b = self.light.prepare(
+            device,
+            queue,
+            &self.vol.group,
+            &volumes.volumes,
+            &volumes.diffusion,
+        )?;
+        for d in draws.iter_mut().filter(|d| d.lit != 0) {
+            let p = &mut d.place;
+            p.set_bases(
+                b.bases[p.lv_dims0[3] as usize],
+                b.bases[p.lv_dims1[3] as usize],
+            );
+        }
+        Ok(Some(b))
     }
 
     /// Makes every pipeline variant now (lit or flat; trilinear density, the near field, the
@@ -1276,25 +1293,7 @@ impl VolumeDrawer {
         let (mut gpu_instances, volumes, corners) =
             self.instances(rays.eye(), instances, shading)?;
         let rect = coverage(view, &corners);
-        let build = if volumes.volumes.is_empty() {
-            None
-        } else {
-            let b = self.light.prepare(
-                device,
-                queue,
-                &self.vol.group,
-                &volumes.volumes,
-                &volumes.diffusion,
-            )?;
-            for d in gpu_instances.iter_mut().filter(|d| d.lit != 0) {
-                let p = &mut d.place;
-                p.set_bases(
-                    b.bases[p.lv_dims0[3] as usize],
-                    b.bases[p.lv_dims1[3] as usize],
-                );
-            }
-            Some(b)
-        };
+        let build = self.build_lights(device, queue, &mut gpu_instances, &volumes)?;
         let light_group = build
             .as_ref()
             .map_or_else(|| self.light.empty_group.clone(), |b| b.read.clone());
@@ -1324,9 +1323,8 @@ impl VolumeDrawer {
             instance_count: gpu_instances.len() as u32,
             has_depth: target.depth.is_some() as u32,
             emit_channel: channel as u32,
-            emit_flat: medium.emission.is_some() as u32,
-            emit_lit: (medium.emission.is_some() && channel > 0) as u32,
             origin: [rect[0], rect[1]],
+            _pad: [0; 2],
             shading: ShadingUniform::new(
                 medium,
                 &shading.lighting.clone().unwrap_or_default(),
@@ -1365,7 +1363,6 @@ impl VolumeDrawer {
             ],
         });
         Ok(PreparedDraw {
-            empty: gpu_instances.is_empty() || rect[2] == 0 || rect[3] == 0,
             variant: variant.index(),
             group,
             light_group,
@@ -1385,7 +1382,7 @@ impl VolumeDrawer {
     /// pixel (ordered by distance, see `docs/engine.md`); draws composite in the order they are
     /// recorded.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder, draw: &PreparedDraw) {
-        if draw.empty {
+        if draw.is_empty() {
             return;
         }
         let [x, y, w, h] = draw.rect;
@@ -1447,7 +1444,6 @@ impl VolumeDrawer {
 
 /// The pixels (x, y, width, height) boxes of world corners `boxes` can cover seen through
 /// `view`: the union of their projections grown by two pixels (the jitter and the rasterizing
-/// of edges), clamped to the viewport; the whole viewport where a box reaches behind the eye.
 /// Which `draw_main` a draw runs: lit or flat, and the code a draw may skip compiled out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 struct Variant {
@@ -1528,6 +1524,9 @@ fn boxes_overlap(boxes: &[[DVec3; 8]]) -> bool {
     false
 }
 
+/// The pixels (x, y, width, height) boxes of world corners `boxes` can cover seen through
+/// `view`: the union of their projections grown by two pixels (the jitter and the rasterizing
+/// of edges), clamped to the viewport; the whole viewport where a box reaches behind the eye.
 fn coverage(view: &View, boxes: &[[DVec3; 8]]) -> [u32; 4] {
     let (w, h) = view.viewport;
     let clip = view.proj.as_dmat4() * view.view.as_dmat4();
@@ -1592,9 +1591,8 @@ mod tests {
                 instance_count,
                 has_depth,
                 emit_channel,
-                emit_flat,
-                emit_lit,
                 origin,
+                _pad,
                 shading,
             }),
         );

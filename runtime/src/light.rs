@@ -40,7 +40,7 @@ pub(crate) struct LightParams {
     pub axis_len: [f32; 4],
     /// Root offset of the frame at the density pass's level of detail.
     pub frame_root: u32,
-    /// Element of cell 0 in the shared buffer (set by [`LightPass::record`]).
+    /// Element of cell 0 in the shared buffer (set by [`LightPass::prepare`]).
     pub base: u32,
     /// The density pass's level of detail (`LightGrid::density_level`'s shift): full-resolution
     /// indices shift right by it.
@@ -196,7 +196,8 @@ pub(crate) struct LightPass {
     build_layout: wgpu::BindGroupLayout,
     ms_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
-    /// Bound at group 3 by draws that read no light volume.
+    /// Bound at the light group (the renderer's 3, the drawer's 2) by draws that read no light
+    /// volume.
     pub empty_group: wgpu::BindGroup,
     state: Mutex<State>,
 }

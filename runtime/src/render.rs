@@ -14,9 +14,7 @@ use vdbcook_scene::{
 use crate::light::{FrameAt, LightParams, LightPass};
 use crate::shading::{LitPlace, ShadingUniform};
 use crate::upload::{buffer_entry, Bound, GpuVolume};
-use crate::{
-    Camera, Result, RuntimeError, Settings, LIGHT_WGSL, LIT_WGSL, TRACE_WGSL, VOLUME_WGSL,
-};
+use crate::{Camera, Result, RuntimeError, Settings, TRACE_WGSL};
 
 /// The `Params` uniform of `trace.wgsl`.
 #[repr(C)]
@@ -174,27 +172,30 @@ impl LitVariant {
     }
 }
 
-/// The tracer's shader for a target format, with emission and the lit march's parts compiled in
+/// The tracer's WGSL for a target format, with emission and the lit march's parts compiled in
 /// or out.
-fn trace_module(
-    device: &wgpu::Device,
-    format: &str,
-    emission: bool,
-    lit: LitVariant,
-) -> wgpu::ShaderModule {
+fn trace_source(format: &str, emission: bool, lit: LitVariant) -> String {
     let flag = |on: bool| if on { "true" } else { "false" };
-    let source = format!(
-        "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
-        LIT_WGSL
-            .replace("{{LIT_GROUP}}", "3")
-            .replace("{{SHADING}}", "params.shading"),
+    format!(
+        "{}\n{}",
+        crate::shading::lit_source(3, "params.shading"),
         TRACE_WGSL
             .replace("{{TARGET_FORMAT}}", format)
             .replace("{{EMISSION}}", flag(emission))
             .replace("{{TRILINEAR}}", flag(lit.trilinear))
             .replace("{{LIT_NEAR}}", flag(lit.near))
             .replace("{{LIT_VOXELS}}", flag(lit.voxels))
-    );
+    )
+}
+
+/// [`trace_source`] compiled.
+fn trace_module(
+    device: &wgpu::Device,
+    format: &str,
+    emission: bool,
+    lit: LitVariant,
+) -> wgpu::ShaderModule {
+    let source = trace_source(format, emission, lit);
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("vdbcook trace"),
         source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -597,7 +598,7 @@ impl Renderer {
         camera: &Camera,
         settings: &Settings,
     ) -> Result<(Params, LightGrid)> {
-        let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames())?;
+        let mode = crate::camera::validate(settings, width, height, frame, self.vol.frames)?;
         if settings.medium.emission.is_some() && !self.emission {
             return Err(RuntimeError::Unsupported(
                 "emission: this renderer's pipeline was built without it; create it with \
@@ -691,19 +692,13 @@ mod tests {
 
     #[test]
     fn params_mirror_the_wgsl() {
+        let all = LitVariant {
+            trilinear: true,
+            near: true,
+            voxels: true,
+        };
         assert_mirrors(
-            &format!(
-                "{VOLUME_WGSL}\n{LIGHT_WGSL}\n{}\n{}",
-                LIT_WGSL
-                    .replace("{{LIT_GROUP}}", "3")
-                    .replace("{{SHADING}}", "params.shading"),
-                TRACE_WGSL
-                    .replace("{{TARGET_FORMAT}}", "rgba8unorm")
-                    .replace("{{EMISSION}}", "true")
-                    .replace("{{TRILINEAR}}", "true")
-                    .replace("{{LIT_NEAR}}", "true")
-                    .replace("{{LIT_VOXELS}}", "true")
-            ),
+            &trace_source("rgba8unorm", true, all),
             "Params",
             rust_layout!(Params {
                 eye_index,

@@ -124,13 +124,8 @@ impl LitPlace {
         frames: &[(&LightGrid, u32, u32)],
         weight: f32,
     ) -> LitPlace {
-        let k = medium.absorb as f64 + medium.scatter as f64;
+        let (k, albedo) = medium.extinction_albedo();
         let extinction = k * density_scale as f64;
-        let albedo = if k > 0.0 {
-            medium.scatter as f64 / k
-        } else {
-            0.0
-        };
         let l = xf.dir_to_index(normalize(lighting.light_dir.map(|c| c as f64)));
         let (_, axis) = light_dirs(xf, lighting.light_dir, medium.unit);
         let shortest = axis.into_iter().fold(f64::INFINITY, f64::min);
@@ -165,11 +160,25 @@ impl LitPlace {
         }
     }
 
-    /// The light volumes' base elements, once placed (`LightPass::record`).
+    /// The light volumes' base elements, once placed (`LightPass::prepare`).
     pub fn set_bases(&mut self, b0: u32, b1: u32) {
         self.lv_dims0[3] = b0;
         self.lv_dims1[3] = b1;
     }
+}
+
+/// The WGSL the tracer and the drawer start from: the volume, the light-volume helpers and the
+/// lit march's light with its light volumes at group `group` and its uniform read from the
+/// WGSL expression `shading`.
+pub(crate) fn lit_source(group: u32, shading: &str) -> String {
+    format!(
+        "{}\n{}\n{}",
+        crate::VOLUME_WGSL,
+        crate::LIGHT_WGSL,
+        crate::LIT_WGSL
+            .replace("{{LIT_GROUP}}", &group.to_string())
+            .replace("{{SHADING}}", shading)
+    )
 }
 
 #[cfg(test)]
@@ -177,21 +186,17 @@ mod tests {
     use super::*;
     use crate::layout_check::{assert_mirrors, rust_layout};
 
-    fn lit_source() -> String {
+    fn lit_test_source() -> String {
         format!(
-            "{}\n{}\n{}\nvar<private> shading_test: VdbShading;\nconst LIT_NEAR: bool = true;",
-            crate::VOLUME_WGSL,
-            crate::LIGHT_WGSL,
-            crate::LIT_WGSL
-                .replace("{{LIT_GROUP}}", "3")
-                .replace("{{SHADING}}", "shading_test")
+            "{}\nvar<private> shading_test: VdbShading;\nconst LIT_NEAR: bool = true;",
+            lit_source(3, "shading_test")
         )
     }
 
     #[test]
     fn shading_and_placement_mirror_the_wgsl() {
         assert_mirrors(
-            &lit_source(),
+            &lit_test_source(),
             "VdbShading",
             rust_layout!(ShadingUniform {
                 sun,
@@ -208,7 +213,7 @@ mod tests {
             }),
         );
         assert_mirrors(
-            &lit_source(),
+            &lit_test_source(),
             "VdbLitPlace",
             rust_layout!(LitPlace {
                 sun_cell,

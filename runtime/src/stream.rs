@@ -90,8 +90,6 @@ pub struct StreamingVolume {
     slot_brick: Vec<(u32, u32)>,
     /// Per asset of the pool: what is known of it.
     residents: Vec<Resident>,
-    /// The (first) asset's window.
-    window: (usize, usize),
     stats: WindowStats,
     volume: Option<GpuVolume>,
 }
@@ -285,7 +283,7 @@ impl StreamingVolume {
         };
 
         let caps = pool.caps;
-        let mut s = Self::build(device, &[&asset], caps, &pool.plan, budget, first)?;
+        let mut s = Self::build(device, &[&asset], caps, &pool.plan, budget)?;
         s.load(device, queue, &[(&asset, first, last)])?;
         s.asset = Some(asset);
         log::info!(
@@ -305,9 +303,7 @@ impl StreamingVolume {
         caps: [u32; 5],
         plan: &FullPlan,
         budget: u64,
-        first: usize,
     ) -> Result<StreamingVolume> {
-        let last = first;
         let mut firsts = [0u32; 5];
         for i in 1..5 {
             firsts[i] = firsts[i - 1] + caps[i - 1];
@@ -405,9 +401,8 @@ impl StreamingVolume {
             slot_of: HashMap::new(),
             slot_brick: vec![FREE; total_slots as usize],
             residents: assets.iter().map(|a| Resident::of(a)).collect(),
-            window: (first, first),
             stats: WindowStats {
-                window: (first, last),
+                window: (0, 0),
                 uploaded_bricks: 0,
                 uploaded_bytes: 0,
                 topology_bytes: 0,
@@ -483,7 +478,7 @@ impl StreamingVolume {
             }
         };
         let caps = counts.map(|c| c as u32);
-        let mut s = Self::build(device, assets, caps, &plan, u64::MAX, 0)?;
+        let mut s = Self::build(device, assets, caps, &plan, u64::MAX)?;
         let windows: Vec<(&Asset, usize, usize)> = assets
             .iter()
             .map(|&a| (a, 0, a.frame_count() - 1))
@@ -517,7 +512,7 @@ impl StreamingVolume {
 
     /// Moves the window one frame on (an error past the last frame).
     pub fn advance(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<WindowStats> {
-        let (a, b) = self.window;
+        let (a, b) = self.stats.window;
         self.set_window(device, queue, a + 1..=b + 1)
     }
 
@@ -527,7 +522,7 @@ impl StreamingVolume {
     }
     /// First and last frame of the resident window.
     pub fn window(&self) -> (usize, usize) {
-        self.window
+        self.stats.window
     }
     /// What the last window change did.
     pub fn stats(&self) -> &WindowStats {
@@ -536,7 +531,7 @@ impl StreamingVolume {
     /// The index in [`Self::volume`] of asset frame `frame`, or an error when it is outside the
     /// window.
     pub fn local_frame(&self, frame: usize) -> Result<usize> {
-        let (a, b) = self.window;
+        let (a, b) = self.stats.window;
         if frame < a || frame > b {
             return Err(RuntimeError::Setting(format!(
                 "frame {frame} is outside the resident window {a}..={b}"
@@ -779,7 +774,6 @@ impl StreamingVolume {
             assets,
         });
         let (_, first, last) = windows[0];
-        self.window = (first, last);
         self.stats = WindowStats {
             window: (first, last),
             uploaded_bricks: uploaded,

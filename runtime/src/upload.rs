@@ -909,11 +909,6 @@ impl Bound {
         }
     }
 
-    /// Frames of the (first) asset.
-    pub fn frames(&self) -> usize {
-        self.assets[0].frames
-    }
-
     /// Binds `volume` instead, if the pipelines built for the current one can read it: the same
     /// bind-group layout object and pipeline constants, and the same assets (transform and root
     /// extent).

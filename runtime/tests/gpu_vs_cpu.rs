@@ -1240,23 +1240,24 @@ fn emission_matches_the_cpu() {
     );
     let (vol, plain) = gpu.setup(&asset);
     // Emission is compiled out of `Renderer::new`'s pipeline: refused there.
-    let cam0 = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
+    let emission = Some(vdbcook_trace::Emission {
+        range: [800.0, 2500.0],
+        intensity: 0.5,
+        channel: 0,
+    });
     let probe = {
         let base = small(Mode::Density, 0);
         RenderSettings {
             medium: Medium {
-                emission: Some(vdbcook_trace::Emission {
-                    range: [800.0, 2500.0],
-                    intensity: 0.5,
-                    channel: 0,
-                }),
+                emission,
                 ..base.medium
             },
             ..base
         }
     };
     let t0 = plain.buffer_target(&gpu.device, W, H).unwrap();
-    let e = gpu.render(&plain, &t0, &cam0, &probe).unwrap_err();
+    let e = gpu.render(&plain, &t0, &cam, &probe).unwrap_err();
     assert!(matches!(e, RuntimeError::Unsupported(_)), "{e}");
     let r = vdbcook_runtime::Renderer::with_emission(
         &gpu.device,
@@ -1265,17 +1266,12 @@ fn emission_matches_the_cpu() {
     )
     .unwrap();
     let target = r.buffer_target(&gpu.device, W, H).unwrap();
-    let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
     let s = {
         let base = small(Mode::Density, 0);
         RenderSettings {
             medium: Medium {
                 absorb: 2e-5,
-                emission: Some(vdbcook_trace::Emission {
-                    range: [800.0, 2500.0],
-                    intensity: 0.5,
-                    channel: 0,
-                }),
+                emission,
                 ..base.medium
             },
             ..base

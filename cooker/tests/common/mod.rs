@@ -52,6 +52,11 @@ pub fn json(args: &[&str]) -> Value {
         .unwrap_or_else(|e| panic!("{args:?}: not one JSON document ({e}): {out}"))
 }
 
+/// GPU bytes (topology + atlas) of a `cook --json` document.
+pub fn gpu_bytes(c: &Value) -> u64 {
+    c["bytes"]["topology"].as_u64().unwrap() + c["bytes"]["atlas"].as_u64().unwrap()
+}
+
 /// Whether a GPU test must run (CI sets VDBCOOK_REQUIRE_GPU=1) or may skip when there is none.
 pub fn gpu_required() -> bool {
     std::env::var_os("VDBCOOK_REQUIRE_GPU").is_some_and(|v| v != "0")

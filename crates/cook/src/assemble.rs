@@ -199,7 +199,7 @@ pub fn assemble(i: Inputs) -> Result<Assembled, CookError> {
         root_len,
         &bgs,
     );
-    let (l2_base, l2_prefix, l3_refs) = pool.layout(n);
+    let (l2_base, l2_prefix, l3_refs) = pool.layout();
     // Error per (frame, channel) over every brick use; tiles from the source are stored exactly,
     // lossy tiles made under a bound are in `decoded`.
     let errors = use_errors(&pool.uses, &pool.bricks, decoded, |b| {

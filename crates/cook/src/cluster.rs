@@ -462,11 +462,24 @@ pub fn cluster(pool: &[f32], o: &ClusterOptions) -> ClusterResult {
 /// grids, and each group is guarded by its own budget. The centroids requested are shared among
 /// the groups in proportion to their sizes (all of them to a lone group).
 pub struct Grouped {
-    /// Per group: its channel mask, its pool bricks (ascending), its k-means over them.
-    pub groups: Vec<(u8, Vec<u32>, ClusterResult)>,
+    /// Per group: its pool bricks (ascending) and its k-means over them.
+    pub groups: Vec<(Vec<u32>, ClusterResult)>,
     pub requested: usize,
-    pub iterations: usize,
     pub variance_threshold: f32,
+}
+
+/// The bricks `members` of `bricks`, in order: `bricks` itself when the members are all of it.
+fn gather<'a>(bricks: &'a [f32], members: &[u32]) -> std::borrow::Cow<'a, [f32]> {
+    if members.len() * BRICK_VOXELS == bricks.len() {
+        // Members are ascending and distinct: all of the bricks, in order.
+        return std::borrow::Cow::Borrowed(bricks);
+    }
+    let mut v = Vec::with_capacity(members.len() * BRICK_VOXELS);
+    for &b in members {
+        let b = b as usize;
+        v.extend_from_slice(&bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
+    }
+    std::borrow::Cow::Owned(v)
 }
 
 /// What the guard let through: per pool brick, the encode input it reads, and that input.
@@ -487,58 +500,43 @@ pub fn cluster_groups(bricks: &[f32], channels: &[u8], o: &ClusterOptions) -> Gr
     let mut masks: Vec<u8> = channels[..n].to_vec();
     masks.sort_unstable();
     masks.dedup();
-    let groups: Vec<(u8, Vec<u32>)> = masks
+    let lone = masks.len() == 1;
+    let groups = masks
         .iter()
         .map(|&m| {
-            (
-                m,
-                (0..n as u32)
-                    .filter(|&b| channels[b as usize] == m)
-                    .collect(),
-            )
-        })
-        .collect();
-    let lone = groups.len() == 1;
-    let groups = groups
-        .into_iter()
-        .map(|(m, members)| {
+            let members: Vec<u32> = (0..n as u32)
+                .filter(|&b| channels[b as usize] == m)
+                .collect();
             let k = if lone {
                 o.clusters
             } else {
                 ((o.clusters as f64 * members.len() as f64 / n as f64).round() as usize).max(1)
             };
-            let r = if lone {
-                cluster(bricks, &ClusterOptions { clusters: k, ..*o })
-            } else {
-                let mut gathered = Vec::with_capacity(members.len() * BRICK_VOXELS);
-                for &b in &members {
-                    let b = b as usize;
-                    gathered.extend_from_slice(&bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
-                }
-                cluster(&gathered, &ClusterOptions { clusters: k, ..*o })
-            };
-            (m, members, r)
+            let r = cluster(
+                &gather(bricks, &members),
+                &ClusterOptions { clusters: k, ..*o },
+            );
+            (members, r)
         })
         .collect();
     Grouped {
         groups,
         requested: o.clusters,
-        iterations: o.iterations,
         variance_threshold: o.variance_threshold,
     }
 }
 
 impl Grouped {
     pub fn candidates(&self) -> usize {
-        self.groups.iter().map(|g| g.2.candidates).sum()
+        self.groups.iter().map(|g| g.1.candidates).sum()
     }
     pub fn rejected_by_variance(&self) -> usize {
-        self.groups.iter().map(|g| g.2.rejected_by_variance).sum()
+        self.groups.iter().map(|g| g.1.rejected_by_variance).sum()
     }
     pub fn iterations_run(&self) -> usize {
         self.groups
             .iter()
-            .map(|g| g.2.iterations_run)
+            .map(|g| g.1.iterations_run)
             .max()
             .unwrap_or(0)
     }
@@ -557,7 +555,7 @@ impl Grouped {
         // Per pool brick: (group, centroid) it joined.
         let mut joined: Vec<Option<(usize, u32)>> = vec![None; n];
         let mut rejected_by_error = 0;
-        for (g, (_, members, r)) in self.groups.iter().enumerate() {
+        for (g, (members, r)) in self.groups.iter().enumerate() {
             let mut member_of = r.member_of.clone();
             if let (Some(&b0), Some(_)) = (members.first(), eopts.max_error) {
                 let o = crate::encode::EncodeOptions {
@@ -565,20 +563,9 @@ impl Grouped {
                     ..*eopts
                 };
                 let ce = crate::encode::encode(&r.centroids, &o)?;
-                let gathered;
-                let own: &[f32] = if self.groups.len() == 1 {
-                    bricks
-                } else {
-                    let mut v = Vec::with_capacity(members.len() * BRICK_VOXELS);
-                    for &b in members {
-                        let b = b as usize;
-                        v.extend_from_slice(&bricks[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]);
-                    }
-                    gathered = v;
-                    &gathered
-                };
+                let own = gather(bricks, members);
                 rejected_by_error +=
-                    crate::encode::guard_members(own, &r.centroids, &ce, &mut member_of, &o);
+                    crate::encode::guard_members(&own, &r.centroids, &ce, &mut member_of, &o);
             }
             for (i, m) in member_of.iter().enumerate() {
                 if let Some(c) = m {
@@ -601,7 +588,7 @@ impl Grouped {
         let mut used: Vec<Vec<u32>> = self
             .groups
             .iter()
-            .map(|g| vec![u32::MAX; g.2.centroids.len() / BRICK_VOXELS])
+            .map(|g| vec![u32::MAX; g.1.centroids.len() / BRICK_VOXELS])
             .collect();
         let mut clusters_used = 0;
         for (b, j) in joined.iter().enumerate() {
@@ -611,7 +598,7 @@ impl Grouped {
                     *slot = next;
                     next += 1;
                     clusters_used += 1;
-                    let cents = &self.groups[g].2.centroids;
+                    let cents = &self.groups[g].1.centroids;
                     input.extend_from_slice(
                         &cents[c as usize * BRICK_VOXELS..(c as usize + 1) * BRICK_VOXELS],
                     );

@@ -83,20 +83,9 @@ pub fn choose_grid(frames: &[Frame], grid: Option<&str>) -> Result<(String, Stri
     }
 }
 
-/// Reads grid `name` of one frame. A frame without it is `Ok(None)` under `allow_missing`,
-/// else an error naming the frame (`hint`: mention `--allow-missing-grid`).
-pub fn read_named(
-    f: &Frame,
-    name: &str,
-    how: &str,
-    allow_missing: bool,
-    hint: bool,
-) -> Result<Option<sequence::LoadedFrame>, VdbError> {
-    let file = VdbFile::open(&f.path)?;
-    read_named_in(&file, f, name, how, allow_missing, hint)
-}
-
-/// [`read_named`] from a file already open (a frame's several grids are read from one open).
+/// Reads grid `name` of one frame from its file, already open (a frame's several grids are read
+/// from one open). A frame without it is `Ok(None)` under `allow_missing`, else an error naming
+/// the frame (`hint`: mention `--allow-missing-grid`).
 pub fn read_named_in(
     file: &VdbFile,
     f: &Frame,

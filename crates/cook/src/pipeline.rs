@@ -228,16 +228,17 @@ fn cook_sources(
     let dropped: Vec<DroppedChannel> = (1..n)
         .filter(|_| !opts.keep_empty_channels)
         .filter_map(|c| {
-            let (r, bg) = (channels[c].value_range, channels[c].background);
+            let (active, bg) = (channels[c].active_range(), channels[c].background);
             let e = budgets[c].map(|b| b.0);
             let e0 = e.unwrap_or(0.0);
-            let none = r[0] > r[1];
-            (none || (r[0] >= bg - e0 && r[1] <= bg + e0)).then(|| DroppedChannel {
-                name: channels[c].name.clone(),
-                background: bg,
-                value_range: (!none).then_some(r),
-                max_error: e,
-            })
+            active
+                .is_none_or(|r| r[0] >= bg - e0 && r[1] <= bg + e0)
+                .then(|| DroppedChannel {
+                    name: channels[c].name.clone(),
+                    background: bg,
+                    value_range: active,
+                    max_error: e,
+                })
         })
         .collect();
     if !dropped.is_empty() {

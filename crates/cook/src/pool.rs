@@ -292,8 +292,9 @@ impl Pool {
     }
 
     /// The asset's `l2_base` (in slots), `l2_prefix` and `l3_refs` of the nodes, whose refs hold
-    /// `channels` per slot.
-    pub fn layout(&self, channels: usize) -> (Vec<u32>, Vec<u16>, Vec<u32>) {
+    /// one per channel per slot.
+    pub fn layout(&self) -> (Vec<u32>, Vec<u16>, Vec<u32>) {
+        let channels = self.channels;
         let mut l2_base = Vec::with_capacity(self.l2_refs.len());
         let mut l2_prefix = Vec::with_capacity(self.l2_refs.len() * L2_WORDS);
         let mut l3_refs = Vec::new();

@@ -79,12 +79,7 @@ impl DiffusionInputs {
     /// `absorb + scatter`, albedo `scatter / extinction`, 0 without extinction): what the CPU
     /// tracer and the GPU renderer solve alike.
     pub fn of_settings(grid: &LightGrid, xf: &Affine, s: &RenderSettings) -> DiffusionInputs {
-        let extinction = s.medium.absorb as f64 + s.medium.scatter as f64;
-        let albedo = if extinction > 0.0 {
-            s.medium.scatter as f64 / extinction
-        } else {
-            0.0
-        };
+        let (extinction, albedo) = s.medium.extinction_albedo();
         DiffusionInputs::new(
             grid,
             light_dirs(xf, s.lighting.light_dir, s.medium.unit),

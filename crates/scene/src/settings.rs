@@ -469,6 +469,18 @@ impl Output {
 }
 
 impl Medium {
+    /// Extinction per unit density (`absorb + scatter`, in f64) and the single-scattering albedo
+    /// (`scatter / extinction`; 0 without extinction).
+    pub fn extinction_albedo(&self) -> (f64, f64) {
+        let extinction = self.absorb as f64 + self.scatter as f64;
+        let albedo = if extinction > 0.0 {
+            self.scatter as f64 / extinction
+        } else {
+            0.0
+        };
+        (extinction, albedo)
+    }
+
     /// Refuses coefficients, a phase or an emission that would put NaN into a pixel.
     pub fn validate(&self) -> Result<(), TraceError> {
         for (name, v) in [("absorb", self.absorb), ("scatter", self.scatter)] {

@@ -31,6 +31,15 @@ pub struct Sample {
     pub steps: u32,
 }
 
+impl Sample {
+    /// Adds light drawn after the march (a channel's emission) to the colour.
+    fn add_light(&mut self, e: [f64; 3]) {
+        for (o, e) in self.rgba.iter_mut().zip(e) {
+            *o += e as f32;
+        }
+    }
+}
+
 /// Per-thread scratch: decoded-brick caches for primary and shadow rays.
 #[derive(Default)]
 pub struct Scratch {
@@ -69,6 +78,9 @@ pub struct Tracer<'a> {
     /// Emission read from another channel than the rendered one (`Emission::channel > 0`;
     /// `settings.emission` is then `None`, and this is added after the mode's march).
     pub(crate) channel_emission: Option<ChannelEmission>,
+    /// The rendered channel's own emission as [`Tracer::emission_until`] walks it (its content
+    /// box found once, on first use).
+    own_emission: std::sync::OnceLock<ChannelEmission>,
 }
 
 /// Emission from channel `channel` of a multi-channel asset, drawn by [`Tracer::trace`] after the
@@ -130,12 +142,7 @@ impl<'a> Tracer<'a> {
         let xf = Affine::cells(&asset.header.index_to_world)?;
         let l = settings.lighting.light_dir.map(|c| c as f64);
         let light_index = xf.dir_to_index(normalize(l));
-        let extinction = settings.medium.absorb as f64 + settings.medium.scatter as f64;
-        let albedo = if extinction > 0.0 {
-            settings.medium.scatter as f64 / extinction
-        } else {
-            0.0
-        };
+        let (extinction, albedo) = settings.medium.extinction_albedo();
         // Depth range: nearest and farthest corner of the frame's stored box (0 if the eye is
         // inside it).
         let ext = extent(asset);
@@ -173,6 +180,7 @@ impl<'a> Tracer<'a> {
             emit_table,
             light,
             channel_emission,
+            own_emission: std::sync::OnceLock::new(),
         })
     }
 
@@ -290,10 +298,7 @@ impl<'a> Tracer<'a> {
                 Mode::DeltaTracking | Mode::Reference => return out,
                 _ => self.extinction,
             };
-            let e = self.emission_of_channel(ce, &ray, ext, f64::INFINITY, scratch);
-            for (o, e) in out.rgba.iter_mut().zip(e) {
-                *o += e as f32;
-            }
+            out.add_light(self.emission_of_channel(ce, &ray, ext, f64::INFINITY, scratch));
         }
         out
     }
@@ -609,10 +614,7 @@ impl Tracer<'_> {
         let ray = self.primary_ray(eye, dir);
         let mut out = self.lit(ray, dir, ray.clip(self.extent), t_max, pixel, scratch);
         if let Some(ce) = &self.channel_emission {
-            let e = self.emission_of_channel(ce, &ray, self.extinction, t_max, scratch);
-            for (o, e) in out.rgba.iter_mut().zip(e) {
-                *o += e as f32;
-            }
+            out.add_light(self.emission_of_channel(ce, &ray, self.extinction, t_max, scratch));
         }
         out
     }
@@ -633,17 +635,13 @@ impl Tracer<'_> {
     ) -> [f64; 3] {
         let ray = self.primary_ray(eye, dir);
         let absorb = self.settings.medium.absorb as f64;
-        let own;
         let ce = match (&self.channel_emission, self.settings.medium.emission) {
             (Some(ce), _) => ce,
-            (None, Some(e)) => {
-                own = ChannelEmission {
-                    emission: e,
-                    channel: 0,
-                    bbox: vdbcook_scene::content_box(self.grid.asset, self.settings.output.frame),
-                };
-                &own
-            }
+            (None, Some(e)) => self.own_emission.get_or_init(|| ChannelEmission {
+                emission: e,
+                channel: 0,
+                bbox: vdbcook_scene::content_box(self.grid.asset, self.settings.output.frame),
+            }),
             (None, None) => return [0.0; 3],
         };
         self.emission_of_channel(ce, &ray, absorb, t_max, scratch)

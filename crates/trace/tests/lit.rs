@@ -225,31 +225,29 @@ fn one_octave_is_single_scattering_with_the_reference_phase_convention() {
 /// toward −z, `light_res` cells, the voxel march at `step` voxels, the near field over
 /// `sun_near` cells.
 fn sun_single(light_res: u32, step: f32, sun_near: f32) -> RenderSettings {
-    {
-        let base = lit();
-        RenderSettings {
-            medium: Medium {
-                absorb: 0.1,
-                scatter: 1.5,
-                ..base.medium
-            },
-            lighting: Lighting {
-                light_dir: [0.0, 0.0, -1.0],
-                light_color: [2.0; 3],
-                sky: [0.0; 3],
-                ms_model: MsModel::Octaves,
-                ms_octaves: 1,
-                light_res,
-                sun_near,
-                ..base.lighting
-            },
-            integrator: Integrator {
-                march: March::Voxels,
-                step,
-                ..base.integrator
-            },
-            ..base
-        }
+    let base = lit();
+    RenderSettings {
+        medium: Medium {
+            absorb: 0.1,
+            scatter: 1.5,
+            ..base.medium
+        },
+        lighting: Lighting {
+            light_dir: [0.0, 0.0, -1.0],
+            light_color: [2.0; 3],
+            sky: [0.0; 3],
+            ms_model: MsModel::Octaves,
+            ms_octaves: 1,
+            light_res,
+            sun_near,
+            ..base.lighting
+        },
+        integrator: Integrator {
+            march: March::Voxels,
+            step,
+            ..base.integrator
+        },
+        ..base
     }
 }
 
