@@ -201,11 +201,15 @@ fn lit_emission(v: f32) -> vec3<f32> {
 // [box_lo, box_hi) inside the root extent, each
 // `T · E · ℓ · φ(x)` with `x = ext·ρ·ℓ` (ρ: channel 0, nearest voxel), `T` starting from channel
 // 0's exact optical depth from the extent's entry to the box's; stops once T < 1e-6. `ext` 0:
-// no attenuation (delta tracking's track-length estimator over one flight).
+// no attenuation (delta tracking's track-length estimator over one flight). With the trilinear
+// filter (`lit_trilinear_on`) each voxel's part reads both channels trilinearly at its midpoint
+// (no voxel cubes in the glow), over the box grown by one voxel (the taps' reach).
 fn lit_channel_emission(root: u32, ray: VdbRay, ext: f32, t_end: f32, channel: u32, box_lo: vec3<f32>, box_hi: vec3<f32>) -> vec3<f32> {
     var light = vec3<f32>(0.0);
+    let smooth_taps = lit_trilinear_on();
+    let grow = select(vec3<f32>(0.0), vec3<f32>(1.0), smooth_taps);
     let c = vdb_clip(ray, vdb_extent());
-    let b = vdb_clip_box(ray, box_lo, box_hi);
+    let b = vdb_clip_box(ray, box_lo - grow, box_hi + grow);
     let a0 = max(c.x, b.x);
     let a1 = min(min(c.y, b.y), t_end);
     if (!(a0 < a1)) {
@@ -216,7 +220,7 @@ fn lit_channel_emission(root: u32, ray: VdbRay, ext: f32, t_end: f32, channel: u
         tau = vdb_optical_depth(root, ray, c.x, a0, ext);
     }
     var trans = exp(-ext * tau);
-    var d = vdb_dda_init(ray, 1.0, vec3<i32>(box_lo), vec3<i32>(box_hi), a0, a1);
+    var d = vdb_dda_init(ray, 1.0, vec3<i32>(box_lo - grow), vec3<i32>(box_hi + grow), a0, a1);
     for (var i = 0; i < 1000000; i++) {
         let s = vdb_dda_next(ray, &d);
         if (!s.ok) {
@@ -224,14 +228,25 @@ fn lit_channel_emission(root: u32, ray: VdbRay, ext: f32, t_end: f32, channel: u
         }
         let l = (s.tb - s.ta) * ray.per_t;
         var x = 0.0;
+        let mid = ray.o + (0.5 * (s.ta + s.tb)) * ray.d;
         if (ext > 0.0) {
-            let rho = vdb_value(root, s.cell);
+            var rho = 0.0;
+            if (smooth_taps) {
+                rho = vdb_trilinear(root, mid);
+            } else {
+                rho = vdb_value(root, s.cell);
+            }
             if (rho > 0.0) {
                 x = ext * rho * l;
             }
         }
         let e = exp(-x);
-        let v = vdb_value_c(root, s.cell, channel);
+        var v = 0.0;
+        if (smooth_taps) {
+            v = vdb_trilinear_c(root, mid, channel);
+        } else {
+            v = vdb_value_c(root, s.cell, channel);
+        }
         light += trans * l * lv_phi(x, e) * lit_emission(v);
         trans *= e;
         if (trans < 1.0e-6) {

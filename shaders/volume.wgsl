@@ -357,6 +357,11 @@ fn vdb_leaf_bound(frame_root: u32, a: vec3<i32>) -> f32 {
 // each of the eight taps `max(v, 0)` (NaN reads 0), read through the tree so bricks, tiles and
 // unstored space join without seams: `vdbcook_trace::Tracer::trilinear_density`.
 fn vdb_trilinear(frame_root: u32, p: vec3<f32>) -> f32 {
+    return vdb_trilinear_c(frame_root, p, 0u);
+}
+
+// `vdb_trilinear` of channel `c`.
+fn vdb_trilinear_c(frame_root: u32, p: vec3<f32>, c: u32) -> f32 {
     let u = p - vec3<f32>(0.5);
     let base = floor(u);
     let f = u - base;
@@ -365,7 +370,7 @@ fn vdb_trilinear(frame_root: u32, p: vec3<f32>) -> f32 {
     for (var k = 0u; k < 8u; k++) {
         let hi = vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u);
         let w = select(vec3<f32>(1.0) - f, f, hi);
-        let v = vdb_value(frame_root, b + select(vec3<i32>(0), vec3<i32>(1), hi));
+        let v = vdb_value_c(frame_root, b + select(vec3<i32>(0), vec3<i32>(1), hi), c);
         if (v > 0.0) {
             sum += w.x * w.y * w.z * v;
         }

@@ -12,6 +12,7 @@ pub mod eval;
 pub mod gpu;
 pub mod info;
 pub mod inspect;
+pub mod look;
 pub mod manifest;
 pub mod output;
 pub mod render;

@@ -52,13 +52,19 @@ vdbcook cook --manifest volumes.toml --json    (batch, with a cache: docs/cli.md
         after_help = "Examples:\n  vdbcook eval smoke.vdbc 'cache/smoke.####.vdb'\n  vdbcook eval smoke.vdbc cache/ --json"
     )]
     Eval(eval::Args),
-    /// Render one frame of an asset (or of VDB sources, cooked in memory) to a PNG or a linear
-    /// PFM, on the CPU reference tracer or the GPU runtime, optionally over a background plate
-    /// with scene depth.
+    /// Render one frame of an asset (or of VDB sources, cooked in memory) to a PNG (tone-mapped
+    /// sRGB), a linear PFM or a linear EXR, on the CPU reference tracer or the GPU runtime,
+    /// optionally over a background plate with scene depth.
     #[command(
-        after_help = "MODE: density, depth, first-hit, brick-hue, steps, scatter (vdb_render's \
-single scattering), delta (delta tracking).\n\nExamples:\n  vdbcook render smoke.vdbc -o smoke.png\n  \
-vdbcook render smoke.vdbc -o f10.png --frame 10 --mode scatter --width 1280 --height 720\n  \
+        after_help = "MODE: density (1 − transmittance, plus emission), depth, first-hit, brick-hue, \
+steps (false colours), scatter (vdb_render's single scattering), delta (delta tracking), reference \
+(the CPU path tracer), lit (sun and sky with multiple scattering: the production look).\n\n\
+By default fire glows by its tool's convention (--emission auto), the sun sits over the camera's \
+shoulder (--light auto), the up axis follows the source (--up auto: Z for Blender), voxels are \
+smoothed where they cover pixels (--filter auto) and PNGs are tone-mapped (--tonemap auto: PBR Neutral, none over a plate; \
+--exposure 0).\n\nExamples:\n  vdbcook render smoke.vdbc -o smoke.png --mode lit\n  \
+vdbcook render fire_cache/ -o fire.png --mode lit --exposure 0.5\n  \
+vdbcook render smoke.vdbc -o f10.exr --frame 10 --mode lit --transparent --width 1280 --height 720\n  \
 vdbcook render smoke.vdbc -o d.png --mode delta --spp 64 --camera 20,15,30,0,5,0,40 --json\n  \
 vdbcook render smoke.vdbc -o comp.pfm --background plate.png --depth depth.pfm   (density over a scene)"
     )]
@@ -77,7 +83,7 @@ vdbcook report 'cache/smoke.####.vdb' -o r/ --tolerances 0.001,0.01 --mode densi
     /// orbit camera, flip-book playback, mode switch, frame time in the title; headless with
     /// --frames N --screenshot OUT.png.
     #[command(
-        after_help = "Controls: left-drag orbits, wheel zooms, space plays/pauses (--fps), left/right arrows step a frame, m cycles modes (density, depth, first-hit, brick-hue, steps, scatter, delta), r resets the camera, Esc quits.\n\nExamples:\n  vdbcook view smoke.vdbc\n  vdbcook view 'cache/smoke.####.vdb' --mode scatter --fps 30\n  vdbcook view smoke.vdbc --frames 5 --screenshot shot.png --json   (headless, no window)"
+        after_help = "Controls: left-drag orbits, wheel zooms, space plays/pauses (--fps), left/right arrows step a frame, m cycles modes (density, depth, first-hit, brick-hue, steps, scatter, delta, lit), r resets the camera, Esc quits.\n\nExamples:\n  vdbcook view smoke.vdbc\n  vdbcook view 'cache/smoke.####.vdb' --mode lit --fps 30 --exposure 0.5\n  vdbcook view smoke.vdbc --frames 5 --screenshot shot.png --json   (headless, no window)"
     )]
     View(view::Args),
 }

@@ -12,10 +12,8 @@ use std::time::Instant;
 
 use serde_json::json;
 use vdbcook_asset::Asset;
-use vdbcook_trace::{
-    Camera, Emission, Filter, Image, Integrator, LengthUnit, Lighting, March, Medium, Mode,
-    MsModel, Output, RenderSettings, Scratch, Tracer,
-};
+pub use vdbcook_trace::{linear_to_srgb8, srgb_to_linear};
+use vdbcook_trace::{Camera, Display, Image, March, Mode, Output, RenderSettings, Scratch, Tracer};
 
 use crate::errors::CliError;
 use crate::gpu::Gpu;
@@ -26,7 +24,9 @@ pub struct Args {
     /// are cooked in memory (f32, lossless) first.
     #[arg(value_name = "ASSET|VDB")]
     input: PathBuf,
-    /// Output: .png (8-bit RGBA) or .pfm (linear RGB floats, `PF`); a device or FIFO gets PNG.
+    /// Output: .png (8-bit sRGB RGBA through --exposure and --tonemap), .pfm (linear RGB
+    /// floats, `PF`) or .exr (OpenEXR linear RGBA, premultiplied, 32-bit float; --exr-half:
+    /// 16-bit); a device or FIFO gets PNG.
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
     /// The scene's colours to composite over (8-bit sRGB PNG of the output's size): the output
@@ -64,128 +64,15 @@ pub struct Args {
     width: u32,
     #[arg(long, default_value_t = 360)]
     height: u32,
-    /// EYE_X,EYE_Y,EYE_Z,LOOK_X,LOOK_Y,LOOK_Z,FOV_Y_DEG in world units (Y up). Default: a
+    /// EYE_X,EYE_Y,EYE_Z,LOOK_X,LOOK_Y,LOOK_Z,FOV_Y_DEG in world units (up: --up). Default: a
     /// three-quarter view that frames the frame's stored box.
     #[arg(long, value_name = "E,E,E,L,L,L,FOV", allow_hyphen_values = true)]
     camera: Option<String>,
-    /// Absorption per unit density per unit length.
-    #[arg(long, default_value_t = 0.1)]
-    absorb: f32,
-    /// Scattering per unit density per unit length (scatter and delta modes).
-    #[arg(long, default_value_t = 1.5)]
-    scatter: f32,
-    /// Direction toward the light and optional colour: DX,DY,DZ[,R,G,B].
-    #[arg(
-        long,
-        default_value = "0.3,0.3,0,0.7,0.7,0.7",
-        allow_hyphen_values = true
-    )]
-    light: String,
-    /// Primary-ray step of the scatter mode (in --units).
-    #[arg(long, default_value_t = 1.0)]
-    step: f32,
-    /// Shadow-ray step of the scatter mode (in --units).
-    #[arg(long, default_value_t = 3.0)]
-    shadow_step: f32,
-    /// Density and transmittance cutoff (scatter), first-hit threshold (depth, first-hit,
-    /// brick-hue).
-    #[arg(long, default_value_t = 0.005)]
-    cutoff: f32,
-    /// Shadow falloff: shadow extinction at distance s is divided by 1 + gain·s.
-    #[arg(long, default_value_t = 0.2)]
-    gain: f32,
-    /// Samples per pixel (delta, reference).
-    #[arg(long, default_value_t = 16)]
-    spp: u32,
-    /// Constant sky radiance R,G,B (reference: paths that scatter and leave see it).
-    #[arg(long, default_value = "0.04,0.05,0.065", allow_hyphen_values = true)]
-    sky: String,
-    /// Henyey–Greenstein phase of the reference mode: G (one lobe) or G0,G1,W (W·HG(G0) +
-    /// (1 − W)·HG(G1)); each G in -0.99..=0.99, positive forward.
-    #[arg(long, default_value = "0.6,-0.3,0.8", allow_hyphen_values = true)]
-    phase: String,
-    /// Most scattering events per reference path (more count as absorbed).
-    #[arg(long, default_value_t = 256)]
-    bounces: u32,
-    /// Light-volume resolution of the lit mode: cells along the longest side of the frame's
-    /// content box (2..=256). Coarser is faster to build and blurs shadows.
-    #[arg(long, default_value_t = 64)]
-    light_res: u32,
-    /// Multiple-scattering octaves of the lit mode's sun with --ms-model octaves (1 = single
-    /// scattering, up to 8).
-    #[arg(long, default_value_t = 8)]
-    ms_octaves: u32,
-    /// With --ms-model octaves, the diffusion scale of the lit mode's multiply scattered sky
-    /// light: 0 keeps all the sky light the medium scatters, 1 attenuates it as diffusion
-    /// theory does (default 0.25, fitted to the reference). The diffusion model solves the
-    /// sky's light instead and refuses this option.
+    #[command(flatten)]
+    pub look: crate::look::LookArgs,
+    /// EXR output in 16-bit half floats instead of 32-bit.
     #[arg(long)]
-    ms_sky: Option<f32>,
-    /// Multiple scattering of the lit mode's sun and sky: diffusion (a flux-limited diffusion
-    /// solve over the light volume: the sun's scattered light spreads sideways and leaks out
-    /// of thin edges, the sky's enters through every surface; closer to the reference) or
-    /// octaves (closed forms of the depths toward the sun and the sky, --ms, --ms-octaves and
-    /// --ms-sky; a cheaper light-volume build). docs/rendering.md has the figures.
-    #[arg(long, default_value = "diffusion", value_parser = ["diffusion", "octaves"])]
-    ms_model: String,
-    /// How the lit mode reads the density: nearest (the voxel holding the sample, the medium the
-    /// reference sees) or trilinear (smooth up close, no seams between bricks; eight reads per
-    /// sample).
-    #[arg(long, default_value = "nearest", value_parser = ["nearest", "trilinear"])]
-    filter: String,
-    /// Where the lit mode's nearest-voxel march samples: steps (every --step from the eye,
-    /// jittered per pixel: a --step above 1 trades accuracy for speed), voxels (each voxel the
-    /// ray crosses integrated exactly, cut into parts of at most --step where the light is read;
-    /// no noise, closer to the reference, slower), or auto: voxels on a frame where one step
-    /// through its densest voxel is optically thick (≥ 1), else steps. --filter trilinear always
-    /// marches in steps.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "steps", "voxels"])]
-    march: String,
-    /// Lit mode: light-volume cells toward the sun whose voxels are walked exactly from each
-    /// sample before the light volume's depth takes over, where a cell is optically thick
-    /// (0 = the light volume alone: cheaper, but a dense cloud's sunlit skin, thinner than
-    /// the light volume's cells, comes out too dark).
-    #[arg(long, default_value_t = vdbcook_trace::DEFAULT_SUN_NEAR, value_name = "CELLS")]
-    sun_near: f32,
-    /// Lit mode, diffusion model: where the near field was walked, add the once-scattered
-    /// sunlight the light volume's cells cannot hold (a dense cloud's sunlit skin sees more of
-    /// the sun than its cell's mean), scaled by this: 0.5 is the first-flight fluence at a
-    /// surface, 1 deep inside, 0 the cells' light alone (a dense cloud comes out darker).
-    #[arg(long, default_value_t = vdbcook_trace::DEFAULT_NEAR_SCATTER, value_name = "K")]
-    near_scatter: f32,
-    /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or
-    /// more, stepping 2^k voxels (mip-mapping along the ray, for far or low-resolution views).
-    /// Off by default: averaging density before the exponential makes far pixels slightly
-    /// more opaque than the pixel-area mean (docs/rendering.md has the figures). An asset cooked
-    /// with --lod-from K > 1 skips level 1, so its primary rays read full resolution only.
-    #[arg(long)]
-    primary_lod: bool,
-    /// Octave falloff of --ms-model octaves A,B,C: octave i scales the
-    /// scattering by A^i, the extinction toward the lights by B^i and the phase's g by C^i
-    /// (the default is fitted to the reference mode on three clouds: docs/rendering.md).
-    #[arg(long, default_value = "0.98,0.9,0.6", value_name = "A,B,C")]
-    ms: String,
-    /// Blackbody emission (density, scatter, delta, reference and lit modes): the grid's values are
-    /// Kelvin; LO,HI is the range over which the glow rises as ((T − LO)/(HI − LO))⁴ to full
-    /// brightness (none at or below LO), coloured by Planck's law. E.g. `--grid temperature
-    /// --emission 800,2000 --absorb 0`.
-    #[arg(long, value_name = "LO,HI")]
-    emission: Option<String>,
-    /// Brightness of the emission at HI Kelvin (radiance per unit length in --units).
-    #[arg(long, default_value_t = 1.0)]
-    emission_intensity: f32,
-    /// The grid whose values are the Kelvin of --emission, when it is not the rendered one: a
-    /// channel of a multi-channel asset (fire: `density` absorbs, `temperature` glows; default
-    /// for such an asset: its `temperature`, `heat` or `temp` channel), or for VDB input a
-    /// second grid cooked with --grid (every shaded mode).
-    #[arg(long, value_name = "NAME", requires = "emission")]
-    emission_grid: Option<String>,
-    /// Random seed (delta, reference).
-    #[arg(long, default_value_t = 1)]
-    seed: u32,
-    /// Length unit of absorb, scatter, step, shadow-step and gain: voxel (as vdb_render) or world.
-    #[arg(long, default_value = "voxel", value_parser = ["voxel", "world"])]
-    units: String,
+    exr_half: bool,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -200,15 +87,7 @@ fn other(m: impl Into<String>) -> CliError {
     CliError::Other(m.into())
 }
 
-/// Comma-separated finite numbers.
-fn numbers(what: &str, s: &str) -> Result<Vec<f64>, CliError> {
-    s.split(',')
-        .map(|t| match t.trim().parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(other(format!("--{what}: {t:?} is not a finite number"))),
-        })
-        .collect()
-}
+use crate::look::numbers;
 
 /// Whether `input` names VDB sources rather than an asset.
 pub fn looks_like_vdb(input: &Path) -> bool {
@@ -237,6 +116,7 @@ pub fn camera(
     asset: &Asset,
     frame: usize,
     aspect: f64,
+    up: [f64; 3],
 ) -> Result<Camera, CliError> {
     match spec {
         Some(c) => {
@@ -250,111 +130,12 @@ pub fn camera(
             Ok(Camera {
                 eye: [v[0], v[1], v[2]],
                 look_at: [v[3], v[4], v[5]],
-                up: [0.0, 1.0, 0.0],
+                up,
                 fov_y_deg: v[6],
             })
         }
-        None => Camera::framing(asset, frame, aspect).map_err(|e| other(e.to_string())),
+        None => Camera::framing_up(asset, frame, aspect, up).map_err(|e| other(e.to_string())),
     }
-}
-
-fn settings(a: &Args) -> Result<RenderSettings, CliError> {
-    let light = numbers("light", &a.light)?;
-    let (dir, color) = match light.len() {
-        3 => (&light[..3], [0.7f32; 3]),
-        6 => (
-            &light[..3],
-            [light[3] as f32, light[4] as f32, light[5] as f32],
-        ),
-        n => return Err(other(format!("--light takes 3 or 6 numbers, got {n}"))),
-    };
-    let sky = match numbers("sky", &a.sky)?[..] {
-        [r, g, b] => [r as f32, g as f32, b as f32],
-        ref v => return Err(other(format!("--sky takes 3 numbers, got {}", v.len()))),
-    };
-    let emission = match &a.emission {
-        None => None,
-        Some(r) => match numbers("emission", r)?[..] {
-            [lo, hi] => Some(Emission {
-                range: [lo as f32, hi as f32],
-                intensity: a.emission_intensity,
-                channel: 0,
-            }),
-            ref v => {
-                return Err(other(format!(
-                    "--emission takes LO,HI in Kelvin, got {} numbers",
-                    v.len()
-                )))
-            }
-        },
-    };
-    let ms_model = MsModel::parse(&a.ms_model).expect("clap checked");
-    if a.ms_sky.is_some() && ms_model == MsModel::Diffusion {
-        return Err(CliError::Usage(
-            "--ms-sky sets the octaves model's sky (--ms-model octaves); the diffusion model \
-             solves the sky's light"
-                .into(),
-        ));
-    }
-    let ms = match numbers("ms", &a.ms)?[..] {
-        [x, y, z] => [x as f32, y as f32, z as f32],
-        ref v => return Err(other(format!("--ms takes A,B,C, got {} numbers", v.len()))),
-    };
-    let (phase_g, phase_w) = match numbers("phase", &a.phase)?[..] {
-        [g] => ([g as f32; 2], 1.0),
-        [g0, g1, w] => ([g0 as f32, g1 as f32], w as f32),
-        ref v => {
-            return Err(other(format!(
-                "--phase takes 1 or 3 numbers, got {}",
-                v.len()
-            )))
-        }
-    };
-    Ok(RenderSettings {
-        output: Output {
-            width: a.width,
-            height: a.height,
-            frame: a.frame,
-        },
-        medium: Medium {
-            absorb: a.absorb,
-            scatter: a.scatter,
-            unit: if a.units == "world" {
-                LengthUnit::World
-            } else {
-                LengthUnit::Voxel
-            },
-            phase_g,
-            phase_w,
-            emission,
-        },
-        lighting: Lighting {
-            light_dir: [dir[0] as f32, dir[1] as f32, dir[2] as f32],
-            light_color: color,
-            sky,
-            light_res: a.light_res,
-            ms_octaves: a.ms_octaves,
-            ms,
-            ms_sky: a.ms_sky.unwrap_or(ms_model.default_ms_sky()),
-            ms_model,
-            sun_near: a.sun_near,
-            near_scatter: a.near_scatter,
-        },
-        integrator: Integrator {
-            mode: Mode::parse(&a.mode).expect("clap checked"),
-            step: a.step,
-            shadow_step: a.shadow_step,
-            cutoff: a.cutoff,
-            gain: a.gain,
-            spp: a.spp,
-            first_sample: 0,
-            seed: a.seed,
-            bounces: a.bounces,
-            filter: Filter::parse(&a.filter).expect("clap checked"),
-            march: March::parse(&a.march).expect("clap checked"),
-            primary_lod: a.primary_lod,
-        },
-    })
 }
 
 /// The PNG bytes of an 8-bit RGBA image.
@@ -380,6 +161,7 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
 enum OutFormat {
     Png,
     Pfm,
+    Exr,
 }
 
 /// `render` writes PNG or PFM: the output name must say which (a device or FIFO gets PNG).
@@ -389,41 +171,18 @@ fn check_output_format(out: &Path) -> Result<OutFormat, CliError> {
         Ok(OutFormat::Png)
     } else if ext("pfm") {
         Ok(OutFormat::Pfm)
+    } else if ext("exr") {
+        Ok(OutFormat::Exr)
     } else {
         Err(CliError::Usage(format!(
-            "{}: render writes PNG (8-bit) or PFM (linear float RGB), not {}; give an output \
-             name ending in .png or .pfm",
+            "{}: render writes PNG (8-bit sRGB), PFM (linear float RGB) or EXR (linear RGBA), \
+             not {}; give an output name ending in .png, .pfm or .exr",
             out.display(),
             out.extension()
                 .map(|e| format!(".{}", e.to_string_lossy()))
                 .unwrap_or_else(|| "a name without an extension".into())
         )))
     }
-}
-
-/// The sRGB transfer function, decoding: an 8-bit code to linear light.
-pub fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// The sRGB transfer function, encoding: linear light (clamped to [0, 1]; non-finite → 0) to an
-/// 8-bit code.
-pub fn linear_to_srgb8(x: f32) -> u8 {
-    if !x.is_finite() {
-        return 0;
-    }
-    let x = x.clamp(0.0, 1.0);
-    let s = if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
 }
 
 /// A background plate: linear RGB and alpha per pixel, row 0 at the top.
@@ -698,10 +457,28 @@ pub fn load_input(
     allow_gaps: bool,
     replace_non_finite: Option<f32>,
     extra_grid: Option<&str>,
+    fire_grids: bool,
 ) -> Result<(Asset, Option<f64>), CliError> {
     if looks_like_vdb(input) {
+        let t = Instant::now();
+        let frames = vdbcook_cook::frames::resolve_frames(
+            &[input.to_string_lossy().into_owned()],
+            allow_gaps,
+            None,
+        )?;
+        // With emission on and no grid named, a fire's grids (density, temperature, flame) as
+        // `cook --grids auto` picks them, when the first frame holds two or more.
+        let fire = fire_grids
+            && grid.is_none()
+            && extra_grid.is_none()
+            && frames.first().is_some_and(|f| {
+                vdbcook_vdb::VdbFile::open(&f.path)
+                    .map(|file| vdbcook_cook::grid_pick::suggest(&file).grids.len() >= 2)
+                    .unwrap_or(false)
+            });
         let opts = vdbcook_cook::CookOptions {
             grids: match (extra_grid, grid) {
+                _ if fire => vdbcook_cook::Grids::Auto,
                 // A second grid (emission): a two-channel cook, the rendered grid first.
                 (Some(e), g) if g.as_deref() != Some(e) => vdbcook_cook::Grids::Several(vec![
                     g.unwrap_or_else(|| "density".into()),
@@ -714,12 +491,6 @@ pub fn load_input(
             replace_non_finite,
             ..Default::default()
         };
-        let t = Instant::now();
-        let frames = vdbcook_cook::frames::resolve_frames(
-            &[input.to_string_lossy().into_owned()],
-            allow_gaps,
-            None,
-        )?;
         let cx = vdbcook_cook::Context::quiet();
         Ok((
             vdbcook_cook::cook(&opts, frames, &cx)?.asset,
@@ -730,28 +501,120 @@ pub fn load_input(
     }
 }
 
-/// The channel `--emission` reads: `--emission-grid` by name, else for a multi-channel asset its
-/// `temperature`, `heat` or `temp` channel, else the rendered grid (0).
-pub fn emission_channel(asset: &Asset, given: Option<&str>) -> Result<usize, String> {
-    let h = &asset.header;
-    let names = || {
-        (0..asset.channel_count())
-            .map(|c| h.channel_name(c).to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    match given {
-        Some(g) => h.channel_index(g).ok_or_else(|| {
-            format!(
-                "--emission-grid {g}: the asset has no such channel (channels: {})",
-                names()
+/// Whether a mode's pixels are radiance (through the colour pipeline) rather than false colours.
+pub fn is_radiance(mode: Mode) -> bool {
+    matches!(
+        mode,
+        Mode::Density | Mode::SingleScatter | Mode::DeltaTracking | Mode::Reference | Mode::Lit
+    )
+}
+
+/// Whether a mode is lit (the sky is its fill light and its default background).
+pub fn is_shaded(mode: Mode) -> bool {
+    matches!(
+        mode,
+        Mode::SingleScatter | Mode::DeltaTracking | Mode::Reference | Mode::Lit
+    )
+}
+
+/// Linear RGBA, premultiplied: the image's radiance and its opacity (the density mode's is
+/// `1 − T`; over a plate or the sky, the alpha written).
+fn linear_rgba(image: &Image, mode: Mode, transparent: bool) -> Vec<[f32; 4]> {
+    image
+        .rgba
+        .chunks_exact(4)
+        .zip(&image.value)
+        .map(|(p, &t)| {
+            let alpha = if transparent && mode == Mode::Density {
+                1.0 - t
+            } else {
+                p[3]
+            };
+            [p[0], p[1], p[2], alpha.clamp(0.0, 1.0)]
+        })
+        .collect()
+}
+
+/// 8-bit sRGB RGBA through the colour pipeline (`Display`); `straight`: colour divided by the
+/// alpha first (PNG's alpha is straight, the image's radiance premultiplied).
+pub fn display_rgba8(image: &Image, mode: Mode, display: Display, straight: bool) -> Vec<u8> {
+    linear_rgba(image, mode, straight)
+        .into_iter()
+        .flat_map(|[r, g, b, alpha]| {
+            let k = if straight && alpha > 0.0 {
+                1.0 / alpha
+            } else {
+                1.0
+            };
+            let [r, g, b] = display.encode8([r * k, g * k, b * k]);
+            [r, g, b, (alpha * 255.0).round() as u8]
+        })
+        .collect()
+}
+
+/// OpenEXR bytes of linear RGBA (premultiplied, scene-referred; half or 32-bit float samples,
+/// ZIP-compressed), through the `exr` crate.
+pub fn encode_exr(
+    width: u32,
+    height: u32,
+    rgba: &[[f32; 4]],
+    half: bool,
+) -> Result<Vec<u8>, CliError> {
+    use exr::prelude::*;
+    let (w, h) = (width as usize, height as usize);
+    let at = |x: usize, y: usize| rgba[y * w + x];
+    let mut out = std::io::Cursor::new(Vec::new());
+    let fail = |e: exr::error::Error| other(format!("cannot encode EXR: {e}"));
+    let attrs = LayerAttributes::named("rgba");
+    if half {
+        let pixels = SpecificChannels::rgba(|Vec2(x, y)| {
+            let p = at(x, y);
+            (
+                f16::from_f32(p[0]),
+                f16::from_f32(p[1]),
+                f16::from_f32(p[2]),
+                f16::from_f32(p[3]),
             )
-        }),
-        None => Ok(["temperature", "heat", "temp"]
-            .iter()
-            .find_map(|n| h.channel_index(n))
-            .unwrap_or(0)),
+        });
+        Image::from_layer(Layer::new((w, h), attrs, Encoding::SMALL_LOSSLESS, pixels))
+            .write()
+            .to_buffered(&mut out)
+            .map_err(fail)?;
+    } else {
+        let pixels = SpecificChannels::rgba(|Vec2(x, y)| {
+            let p = at(x, y);
+            (p[0], p[1], p[2], p[3])
+        });
+        Image::from_layer(Layer::new((w, h), attrs, Encoding::SMALL_LOSSLESS, pixels))
+            .write()
+            .to_buffered(&mut out)
+            .map_err(fail)?;
     }
+    Ok(out.into_inner())
+}
+
+/// Refuses grids the renderers would draw as something they are not: a level set's signed
+/// distance marched as a fog is one flat colour (surfaces are not drawn yet). The diagnostic
+/// modes that show the stored values (brick-hue, steps) still may.
+pub fn refuse_unshowable(asset: &Asset, input: &Path, mode: Mode) -> Result<(), CliError> {
+    let class = asset.header.source.grid_class.as_str();
+    let marches = !matches!(mode, Mode::BrickHue | Mode::Steps);
+    if marches && !class.is_empty() && class != "fog volume" {
+        return Err(CliError::Usage(format!(
+            "{}: the grid '{}' is a {class}, and vdbcook draws fog volumes only: marched as a \
+             fog, its {} would show as one flat colour. Convert it to a fog volume first \
+             (OpenVDB's levelSetToFogVolume, or `vdb_tool -i IN.vdb -l2f -o OUT.vdb`), or look \
+             at its bricks with --mode brick-hue",
+            input.display(),
+            asset.header.grid_name,
+            if class == "level set" {
+                "signed distance"
+            } else {
+                "values"
+            }
+        )));
+    }
+    Ok(())
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
@@ -760,6 +623,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let what = match format {
         OutFormat::Png => "PNG",
         OutFormat::Pfm => "PFM",
+        OutFormat::Exr => "EXR",
     };
     crate::output::check_writable(&a.output, what)?;
     // The output must not replace the input (an asset, or a VDB file or frame set), the plate
@@ -781,7 +645,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         });
     }
     crate::output::refuse_inputs(&a.output, &in_frames, &[input_str], what)?;
-    let s = settings(a)?;
+    let mode = Mode::parse(&a.mode).expect("clap checked");
+    let s = crate::look::settings(
+        &a.look,
+        Output {
+            width: a.width,
+            height: a.height,
+            frame: a.frame,
+        },
+        mode,
+    )?;
+    a.look
+        .display(a.background.is_some())
+        .validate()
+        .map_err(CliError::Usage)?;
     if a.depth.is_some() && !matches!(s.integrator.mode, Mode::Density | Mode::Lit) {
         return Err(CliError::Usage(format!(
             "--depth cuts the density and lit modes only (the other modes do not stop at a \
@@ -836,13 +713,12 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         a.grid.clone(),
         a.allow_gaps,
         a.replace_non_finite,
-        a.emission_grid.as_deref(),
+        a.look.emission_grid.as_deref(),
+        a.look.emission != "off",
     )?;
     let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
+    refuse_unshowable(&asset, &a.input, mode)?;
     let mut s = s;
-    if let Some(e) = &mut s.medium.emission {
-        e.channel = emission_channel(&asset, a.emission_grid.as_deref()).map_err(|e| at(&e))?;
-    }
     // Over a scene (a plate or a depth) the lit mode draws as the engine drawer does, which
     // steps (it does not walk the tree): `--march auto` steps there on both backends, so that
     // the two draw the same picture.
@@ -852,14 +728,16 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     {
         s.integrator.march = March::Steps;
     }
-    let s = s;
     let camera = camera(
         a.camera.as_deref(),
         &asset,
         a.frame,
         a.width as f64 / a.height.max(1) as f64,
+        a.look.up_axis(&asset),
     )
     .map_err(|e| at(&e))?;
+    let resolved = crate::look::resolve(&a.look, &mut s, &asset, &camera)?;
+    let s = s;
     let near = near_plane(&camera);
     let (view_m, proj_m) =
         camera_matrices(&camera, s.output.width, s.output.height, near).map_err(|e| at(&e))?;
@@ -921,7 +799,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     if let (Some(p), false) = (&plate, composited) {
         composite_over(&mut image, p, s.integrator.mode);
     }
+    // The sky behind the shaded modes' volume (a plate replaces it; --transparent leaves none).
+    let sky_behind = plate.is_none() && !a.look.transparent && is_shaded(mode);
+    if sky_behind {
+        let sky = s.lighting.sky;
+        for px in image.rgba.chunks_exact_mut(4) {
+            let t = 1.0 - px[3];
+            for c in 0..3 {
+                px[c] += t * sky[c];
+            }
+            px[3] = 1.0;
+        }
+    }
     let render_seconds = t_render.elapsed().as_secs_f64();
+    let display = a.look.display(plate.is_some());
     match format {
         OutFormat::Pfm => {
             let rgb: Vec<f32> = image
@@ -935,28 +826,45 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "PFM",
             )?;
         }
-        // Over a plate the PNG is sRGB-encoded (as the plate); alone, the mode's display
-        // values are written as they are (no transfer curve), as always.
-        OutFormat::Png if plate.is_some() => {
-            let rgba: Vec<u8> = image
-                .rgba
-                .chunks_exact(4)
-                .flat_map(|p| {
-                    [
-                        linear_to_srgb8(p[0]),
-                        linear_to_srgb8(p[1]),
-                        linear_to_srgb8(p[2]),
-                        (p[3].clamp(0.0, 1.0) * 255.0).round() as u8,
-                    ]
-                })
-                .collect();
+        OutFormat::Exr => {
+            let rgba = linear_rgba(&image, mode, a.look.transparent);
+            crate::output::write(
+                &a.output,
+                &encode_exr(image.width, image.height, &rgba, a.exr_half)?,
+                "EXR",
+            )?;
+        }
+        OutFormat::Png if is_radiance(mode) => {
+            let rgba = display_rgba8(&image, mode, display, a.look.transparent);
             write_png(&a.output, image.width, image.height, &rgba)?;
         }
+        // The diagnostic modes' false colours are display values already.
         OutFormat::Png => write_png(&a.output, image.width, image.height, &image.to_rgba8())?,
     }
     let seconds = t0.elapsed().as_secs_f64();
     if a.json {
         let path = |p: &Option<PathBuf>| p.as_ref().map(|p| p.display().to_string());
+        // The emission used and how it was chosen (one json! per object keeps the macro's
+        // recursion shallow).
+        let emission_json = s.medium.emission.map(|e| {
+            json!({
+                "channel": asset.header.channel_name(e.channel),
+                "range": e.range.map(short),
+                "range_kelvin": e.kelvin.map(short),
+                "intensity": short(e.intensity),
+                "convention": resolved.convention.as_ref().map_or("given", |c| c.name),
+                "why": resolved.convention.as_ref().map(|c| c.why.clone()),
+            })
+        });
+        let look = json!({
+            "exposure_ev": short(display.exposure_ev),
+            "tonemap": display.tonemap.name(),
+            "light_auto": resolved.light_auto,
+            "filter_auto": resolved.filter_auto,
+            "up": resolved.up,
+            "background_sky": sky_behind,
+            "source_creator": asset.header.source.creator,
+        });
         let mut doc = json!({
             "output": a.output.display().to_string(),
             "output_format": what.to_ascii_lowercase(),
@@ -991,12 +899,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "light_dir": s.lighting.light_dir.map(short), "light_color": s.lighting.light_color.map(short),
                 "step": short(s.integrator.step), "shadow_step": short(s.integrator.shadow_step),
                 "cutoff": short(s.integrator.cutoff), "gain": short(s.integrator.gain), "spp": s.integrator.spp, "seed": s.integrator.seed,
-                "units": a.units,
+                "units": a.look.units,
                 "sky": s.lighting.sky.map(short), "phase_g": s.medium.phase_g.map(short),
                 "phase_w": short(s.medium.phase_w), "bounces": s.integrator.bounces,
-                "emission": s.medium.emission.map(|e| json!({
-                    "range_kelvin": e.range.map(short), "intensity": short(e.intensity),
-                })),
+                "emission": emission_json,
             },
         });
         // The march the lit mode took (`March::resolve`; the engine drawer, which composites lit
@@ -1012,12 +918,17 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let lit = json!({
             "light_res": s.lighting.light_res, "ms_octaves": s.lighting.ms_octaves, "ms": s.lighting.ms.map(short),
             "ms_sky": short(s.lighting.ms_sky), "ms_model": s.lighting.ms_model.name(), "filter": s.integrator.filter.name(),
-            "march": a.march, "march_used": march_used, "sun_near": short(s.lighting.sun_near),
+            "march": a.look.march, "march_used": march_used, "sun_near": short(s.lighting.sun_near),
             "near_scatter": short(s.lighting.near_scatter),
             "primary_lod": s.integrator.primary_lod,
         });
-        if let (Some(settings), Some(lit)) = (doc["settings"].as_object_mut(), lit.as_object()) {
+        if let (Some(settings), Some(lit), Some(look)) = (
+            doc["settings"].as_object_mut(),
+            lit.as_object(),
+            look.as_object(),
+        ) {
             settings.extend(lit.clone());
+            settings.extend(look.clone());
         }
         println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
     } else {

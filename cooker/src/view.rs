@@ -70,63 +70,73 @@ pub struct Args {
     /// Headless: print one JSON document on stdout (per-frame times, the final camera).
     #[arg(long)]
     pub json: bool,
-    /// Absorption per unit density per unit length (as `render`).
-    #[arg(long, default_value_t = 0.1)]
-    absorb: f32,
-    /// Blackbody emission in the shaded modes, as `render`: a channel's values are Kelvin, LO,HI
-    /// the range over which the glow rises (e.g. `--emission 800,2000`; a multi-channel asset
-    /// glows from its temperature channel, as `render`).
-    #[arg(long, value_name = "LO,HI")]
-    emission: Option<String>,
-    /// Brightness of the emission at HI Kelvin.
-    #[arg(long, default_value_t = 1.0)]
-    emission_intensity: f32,
-    /// The channel whose values are the Kelvin of --emission (default: the asset's
-    /// `temperature`, `heat` or `temp` channel, else the shown one), as `render`.
-    #[arg(long, value_name = "NAME", requires = "emission")]
-    emission_grid: Option<String>,
+    /// The look, as `render` takes it (medium, lights, emission, colour pipeline, up axis).
+    #[command(flatten)]
+    pub look: crate::look::LookArgs,
 }
 
-/// The render settings the flags ask for (the mode is the viewer's own, switched with `m`), the
-/// emission's channel resolved on `asset` as `render` resolves it.
+/// The render settings the flags ask for (the mode is the viewer's own, switched with `m`)
+/// and the starting camera, resolved on `asset` as `render` resolves them (`look::resolve`):
+/// the same flags give the same picture.
 fn base_settings(
     a: &Args,
     asset: Option<&vdbcook_asset::Asset>,
-) -> Result<vdbcook_trace::RenderSettings, CliError> {
+) -> Result<(vdbcook_trace::RenderSettings, Option<vdbcook_trace::Camera>), CliError> {
     let usage = |m: String| CliError::Usage(m);
-    let emission = match &a.emission {
-        None => None,
-        Some(r) => {
-            let v: Vec<f32> = r
-                .split(',')
-                .map(|t| t.trim().parse::<f32>())
-                .collect::<Result<_, _>>()
-                .map_err(|_| usage(format!("--emission {r}: give LO,HI in Kelvin")))?;
-            let [lo, hi] = v[..] else {
-                return Err(usage(format!("--emission {r}: give LO,HI in Kelvin")));
-            };
-            let channel = match asset {
-                Some(asset) => crate::render::emission_channel(asset, a.emission_grid.as_deref())
-                    .map_err(|e| usage(format!("{}: {e}", a.input.display())))?,
-                None => 0,
-            };
-            Some(vdbcook_trace::Emission {
-                range: [lo, hi],
-                intensity: a.emission_intensity,
-                channel,
-            })
-        }
+    // A flag the viewer cannot take is a usage error (exit 2) before any window opens.
+    let as_usage = |e: CliError| match e {
+        CliError::Other(m) => CliError::Usage(m),
+        e => e,
     };
-    let s = vdbcook_trace::RenderSettings {
-        medium: vdbcook_trace::Medium {
-            absorb: a.absorb,
-            emission,
-            ..Default::default()
+    let mut s = crate::look::settings(
+        &a.look,
+        vdbcook_trace::Output {
+            width: a.width,
+            height: a.height,
+            frame: a.frame,
         },
-        ..Default::default()
+        // Resolved for the lit look (the filter); each draw takes the viewer's own mode.
+        vdbcook_trace::Mode::Lit,
+    )
+    .map_err(as_usage)?;
+    a.look.display(false).validate().map_err(usage)?;
+    let camera = match asset {
+        Some(asset) => {
+            let camera = crate::render::camera(
+                None,
+                asset,
+                a.frame,
+                a.width as f64 / a.height.max(1) as f64,
+                a.look.up_axis(asset),
+            )?;
+            crate::look::resolve(&a.look, &mut s, asset, &camera).map_err(as_usage)?;
+            Some(camera)
+        }
+        None => None,
     };
-    s.validate(1).map_err(|e| usage(e.to_string()))?;
-    Ok(s)
+    s.validate(asset.map_or(a.frame + 1, |x| x.frame_count()))
+        .map_err(|e| usage(e.to_string()))?;
+    Ok((s, camera))
+}
+
+/// How a view starts: the settings and camera [`base_settings`] resolves, the colour pipeline,
+/// and whether the sky stays out.
+pub struct Start {
+    pub settings: vdbcook_trace::RenderSettings,
+    pub camera: vdbcook_trace::Camera,
+    pub display: vdbcook_trace::Display,
+    pub transparent: bool,
+}
+
+/// The start of a view of `asset` from the flags.
+pub fn start(a: &Args, asset: &vdbcook_asset::Asset) -> Result<Start, CliError> {
+    let (settings, camera) = base_settings(a, Some(asset))?;
+    Ok(Start {
+        settings,
+        camera: camera.expect("resolved on the asset"),
+        display: a.look.display(false),
+        transparent: a.look.transparent,
+    })
 }
 
 /// The headless run's frame count, after checking the flags: `None` for the interactive viewer.
@@ -202,30 +212,43 @@ mod imp {
     /// The headless target's format: what the window asks its surface for
     /// ([`pick_surface_format`] prefers it), so both paths run the same blit.
     const HEADLESS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Bgra8Unorm;
-    /// What the tracer writes (storage-capable everywhere).
-    const TRACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+    /// What the tracer writes (storage-capable everywhere): radiance, unclamped, for the
+    /// colour pipeline of the blit.
+    const TRACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
-    /// Copies the tracer's image onto the target, pixel for pixel. The image holds display
-    /// values (as `vdbcook render` writes to PNG); on an sRGB target they are decoded first so
-    /// that the stored bytes (what is shown) are those values.
+    /// Copies the tracer's image onto the target, pixel for pixel, through the colour pipeline
+    /// (`display.wgsl`, as `render` writes a PNG): radiance modes get the sky behind the shaded
+    /// ones, exposure and the tone map, then the sRGB curve (the target's own on an sRGB
+    /// target); the diagnostic modes' false colours are display values already.
     const BLIT_WGSL: &str = r#"
-override srgb_target: f32 = 0.0;
+struct BlitLook {
+    scale: f32,
+    curve: u32,
+    // Bit 0: radiance (else false colours); bit 1: the sky behind; bit 2: an sRGB target.
+    flags: u32,
+    _pad: u32,
+    sky: vec4<f32>,
+}
 @group(0) @binding(0) var image: texture_2d<f32>;
+@group(0) @binding(1) var<uniform> look: BlitLook;
 @vertex
 fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let p = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     return vec4<f32>(p * 2.0 - 1.0, 0.0, 1.0);
 }
-fn decode(c: vec3<f32>) -> vec3<f32> {
-    return select(pow((c + 0.055) / 1.055, vec3<f32>(2.4)), c / 12.92, c <= vec3<f32>(0.04045));
-}
 @fragment
 fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
-    let c = textureLoad(image, vec2<i32>(pos.xy), 0);
-    if (srgb_target > 0.5) {
-        return vec4<f32>(decode(c.rgb), c.a);
+    var c = textureLoad(image, vec2<i32>(pos.xy), 0);
+    let srgb_target = (look.flags & 4u) != 0u;
+    if ((look.flags & 1u) == 0u) {
+        let v = clamp(c.rgb, vec3<f32>(0.0), vec3<f32>(1.0));
+        return vec4<f32>(select(v, display_srgb_decode(v), srgb_target), clamp(c.a, 0.0, 1.0));
     }
-    return c;
+    if ((look.flags & 2u) != 0u) {
+        c = vec4<f32>(c.rgb + (1.0 - c.a) * look.sky.rgb, 1.0);
+    }
+    let d = display_map(c.rgb, look.scale, look.curve);
+    return vec4<f32>(select(display_srgb_encode(d), d, srgb_target), clamp(c.a, 0.0, 1.0));
 }
 "#;
 
@@ -238,6 +261,8 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     #[derive(Debug, Clone, Copy, PartialEq)]
     pub struct Orbit {
         pub centre: [f64; 3],
+        /// The world's up axis (yaw turns about it; the angles live in a frame where it is +Y).
+        pub up: [f64; 3],
         pub yaw: f64,
         pub pitch: f64,
         pub radius: f64,
@@ -251,9 +276,11 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         /// The orbit through `camera`'s eye around its look-at point.
         pub fn from_camera(c: &Camera) -> Orbit {
             let d = [0, 1, 2].map(|i| c.eye[i] - c.look_at[i]);
+            let d = vdbcook_trace::from_up_frame(d, c.up);
             let radius = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-9);
             Orbit {
                 centre: c.look_at,
+                up: vdbcook_trace::up_frame([0.0, 1.0, 0.0], c.up),
                 yaw: d[0].atan2(d[2]),
                 pitch: (d[1] / radius).clamp(-1.0, 1.0).asin(),
                 radius,
@@ -265,14 +292,18 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             let (sy, cy) = self.yaw.sin_cos();
             let (sp, cp) = self.pitch.sin_cos();
             let c = self.centre;
-            Camera {
-                eye: [
-                    c[0] + self.radius * cp * sy,
-                    c[1] + self.radius * sp,
-                    c[2] + self.radius * cp * cy,
+            let d = vdbcook_trace::up_frame(
+                [
+                    self.radius * cp * sy,
+                    self.radius * sp,
+                    self.radius * cp * cy,
                 ],
+                self.up,
+            );
+            Camera {
+                eye: [0, 1, 2].map(|i| c[i] + d[i]),
                 look_at: c,
-                up: [0.0, 1.0, 0.0],
+                up: self.up,
                 fov_y_deg: self.fov_y_deg,
             }
         }
@@ -298,6 +329,10 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         /// Seconds of playback not yet turned into frame steps.
         clock: f64,
         settings: Settings,
+        display: vdbcook_trace::Display,
+        transparent: bool,
+        srgb_target: bool,
+        look_buf: wgpu::Buffer,
         renderer: Renderer,
         size: (u32, u32),
         image: Option<(TextureTarget, wgpu::BindGroup)>,
@@ -324,16 +359,16 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             frame: usize,
             mode: usize,
             fps: f64,
-            emission: bool,
+            start: &Start,
         ) -> Result<ViewerState, String> {
+            let emission = start.settings.medium.emission.is_some();
             let frames = asset.frame_count();
             if frame >= frames {
                 return Err(format!(
                     "--frame {frame} is out of range: the asset has {frames} frame(s)"
                 ));
             }
-            let camera = Camera::framing(asset, frame, size.0 as f64 / size.1.max(1) as f64)
-                .map_err(|e| e.to_string())?;
+            let camera = start.camera;
             let volume =
                 GpuVolume::upload(device, queue, asset).map_err(|e| format!("GPU upload: {e}"))?;
             // Emission is compiled in when asked for (it slows the other renders).
@@ -345,27 +380,46 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             .map_err(|e| format!("GPU renderer: {e}"))?;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("vdbcook view blit"),
-                source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
+                source: wgpu::ShaderSource::Wgsl(
+                    format!("{}\n{BLIT_WGSL}", vdbcook_runtime::DISPLAY_WGSL).into(),
+                ),
             });
             let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("vdbcook view blit"),
-                entries: &[wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
+                entries: &[
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: wgpu::ShaderStages::FRAGMENT,
+                        ty: wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                            multisampled: false,
+                        },
+                        count: None,
                     },
-                    count: None,
-                }],
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: wgpu::ShaderStages::FRAGMENT,
+                        ty: wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Uniform,
+                            has_dynamic_offset: false,
+                            min_binding_size: None,
+                        },
+                        count: None,
+                    },
+                ],
             });
             let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("vdbcook view blit"),
                 bind_group_layouts: &[Some(&blit_layout)],
                 immediate_size: 0,
             });
-            let srgb = [("srgb_target", if format.is_srgb() { 1.0 } else { 0.0 })];
+            let look_buf = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vdbcook view blit look"),
+                size: 32,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
             let blit = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("vdbcook view blit"),
                 layout: Some(&layout),
@@ -381,10 +435,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
                     entry_point: Some("fs"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &srgb,
-                        ..Default::default()
-                    },
+                    compilation_options: Default::default(),
                     targets: &[Some(format.into())],
                 }),
                 multiview_mask: None,
@@ -400,7 +451,11 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 playing: false,
                 fps,
                 clock: 0.0,
-                settings: Settings::default(),
+                settings: start.settings.clone(),
+                display: start.display,
+                transparent: start.transparent,
+                srgb_target: format.is_srgb(),
+                look_buf,
                 renderer,
                 size: (0, 0),
                 image: None,
@@ -447,10 +502,16 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("vdbcook view blit"),
                 layout: &self.blit_layout,
-                entries: &[wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(&view),
-                }],
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(&view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: self.look_buf.as_entire_binding(),
+                    },
+                ],
             });
             self.image = Some((target, group));
             Ok(())
@@ -555,6 +616,18 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
+            let radiance = crate::render::is_radiance(mode);
+            let sky = radiance && !self.transparent && crate::render::is_shaded(mode);
+            let flags = radiance as u32 | (sky as u32) << 1 | (self.srgb_target as u32) << 2;
+            let s = self.settings.lighting.sky;
+            let mut look = [0u8; 32];
+            look[0..4].copy_from_slice(&self.display.scale().to_le_bytes());
+            look[4..8].copy_from_slice(&self.display.tonemap.code().to_le_bytes());
+            look[8..12].copy_from_slice(&flags.to_le_bytes());
+            for (i, v) in s.iter().enumerate() {
+                look[16 + 4 * i..20 + 4 * i].copy_from_slice(&v.to_le_bytes());
+            }
+            queue.write_buffer(&self.look_buf, 0, &look);
             pass.set_pipeline(&self.blit);
             pass.set_bind_group(0, group, &[]);
             pass.draw(0..3, 0..1);
@@ -654,8 +727,19 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             crate::output::refuse_inputs(shot, &frames, &[input], "PNG")?;
             crate::output::check_writable(shot, "PNG")?;
         }
-        let (asset, _) =
-            crate::render::load_input(&a.input, a.grid.clone(), a.allow_gaps, None, None)?;
+        let (asset, _) = crate::render::load_input(
+            &a.input,
+            a.grid.clone(),
+            a.allow_gaps,
+            None,
+            a.look.emission_grid.as_deref(),
+            a.look.emission != "off",
+        )?;
+        crate::render::refuse_unshowable(
+            &asset,
+            &a.input,
+            Mode::parse(&a.mode).expect("clap checked"),
+        )?;
         if a.frame >= asset.frame_count() {
             return Err(CliError::Usage(format!(
                 "--frame {} is out of range: {} has {} frame(s)",
@@ -689,10 +773,9 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             a.frame,
             mode,
             a.fps,
-            a.emission.is_some(),
+            &start(a, asset)?,
         )
         .map_err(at)?;
-        state.settings = base_settings(a, Some(asset))?;
         let target = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("vdbcook view headless target"),
             size: wgpu::Extent3d {
@@ -829,7 +912,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         frame: usize,
         mode: usize,
         fps: f64,
-        settings: Settings,
+        start: Start,
         gfx: Option<Gfx>,
         error: Option<String>,
         dragging: bool,
@@ -866,7 +949,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             config.format = format;
             config.present_mode = wgpu::PresentMode::AutoVsync;
             surface.configure(&device, &config);
-            let mut state = ViewerState::new(
+            let state = ViewerState::new(
                 &device,
                 &queue,
                 &self.asset,
@@ -875,9 +958,8 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 self.frame,
                 self.mode,
                 self.fps,
-                self.settings.medium.emission.is_some(),
+                &self.start,
             )?;
-            state.settings = self.settings.clone();
             let adapter = describe(&adapter);
             eprintln!(
                 "vdbcook view on {adapter}, surface {format:?}: left-drag orbits, wheel zooms, \
@@ -1041,14 +1123,14 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             ))
         })?;
         event_loop.set_control_flow(ControlFlow::Poll);
-        let settings = base_settings(a, Some(&asset))?;
+        let start = start(a, &asset)?;
         let mut app = App {
             asset,
             args_size: (a.width, a.height),
             frame: a.frame,
             mode,
             fps: a.fps,
-            settings,
+            start,
             gfx: None,
             error: None,
             dragging: false,

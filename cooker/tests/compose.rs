@@ -428,6 +428,9 @@ fn several_grids_with_levels_light_as_the_density_grid_alone() {
                 "96",
                 "--height",
                 "54",
+                // The density's light alone: the fire's default glow off.
+                "--emission",
+                "off",
                 "-o",
                 &out,
             ]);

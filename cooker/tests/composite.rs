@@ -4,7 +4,7 @@
 //! for two plates (exactly in PFM, within 8-bit rounding in PNG), depth planes in front of the
 //! cloud (plate untouched), beyond it (no change), through it (part cut, GPU = CPU), the PFM
 //! round trip against the PNG, the camera matrices of `--json`, and the refusals (wrong sizes,
-//! malformed PFM, colour PFM as depth, `.exr`, `--depth` on a mode that cannot cut): exit
+//! malformed PFM, colour PFM as depth, `.jpg`, `--depth` on a mode that cannot cut): exit
 //! non-zero, a reason naming the file, nothing written.
 
 mod common;
@@ -121,13 +121,14 @@ fn composite_is_radiance_plus_transmittance_times_the_plate() {
     assert_eq!((w, h), (W, H));
     let covered = l.iter().filter(|&&v| v > 0.02).count();
     assert!(covered > l.len() / 20, "the cloud covers part of the frame");
-    // PFM round trip: the PNG alone is the same values, 8-bit (no transfer curve).
+    // PFM round trip: the PNG alone is the same values through the colour pipeline (no tone
+    // map: the sRGB curve alone).
     let alone_png = dir.path().join("alone.png");
-    render(&asset, &alone_png, "cpu", &[]).unwrap();
+    render(&asset, &alone_png, "cpu", &["--tonemap", "none"]).unwrap();
     let png = read_png(&alone_png);
     for (k, v) in l.iter().enumerate() {
         let (p, c) = (k / 3, k % 3);
-        assert_eq!(png[4 * p + c], (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+        assert_eq!(png[4 * p + c], vdbcook_trace::linear_to_srgb8(*v));
     }
     for (name, (plate, px)) in plates(dir.path()).iter().enumerate() {
         let pfm = dir.path().join(format!("over{name}.pfm"));
@@ -238,7 +239,9 @@ fn depth_planes(mode: &str) {
             ("inf", vec!["--background", &plate, "--depth", &inf]),
             ("zero", vec!["--background", &plate, "--depth", &zero]),
             ("mid", vec!["--background", &plate, "--depth", &mid]),
-            ("mid_alone", vec!["--depth", &mid]),
+            // Alone: a black sky behind the lit mode (its light and background), so that the
+            // cut volume is the whole image.
+            ("mid_alone", vec!["--depth", &mid, "--sky", "0,0,0"]),
         ] {
             let out = dir.path().join(format!("{backend}-{name}.png"));
             let mut extra = extra;
@@ -269,7 +272,13 @@ fn depth_planes(mode: &str) {
     // Without a plate the cut density is the display grey (1 − T), and lighter nowhere. (Over
     // a scene the lit mode steps, as the engine drawer does: the uncut image too.)
     let alone = dir.path().join("alone.png");
-    render(&asset, &alone, "cpu", &["--mode", mode, "--march", "steps"]).unwrap();
+    render(
+        &asset,
+        &alone,
+        "cpu",
+        &["--mode", mode, "--march", "steps", "--sky", "0,0,0"],
+    )
+    .unwrap();
     let alone = read_png(&alone);
     assert!(cpu("mid_alone").iter().zip(&alone).all(|(c, a)| c <= a));
     assert!(differ(cpu("mid_alone"), &alone) > 50);
@@ -351,7 +360,7 @@ fn bad_scene_inputs_are_refused_and_nothing_is_written() {
         p("text.png"),
     );
     let out = p("out.png");
-    let exr = p("out.exr");
+    let exr = p("out.jpg");
     let cases: Vec<(Vec<&str>, &str, &str)> = vec![
         (
             vec!["-o", &out, "--background", &small],
@@ -367,7 +376,7 @@ fn bad_scene_inputs_are_refused_and_nothing_is_written() {
         ),
         (vec!["-o", &out, "--depth", &col], "colour.pfm", "greyscale"),
         (vec!["-o", &out, "--background", &text], "text.png", "PNG"),
-        (vec!["-o", &exr], "out.exr", ".pfm"),
+        (vec!["-o", &exr], "out.jpg", ".pfm"),
         (
             vec!["-o", &out, "--mode", "scatter", "--depth", &smallpfm],
             "--depth",

@@ -8,7 +8,9 @@ mod common;
 use std::path::PathBuf;
 
 use common::{sample, vdbcook as run};
-use vdbcook_asset::{Asset, LeafRef, FORMAT_VERSION, FORMAT_VERSION_LOD, FORMAT_VERSION_SINGLE};
+use vdbcook_asset::{
+    Asset, LeafRef, FORMAT_VERSION_LOD, FORMAT_VERSION_LOD_FROM, FORMAT_VERSION_SINGLE,
+};
 use vdbcook_cook::{Budget, CookOptions, Cooked, Levels, Lod};
 use vdbcook_vdb::VdbFile;
 
@@ -260,7 +262,7 @@ fn levels_from_k_are_the_box_means_of_the_source() {
         let a = &c.asset;
         assert_eq!(
             a.header.format_version(),
-            FORMAT_VERSION,
+            FORMAT_VERSION_LOD_FROM,
             "{lod:?} from {from}"
         );
         let last = if lod == Some("3") {

@@ -33,6 +33,8 @@ fn every_mode_renders_a_png_of_the_asked_size() {
             out.to_str().unwrap(),
             "--mode",
             mode,
+            // The volume's own coverage: no sky behind the shaded modes.
+            "--transparent",
             "--frame",
             "2",
             "--width",
@@ -173,7 +175,10 @@ fn render_refusals_exit_non_zero_with_a_reason() {
             "emission is drawn by",
         ),
         (&["--emission", "2000,800"][..], "emission range"),
-        (&["--emission", "800"][..], "--emission takes LO,HI"),
+        (
+            &["--emission", "800"][..],
+            "--emission takes auto, off or LO,HI",
+        ),
     ] {
         let mut args = vec!["render", asset.as_str(), "-o", out.as_str()];
         args.extend_from_slice(extra);
@@ -383,6 +388,9 @@ fn lit_json_names_the_march_it_took() {
             "18",
             "--backend",
             "cpu",
+            // The march of the nearest filter (trilinear always steps).
+            "--filter",
+            "nearest",
             "--json",
         ];
         args.extend_from_slice(extra);

@@ -491,7 +491,7 @@ fn clustering_says_what_it_did() {
 #[test]
 fn render_output_format_comes_from_the_extension() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["x.jpg", "x.exr", "x"] {
+    for name in ["x.jpg", "x.tiff", "x"] {
         let out = dir.path().join(name);
         refused(
             &[

@@ -76,6 +76,7 @@ fn a_multi_channel_asset_with_levels_streams_as_it_uploads() {
         medium: Medium {
             emission: Some(Emission {
                 range: [700.0, 1800.0],
+                kelvin: [700.0, 1800.0],
                 intensity: 1.0,
                 channel: 1,
             }),

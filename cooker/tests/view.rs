@@ -41,6 +41,10 @@ fn headless_screenshot_shows_the_volume_and_matches_render() {
             "90",
             "--mode",
             mode,
+            // One sun for both (`--light auto` is placed from each command's starting camera,
+            // and the view orbits away from it).
+            "--light",
+            "0.3,0.3,0",
             "--json",
         ]) else {
             return;
@@ -108,6 +112,8 @@ fn headless_screenshot_shows_the_volume_and_matches_render() {
             "90",
             "--camera",
             &cam.join(","),
+            "--light",
+            "0.3,0.3,0",
         ]);
         assert_eq!(code, 0, "{err}");
         let (_, _, want) = read_png(&reference);
@@ -148,8 +154,9 @@ fn screenshot_alone_renders_one_frame() {
     assert_eq!(read_png(&shot).0, 64);
 }
 
-/// The fire fixture's temperature grid glows in the viewer's density mode with `--emission`:
-/// warm pixels (red over green over blue), none without it.
+/// The fire fixture's temperature grid glows in the viewer's density mode with `--emission`
+/// and by default (a Kelvin grid's convention): warm pixels (red over green over blue), none
+/// with `--emission off`.
 #[test]
 fn emission_glows_in_the_density_mode() {
     let dir = tempfile::tempdir().unwrap();
@@ -176,7 +183,13 @@ fn emission_glows_in_the_density_mode() {
         return;
     };
     assert!(glow > 200, "only {glow} glowing pixels");
-    assert_eq!(run(&[]), Some(0), "no glow without --emission");
+    assert_eq!(
+        run(&["--emission", "off"]),
+        Some(0),
+        "no glow with --emission off"
+    );
+    // By default the Kelvin grid glows by its convention.
+    assert!(run(&[]).unwrap() > 200, "no glow by default");
 }
 
 /// Runs `view` with `args` (a screenshot to `shot`) and counts the glowing pixels of the
@@ -286,4 +299,78 @@ fn bad_input_is_refused_with_a_reason() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
     assert!(!Path::new(shot).exists());
+}
+
+/// The viewer's blit runs the colour pipeline `render` runs (`shaders/display.wgsl` against
+/// `vdbcook_scene::Display`): each tone map at an exposure that pushes the smoke past display
+/// white, within 2/255 of `render`'s PNG of the same view.
+#[test]
+fn the_viewer_tone_maps_as_render_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    for (tonemap, ev) in [("aces", "1"), ("pbr-neutral", "2"), ("none", "0.5")] {
+        let shot = dir.path().join(format!("view-{tonemap}.png"));
+        let look = [
+            "--tonemap",
+            tonemap,
+            "--exposure",
+            ev,
+            "--width",
+            "96",
+            "--height",
+            "64",
+        ];
+        let mut args = vec![
+            "view",
+            &asset,
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--json",
+        ];
+        args.extend_from_slice(&look);
+        let Some((code, stdout, err)) = gpu_run(&args) else {
+            return;
+        };
+        assert_eq!(code, 0, "{err}");
+        let doc: Value = serde_json::from_str(&stdout).unwrap();
+        let c = &doc["camera"];
+        let num = |v: &Value| v.as_f64().unwrap().to_string();
+        let cam: Vec<String> = (0..3)
+            .map(|i| num(&c["eye"][i]))
+            .chain((0..3).map(|i| num(&c["look_at"][i])))
+            .chain([num(&c["fov_y_deg"])])
+            .collect();
+        let reference = dir.path().join(format!("render-{tonemap}.png"));
+        let cam = cam.join(",");
+        let mut args = vec![
+            "render",
+            &asset,
+            "-o",
+            reference.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--camera",
+            &cam,
+        ];
+        args.extend_from_slice(&look);
+        let (code, _, err) = vdbcook(&args);
+        assert_eq!(code, 0, "{err}");
+        let (_, _, px) = read_png(&shot);
+        let (_, _, want) = read_png(&reference);
+        let worst = px
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| a.abs_diff(*b))
+            .max()
+            .unwrap();
+        assert!(
+            worst <= 2,
+            "{tonemap}: view and render differ by {worst}/255"
+        );
+        let white = want.chunks(4).filter(|p| p[0] >= 128).count();
+        assert!(
+            white > 50,
+            "{tonemap} at {ev} EV: only {white} bright pixels"
+        );
+    }
 }

@@ -73,7 +73,8 @@ pub use upload::{
 };
 pub use vdbcook_asset::Asset;
 pub use vdbcook_scene::{
-    Emission, Filter, Integrator, Lighting, March, Medium, MsModel, Output, RenderSettings,
+    fire_convention, Display, Emission, Filter, FireConvention, Integrator, Lighting, March,
+    Medium, MsModel, Output, RenderSettings,
 };
 pub use wgsl::{shadow_wgsl, volume_wgsl, world_to_index};
 /// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
@@ -99,6 +100,10 @@ pub const LIT_WGSL: &str = include_str!("../../shaders/lit.wgsl");
 /// before it.
 pub const LIGHT_BUILD_WGSL: &str = include_str!("../../shaders/light_build.wgsl");
 
+/// The colour pipeline (`vdbcook_scene::Display`) for an engine's or a viewer's final pass:
+/// `display_map(radiance, scale, curve) -> vec3<f32>` (exposure already folded into `scale` =
+/// `Display::scale()`, `curve` = `Tonemap::code()`), `display_srgb_encode`, `display_srgb_decode`.
+pub const DISPLAY_WGSL: &str = include_str!("../../shaders/display.wgsl");
 /// The sun's transmittance through a drawer's lit volumes for an engine's shaders (group 0,
 /// `vdb_sun_transmittance`); use [`shadow_wgsl`], which puts [`LIGHT_WGSL`] before it.
 pub const SHADOW_WGSL: &str = include_str!("../../shaders/shadow.wgsl");

@@ -10,8 +10,8 @@
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
-    blackbody_table, light_dirs, normalize, sky_diffusion, Affine, Filter, Integrator, LengthUnit,
-    LightGrid, Lighting, Medium, MsModel, BLACKBODY_TABLE_LEN,
+    light_dirs, normalize, sky_diffusion, Affine, Filter, Integrator, LengthUnit, LightGrid,
+    Lighting, Medium, MsModel, BLACKBODY_TABLE_LEN,
 };
 
 /// `VdbShading` of `lit.wgsl`.
@@ -82,9 +82,7 @@ impl ShadingUniform {
             }),
             emit_table: medium
                 .emission
-                .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| {
-                    blackbody_table(e.range)
-                }),
+                .map_or([[0.0; 4]; BLACKBODY_TABLE_LEN], |e| e.table()),
         }
     }
 }

@@ -609,6 +609,7 @@ fn lit_instances_match_the_cpu_lit_mode() {
             .ends_with("emission")
             .then_some(vdbcook_trace::Emission {
                 range: [0.3, 1.5],
+                kelvin: [0.3, 1.5],
                 intensity: 0.8,
                 channel: 0,
             });

@@ -1243,6 +1243,7 @@ fn emission_matches_the_cpu() {
     let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
     let emission = Some(vdbcook_trace::Emission {
         range: [800.0, 2500.0],
+        kelvin: [800.0, 2500.0],
         intensity: 0.5,
         channel: 0,
     });

@@ -219,6 +219,7 @@ impl AssetBuilder {
                 channels: Vec::new(),
                 lod_levels: 0,
                 lod_first: 1,
+                source: Default::default(),
             },
             roots: vec![],
             frame_ranges: vec![],

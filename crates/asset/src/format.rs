@@ -3,11 +3,15 @@
 use serde::{Deserialize, Serialize};
 
 pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
-/// The newest version this build writes and reads: a level-of-detail chain that starts below
-/// level 1 ([`Header::lod_first`] > 1, `cook --lod-from`). Assets without one are still written
-/// as [`FORMAT_VERSION_LOD`], [`FORMAT_VERSION_CHANNELS`] or [`FORMAT_VERSION_SINGLE`], byte for
+/// The newest version this build writes and reads: what the source was ([`Header::source`]:
+/// its writer, its grid class, its up axis). Assets whose source says nothing of these are
+/// still written as the oldest version that holds them ([`FORMAT_VERSION_LOD_FROM`],
+/// [`FORMAT_VERSION_LOD`], [`FORMAT_VERSION_CHANNELS`] or [`FORMAT_VERSION_SINGLE`]), byte for
 /// byte what earlier builds wrote.
-pub const FORMAT_VERSION: u32 = 5;
+pub const FORMAT_VERSION: u32 = 6;
+/// A level-of-detail chain that starts below level 1 ([`Header::lod_first`] > 1, `cook
+/// --lod-from`).
+pub const FORMAT_VERSION_LOD_FROM: u32 = 5;
 /// A level-of-detail chain from level 1 ([`Header::lod_levels`] > 0, [`Header::lod_first`] 1),
 /// with one channel or several.
 pub const FORMAT_VERSION_LOD: u32 = 4;
@@ -263,6 +267,25 @@ pub struct Header {
     /// full resolution and `K` are not stored. At least 2 in version 5, and `K + lod_levels − 1
     /// ≤ MAX_LOD_LEVELS`.
     pub lod_first: u32,
+    /// What the source files say of themselves (format version 6; empty before).
+    pub source: SourceInfo,
+}
+
+/// What the source says of itself, for the renderers' defaults: the up axis of the default
+/// view and whether the grid can be drawn as a fog at all. A cook records it only where it
+/// matters (an up axis is known, or the class is not a fog volume); else it stays empty and
+/// the asset keeps the older format version.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct SourceInfo {
+    /// The first frame's `creator` file metadata (e.g. `Houdini 20.5.654/GEO_VDBTranslator`,
+    /// `Blender/Smoke`), empty when absent.
+    pub creator: String,
+    /// The cooked grid's (channel 0's) `class` metadata: `fog volume`, `level set`, ... (empty:
+    /// absent or `unknown`).
+    pub grid_class: String,
+    /// The world's up axis by the writer's convention: `z` (Blender), `y` (Houdini, Maya), or
+    /// empty when nothing tells.
+    pub up: String,
 }
 
 /// One grid of a multi-channel asset. All channels share the asset's topology (the union of
@@ -316,6 +339,33 @@ pub(crate) struct HeaderV3 {
 pub(crate) struct HeaderV4 {
     pub v3: HeaderV3,
     pub lod_levels: u32,
+}
+
+/// The header as format version 5 stores it (a level-of-detail chain from a level below 1):
+/// [`HeaderV4`]'s fields, then `lod_first`; [`Header`] without `source`. Frozen, as
+/// [`HeaderV2`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct HeaderV5 {
+    pub v4: HeaderV4,
+    pub lod_first: u32,
+}
+
+impl From<&Header> for HeaderV5 {
+    fn from(h: &Header) -> HeaderV5 {
+        HeaderV5 {
+            v4: HeaderV4::from(h),
+            lod_first: h.lod_first,
+        }
+    }
+}
+
+impl From<HeaderV5> for Header {
+    fn from(h: HeaderV5) -> Header {
+        Header {
+            lod_first: h.lod_first,
+            ..Header::from(h.v4)
+        }
+    }
 }
 
 impl From<&Header> for HeaderV4 {
@@ -393,6 +443,7 @@ impl From<HeaderV2> for Header {
             channels: Vec::new(),
             lod_levels: 0,
             lod_first: 1,
+            source: SourceInfo::default(),
         }
     }
 }
@@ -404,8 +455,10 @@ impl Header {
     }
     /// The format version this header is written as.
     pub fn format_version(&self) -> u32 {
-        if self.lod_levels > 0 && self.lod_first > 1 {
+        if self.source != SourceInfo::default() {
             FORMAT_VERSION
+        } else if self.lod_levels > 0 && self.lod_first > 1 {
+            FORMAT_VERSION_LOD_FROM
         } else if self.lod_levels > 0 {
             FORMAT_VERSION_LOD
         } else if self.channels.is_empty() {
@@ -459,6 +512,7 @@ impl Header {
             FORMAT_VERSION_SINGLE => bincode::serde::encode_to_vec(HeaderV2::from(self), config),
             FORMAT_VERSION_CHANNELS => bincode::serde::encode_to_vec(HeaderV3::from(self), config),
             FORMAT_VERSION_LOD => bincode::serde::encode_to_vec(HeaderV4::from(self), config),
+            FORMAT_VERSION_LOD_FROM => bincode::serde::encode_to_vec(HeaderV5::from(self), config),
             _ => bincode::serde::encode_to_vec(self, config),
         };
         r.map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))

@@ -77,17 +77,24 @@ impl Asset {
                 let (h, used): (HeaderV4, usize) =
                     bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
                 (h.into(), used)
+            } else if version == FORMAT_VERSION_LOD_FROM {
+                let (h, used): (HeaderV5, usize) =
+                    bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
+                (h.into(), used)
             } else {
                 bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?
             };
-            if version >= FORMAT_VERSION_LOD && (h.lod_levels == 0 || h.lod_levels > MAX_LOD_LEVELS)
-            {
+            let lod_version = version == FORMAT_VERSION_LOD || version == FORMAT_VERSION_LOD_FROM;
+            if (lod_version && h.lod_levels == 0) || h.lod_levels > MAX_LOD_LEVELS {
                 return bad(format!(
                     "a version-{version} asset has 1..={MAX_LOD_LEVELS} coarser levels, this one {}",
                     h.lod_levels
                 ));
             }
-            if version == FORMAT_VERSION && h.lod_first < 2 {
+            if (version == FORMAT_VERSION_LOD_FROM && h.lod_first < 2)
+                || h.lod_first < 1
+                || (h.lod_levels == 0 && h.lod_first != 1)
+            {
                 return bad(format!(
                     "a version-{version} asset's levels start at level 2 or coarser, this one's at {}",
                     h.lod_first

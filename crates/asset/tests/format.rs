@@ -76,6 +76,7 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
             channels: Vec::new(),
             lod_levels: 0,
             lod_first: 1,
+            source: Default::default(),
         },
         roots: vec![0, TILE_BIT | 1, 0, EMPTY],
         frame_ranges: vec![[0.0, 777.0], [0.0, 777.0]],
@@ -442,7 +443,7 @@ fn levels_from_a_coarser_level_are_version_5_and_round_trip() {
     let (bytes, header) = a.to_bytes().unwrap();
     assert_eq!(
         u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
-        FORMAT_VERSION
+        FORMAT_VERSION_LOD_FROM
     );
     let mut expect = a.clone();
     expect.header = header;
@@ -477,6 +478,42 @@ fn levels_from_a_coarser_level_are_version_5_and_round_trip() {
     let mut z = a.clone();
     z.header.lod_first = 0;
     assert!(z.validate().unwrap_err().0.contains("levels 0 to"));
+}
+
+/// What the source says of itself (writer, class, up axis) makes a version-6 asset that round
+/// trips, with or without levels; an asset whose source says nothing stays at its old version
+/// byte for byte.
+#[test]
+fn source_info_is_version_6_and_round_trips() {
+    for mut a in [lod_asset(), {
+        let mut b = lod_asset();
+        b.header.lod_first = 3;
+        b
+    }] {
+        let (old, _) = a.to_bytes().unwrap();
+        let old_version = u32::from_le_bytes(old[8..12].try_into().unwrap());
+        assert!(old_version < FORMAT_VERSION);
+        a.header.source = SourceInfo {
+            creator: "Blender/Smoke".into(),
+            grid_class: "fog volume".into(),
+            up: "z".into(),
+        };
+        let (bytes, header) = a.to_bytes().unwrap();
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+            FORMAT_VERSION
+        );
+        let mut expect = a.clone();
+        expect.header = header;
+        let back = Asset::from_bytes(&bytes).unwrap();
+        assert_eq!(back, expect);
+        assert_eq!(back.header.source.up, "z");
+        // Truncating the source's strings is refused (never read past the header).
+        let hlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let mut cut = bytes.clone();
+        cut[12..16].copy_from_slice(&(hlen as u32 - 2).to_le_bytes());
+        assert!(Asset::from_bytes(&cut).is_err());
+    }
 }
 
 #[test]

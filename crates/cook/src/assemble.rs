@@ -29,6 +29,8 @@ pub struct Inputs<'a> {
     pub requested: Option<String>,
     /// Channel 0's grid label.
     pub label: String,
+    /// What the source says of itself.
+    pub source: vdbcook_asset::SourceInfo,
     pub infos: Vec<FrameInfo>,
     pub transform: &'a Transform,
     pub offset: [i32; 3],
@@ -144,6 +146,7 @@ pub fn assemble(i: Inputs) -> Result<Assembled, CookError> {
         eopts,
         requested,
         label,
+        source,
         infos,
         transform,
         offset,
@@ -254,6 +257,7 @@ pub fn assemble(i: Inputs) -> Result<Assembled, CookError> {
                 allow_gaps,
             },
             grid_name: label,
+            source,
             frames: infos,
             index_offset: offset,
             root_dims,

@@ -1,6 +1,6 @@
 //! Which grids of a smoke or fire cache belong in one asset, picked by the naming conventions of
 //! the tools that write them: Blender/Mantaflow (`density`, `heat`, `flame`, `fuel`, …), Houdini
-//! pyro (`density`, `temperature`, `flame`/`heat`) and EmberGen (`density`, `temperature`,
+//! pyro (`density`, `temperature`, `flame` or `heat`) and EmberGen (`density`, `temperature`,
 //! `flames`). `inspect` shows the pick and `cook --grids auto` cooks it.
 //!
 //! One grid per role, in role order: what absorbs (channel 0, the one plain renders show), what
@@ -16,7 +16,9 @@ use vdbcook_vdb::VdbFile;
 pub const ROLES: [(&str, &[&str]); 3] = [
     ("density", &["density", "smoke", "soot", "dens"]),
     ("temperature", &["temperature", "heat", "temp"]),
-    ("flame", &["flame", "flames", "fire"]),
+    // Houdini's `heat` is its pyro's burn field (0..1): it burns when a `temperature` took the
+    // hot role (Blender's old smoke writes `heat` alone, as its temperature).
+    ("flame", &["flame", "flames", "fire", "heat"]),
 ];
 
 /// The pick for one file.

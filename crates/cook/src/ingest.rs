@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use rayon::prelude::*;
-use vdbcook_asset::FrameInfo;
+use vdbcook_asset::{FrameInfo, SourceInfo};
 use vdbcook_vdb::sequence::Frame;
 use vdbcook_vdb::{ErrorKind, Transform, VdbFile};
 
@@ -60,6 +60,8 @@ pub struct Ingested {
     pub first_path: PathBuf,
     /// The label of channel 0's grid as the first frame that has it names it.
     pub label: String,
+    /// What the first frame with a grid says of its writer, class and up axis.
+    pub source: SourceInfo,
     pub infos: Vec<FrameInfo>,
     /// `file (grid)` for every grid missing from a frame (`--allow-missing-grid`).
     pub missing: Vec<String>,
@@ -83,6 +85,8 @@ pub struct ReadOptions {
 /// One channel of one frame, read and built.
 struct Channel {
     label: String,
+    /// Its file's writer, the grid's class and the writer's up axis.
+    source: SourceInfo,
     transform: Transform,
     background: f32,
     built: BuiltFrame,
@@ -97,6 +101,30 @@ struct Prepared {
     build_s: f64,
 }
 
+/// Grids only Blender's fluid caches (Mantaflow, and the smoke solver before it) write.
+const BLENDER_GRIDS: [&str; 5] = ["shadow", "flags", "phi_obstacle", "phi_inflow", "phi_out"];
+
+/// A file's writer (`creator` metadata, empty when absent) and the up axis its convention
+/// implies: `z` for Blender (its `creator`, or the grids only its fluid caches write: Mantaflow
+/// writes no `creator`), `y` for Houdini and Maya, else empty.
+pub fn source_of(file: &VdbFile) -> (String, String) {
+    let creator = file.metadata.get_str("creator").unwrap_or("").to_string();
+    let c = creator.to_ascii_lowercase();
+    let blender = c.contains("blender")
+        || file
+            .grids
+            .iter()
+            .any(|g| BLENDER_GRIDS.contains(&g.name.as_str()));
+    let up = if blender {
+        "z"
+    } else if c.contains("houdini") || c.contains("maya") {
+        "y"
+    } else {
+        ""
+    };
+    (creator, up.to_string())
+}
+
 fn prepare(f: &Frame, sources: &[ChannelSource], o: ReadOptions) -> Prepared {
     let (mut read_s, mut build_s) = (0.0, 0.0);
     let mut run = || -> Result<Vec<Option<Channel>>, CookError> {
@@ -104,6 +132,7 @@ fn prepare(f: &Frame, sources: &[ChannelSource], o: ReadOptions) -> Prepared {
         let file = VdbFile::open(&f.path);
         read_s += t.elapsed().as_secs_f64();
         let file = file?;
+        let (creator, up) = source_of(&file);
         let mut out = Vec::with_capacity(sources.len());
         for s in sources {
             let t = Instant::now();
@@ -115,12 +144,32 @@ fn prepare(f: &Frame, sources: &[ChannelSource], o: ReadOptions) -> Prepared {
             };
             let t = Instant::now();
             let label = loaded.grid_label;
+            let class = file
+                .grids
+                .iter()
+                .find(|g| g.label == label)
+                .map(|g| g.class())
+                .filter(|c| *c != "unknown")
+                .unwrap_or_default()
+                .to_string();
+            // Recorded only where it changes what a renderer does (an up axis, a class that
+            // is not a fog): other sources stay at the older format versions, byte for byte.
+            let source = if up.is_empty() && (class.is_empty() || class == "fog volume") {
+                SourceInfo::default()
+            } else {
+                SourceInfo {
+                    creator: creator.clone(),
+                    grid_class: class,
+                    up: up.clone(),
+                }
+            };
             let (transform, background) = (loaded.grid.transform.clone(), loaded.grid.background);
             let built = build_frame(loaded.grid, o.non_finite)
                 .map_err(|m| input(&f.path, ErrorKind::Corrupt, format!("grid '{label}': {m}")));
             build_s += t.elapsed().as_secs_f64();
             out.push(Some(Channel {
                 label,
+                source,
                 transform,
                 background,
                 built: built?,
@@ -142,7 +191,7 @@ struct Tally<'a> {
     sources: &'a [ChannelSource],
     /// The first frame with a grid: its path, transform and channel 0's label (or the first
     /// grid's).
-    first: Option<(Frame, Transform, String)>,
+    first: Option<(Frame, Transform, String, SourceInfo)>,
     /// Per channel: background and the frame that set it.
     backgrounds: Vec<Option<(f32, String)>>,
     ranges: Vec<[f32; 2]>,
@@ -185,9 +234,14 @@ impl Tally<'_> {
                             ),
                         ));
                     }
-                    self.first = Some((frame.clone(), chan.transform.clone(), chan.label.clone()));
+                    self.first = Some((
+                        frame.clone(),
+                        chan.transform.clone(),
+                        chan.label.clone(),
+                        chan.source.clone(),
+                    ));
                 }
-                Some((f0, t0, l0)) => {
+                Some((f0, t0, l0, _)) => {
                     if !chan.transform.approx_eq(t0, 1e-9) {
                         return Err(input(
                             &frame.path,
@@ -292,7 +346,7 @@ pub fn ingest(
         }
     }
     stage.finish();
-    let Some((f0, transform, label)) = tally.first else {
+    let Some((f0, transform, label, source)) = tally.first else {
         let s = &sources[0];
         return Err(input(
             &frames[0].path,
@@ -339,6 +393,7 @@ pub fn ingest(
         } else {
             sources[0].name.clone()
         },
+        source,
         infos: tally.infos,
         missing: tally.missing,
         read_s: read_cpu / threads as f64,

@@ -85,6 +85,17 @@ impl Camera {
     /// A frame that stores nothing is framed by the stored bounding boxes of all frames, or the
     /// root extent when no frame stores anything.
     pub fn framing(asset: &Asset, frame: usize, aspect: f64) -> Result<Camera, TraceError> {
+        Camera::framing_up(asset, frame, aspect, [0.0, 1.0, 0.0])
+    }
+
+    /// [`Camera::framing`] in a world whose up axis is `up` (one of ±X, ±Y, ±Z: Blender's
+    /// volumes are Z-up): the same three-quarter view, turned so that `up` is up.
+    pub fn framing_up(
+        asset: &Asset,
+        frame: usize,
+        aspect: f64,
+        up: [f64; 3],
+    ) -> Result<Camera, TraceError> {
         if frame >= asset.frame_count() {
             return Err(TraceError::Frame {
                 frame,
@@ -102,7 +113,7 @@ impl Camera {
         if boxes.is_empty() {
             boxes.push(([0.0; 3], asset.header.root_dims.map(|d| d as f64 * 128.0)));
         }
-        Camera::framing_boxes(&asset.header.index_to_world, &boxes, aspect)
+        Camera::framing_boxes(&asset.header.index_to_world, &boxes, aspect, up)
     }
 
     /// The default view of the index-space box `bbox` (`[lo, hi)`) under `index_to_world`: as
@@ -112,7 +123,7 @@ impl Camera {
         bbox: ([f64; 3], [f64; 3]),
         aspect: f64,
     ) -> Result<Camera, TraceError> {
-        Camera::framing_boxes(index_to_world, &[bbox], aspect)
+        Camera::framing_boxes(index_to_world, &[bbox], aspect, [0.0, 1.0, 0.0])
     }
 
     /// The default view of the corners of cell-space boxes under `index_to_world`: looking at
@@ -123,6 +134,7 @@ impl Camera {
         index_to_world: &[[f64; 4]; 4],
         boxes: &[([f64; 3], [f64; 3])],
         aspect: f64,
+        up: [f64; 3],
     ) -> Result<Camera, TraceError> {
         let xf = Affine::cells(index_to_world)?;
         let points = || {
@@ -148,11 +160,12 @@ impl Camera {
         // The eye looks at the centre from `dir`; put it just far enough that each point
         // projects within FILL of the image half-extents: for a point at (x, y) across and z
         // along the view (from the centre), |x| ≤ half·(dist + z).
-        let dir = normalize([1.0, 0.6, 1.4]);
+        let dir = normalize(up_frame([1.0, 0.6, 1.4], up));
+        let up = up_frame([0.0, 1.0, 0.0], up);
         let probe = Camera {
             eye: [0, 1, 2].map(|a| centre[a] + dir[a]),
             look_at: centre,
-            up: [0.0, 1.0, 0.0],
+            up,
             fov_y_deg,
         };
         let b = probe.basis(1, 1)?;
@@ -171,10 +184,52 @@ impl Camera {
         Ok(Camera {
             eye: [0, 1, 2].map(|a| centre[a] + dist * dir[a]),
             look_at: centre,
-            up: [0.0, 1.0, 0.0],
+            up,
             fov_y_deg,
         })
     }
+}
+
+/// The world's up axis by the source's convention (`SourceInfo::up`): Z for Blender's files,
+/// else Y.
+pub fn source_up(asset: &Asset) -> [f64; 3] {
+    match asset.header.source.up.as_str() {
+        "z" => [0.0, 0.0, 1.0],
+        "x" => [1.0, 0.0, 0.0],
+        _ => [0.0, 1.0, 0.0],
+    }
+}
+
+/// `v` of a Y-up world turned (by a rotation) into the world whose up axis is `up`, the
+/// axis-aligned unit vector it is nearest to (Y when `up` is not finite or zero).
+pub fn up_frame(v: [f64; 3], up: [f64; 3]) -> [f64; 3] {
+    let a = (0..3)
+        .max_by(|&i, &j| up[i].abs().total_cmp(&up[j].abs()))
+        .unwrap_or(1);
+    if !(up[a].abs() > 0.0 && up[a].is_finite()) {
+        return v;
+    }
+    let neg = up[a] < 0.0;
+    let [x, y, z] = v;
+    match (a, neg) {
+        (0, false) => [y, -x, z],
+        (0, true) => [-y, x, z],
+        (2, false) => [x, -z, y],
+        (2, true) => [x, z, -y],
+        (_, true) => [x, -y, -z],
+        _ => v,
+    }
+}
+
+/// The inverse of [`up_frame`]: `v` of the world whose up axis is `up` in the Y-up frame.
+pub fn from_up_frame(v: [f64; 3], up: [f64; 3]) -> [f64; 3] {
+    let col = |e: [f64; 3]| up_frame(e, up);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    [
+        dot(col([1.0, 0.0, 0.0]), v),
+        dot(col([0.0, 1.0, 0.0]), v),
+        dot(col([0.0, 0.0, 1.0]), v),
+    ]
 }
 
 /// The eight corners of a box.

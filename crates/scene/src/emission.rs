@@ -10,12 +10,17 @@
 /// Entries of the blackbody table over `[lo, hi]` Kelvin.
 pub const BLACKBODY_TABLE_LEN: usize = 32;
 
-/// Emission settings: the value of the emitting grid is a temperature in Kelvin; at or below
-/// `lo` it emits nothing; above, the radiance is `intensity · s⁴ · rgb(T)`, `s = min((T −
-/// lo)/(hi − lo), 1)`, `rgb(T)` the blackbody colour at `min(T, hi)` scaled to luminance 1.
+/// Emission settings: the emitting channel's value `v` (in the channel's own units: Kelvin, or a
+/// simulation's temperature, heat or flame) glows above `range[0]`: the radiance is `intensity ·
+/// s⁴ · rgb(K)`, `s = min((v − lo)/(hi − lo), 1)`, `rgb(K)` the blackbody colour (luminance 1)
+/// at `K = kelvin[0] + s·(kelvin[1] − kelvin[0])`. A Kelvin grid has `kelvin == range`; the
+/// conventions of simulation tools (`crate::fire`) map their units onto a Kelvin range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Emission {
+    /// The channel's values over which the glow rises (nothing at or below `range[0]`).
     pub range: [f32; 2],
+    /// The blackbody temperatures that range spans (the colour at `range[0]` and `range[1]`).
+    pub kelvin: [f32; 2],
     pub intensity: f32,
     /// The channel whose values are the temperature: 0, the rendered grid itself (its values
     /// absorb and emit), or a later channel of a multi-channel asset (fire: `density` absorbs,
@@ -72,7 +77,7 @@ pub fn blackbody_rgb(kelvin: f64) -> [f64; 3] {
     .map(|c| c.max(0.0))
 }
 
-/// The blackbody colours at `BLACKBODY_TABLE_LEN` temperatures evenly spaced over `[lo, hi]`
+/// The blackbody colours at `BLACKBODY_TABLE_LEN` temperatures evenly spaced over `[lo, hi]` Kelvin
 /// (rgb, and 0 in the fourth component: the GPU's vec4 layout).
 pub fn blackbody_table(range: [f32; 2]) -> [[f32; 4]; BLACKBODY_TABLE_LEN] {
     let (lo, hi) = (range[0] as f64, range[1] as f64);
@@ -84,8 +89,23 @@ pub fn blackbody_table(range: [f32; 2]) -> [[f32; 4]; BLACKBODY_TABLE_LEN] {
 }
 
 impl Emission {
-    /// The radiance emitted per unit length by value `v` (Kelvin), from the table of this
-    /// emission's range: the definition both tracers follow, in f32.
+    /// A grid of Kelvin: the colour is the value's own temperature.
+    pub fn of_kelvin(range: [f32; 2], intensity: f32, channel: usize) -> Emission {
+        Emission {
+            range,
+            kelvin: range,
+            intensity,
+            channel,
+        }
+    }
+
+    /// The blackbody colours across [`Emission::kelvin`] (what both tracers interpolate).
+    pub fn table(&self) -> [[f32; 4]; BLACKBODY_TABLE_LEN] {
+        blackbody_table(self.kelvin)
+    }
+
+    /// The radiance emitted per unit length by value `v`, from this emission's
+    /// [`Emission::table`]: the definition both tracers follow, in f32.
     pub fn radiance(&self, table: &[[f32; 4]; BLACKBODY_TABLE_LEN], v: f32) -> [f32; 3] {
         let [lo, hi] = self.range;
         if !(v > lo) {
@@ -159,10 +179,11 @@ mod tests {
     fn radiance_is_zero_at_lo_and_the_table_colour_at_hi() {
         let e = Emission {
             range: [800.0, 2000.0],
+            kelvin: [800.0, 2000.0],
             intensity: 3.0,
             channel: 0,
         };
-        let t = blackbody_table(e.range);
+        let t = e.table();
         assert_eq!(e.radiance(&t, 800.0), [0.0; 3]);
         assert_eq!(e.radiance(&t, 100.0), [0.0; 3]);
         let hot = e.radiance(&t, 5000.0);

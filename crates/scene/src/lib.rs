@@ -14,19 +14,29 @@
 mod camera;
 mod content;
 mod diffusion;
+mod display;
 mod emission;
+mod fire;
 mod footprint;
 mod light;
 mod settings;
 mod space;
 
-pub use camera::{stored_bbox, stored_boxes, Basis, Camera};
+pub use camera::{from_up_frame, source_up, stored_bbox, stored_boxes, up_frame, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use diffusion::{
     ms_levels, ms_stored_flux, ms_sweeps, DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS,
     MS_FLUX_RATIO, MS_ITERATIONS, MS_VACUUM,
 };
+pub use display::{
+    linear_to_srgb8, srgb_decode, srgb_encode, srgb_to_linear, Display, Tonemap,
+    PBR_NEUTRAL_DESATURATION, PBR_NEUTRAL_START,
+};
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
+pub use fire::{
+    channel_max, channel_named, fire_convention, fire_intensity, FireConvention, DRAPER_KELVIN,
+    FIRE_DEPTH, FLAME_KELVIN, FLAME_NAMES, HEAT_NAMES, KELVIN_MIN_MAX, KELVIN_PER_UNIT,
+};
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
     light_dirs, lit_near_depth, near_scatter_source, octave_source, sky_diffusion, sky_source,

@@ -499,9 +499,13 @@ impl Medium {
         }
         if let Some(e) = self.emission {
             let [lo, hi] = e.range;
-            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
+            if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+                return bad(format!("emission range {lo},{hi} (lo < hi, finite)"));
+            }
+            let [klo, khi] = e.kelvin;
+            if !(klo.is_finite() && khi.is_finite() && klo >= 0.0 && khi >= klo) {
                 return bad(format!(
-                    "emission range {lo},{hi} (Kelvin: 0 ≤ lo < hi, finite)"
+                    "emission colour range {klo},{khi} K (0 ≤ lo ≤ hi, finite)"
                 ));
             }
             if !(e.intensity.is_finite() && e.intensity >= 0.0) {

@@ -141,11 +141,13 @@ pub use space::IndexRay;
 pub use walk::Holder;
 // The shared view and parameter maths (one definition for this tracer and the GPU runtime).
 pub use vdbcook_scene::{
-    blackbody_rgb, blackbody_table, content_box, depth_range, stored_bbox, stored_boxes, Affine,
-    Basis, Camera, Emission, Filter, Integrator, LengthUnit, LevelChain, LightGrid, Lighting,
-    March, Medium, Mode, MsModel, Output, RenderSettings, TraceError, DEFAULT_NEAR_SCATTER,
-    DEFAULT_SUN_NEAR, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G,
-    MAX_SIDE, MAX_SPP, MIN_STEP,
+    blackbody_rgb, blackbody_table, channel_max, channel_named, content_box, depth_range,
+    fire_convention, from_up_frame, linear_to_srgb8, source_up, srgb_to_linear, stored_bbox,
+    stored_boxes, up_frame, Affine, Basis, Camera, Display, Emission, Filter, FireConvention,
+    Integrator, LengthUnit, LevelChain, LightGrid, Lighting, March, Medium, Mode, MsModel, Output,
+    RenderSettings, Tonemap, TraceError, DEFAULT_NEAR_SCATTER, DEFAULT_SUN_NEAR, DRAPER_KELVIN,
+    HEAT_NAMES, KELVIN_MIN_MAX, KELVIN_PER_UNIT, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES,
+    MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };
 pub use vdbcook_scene::{
     length, level_start, light_dirs, normalize, octave_source, pixel_angle, sky_diffusion,

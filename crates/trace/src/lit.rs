@@ -379,7 +379,12 @@ impl Tracer<'_> {
     /// [`Tracer::trilinear_density`] in root set `set` (a level of detail: `p` in its cell
     /// space).
     pub(crate) fn trilinear_density_in(&self, set: usize, p: [f64; 3]) -> f64 {
-        let u = p.map(|c| c - 0.5);
+        self.trilinear_in(set, 0, p)
+    }
+
+    /// [`Tracer::trilinear_density_in`] of channel `c` (another channel's emission, smoothed).
+    pub(crate) fn trilinear_in(&self, set: usize, c: usize, p: [f64; 3]) -> f64 {
+        let u = p.map(|x| x - 0.5);
         let base = u.map(|c| c.floor());
         let f = [0, 1, 2].map(|a| u[a] - base[a]);
         let mut sum = 0.0f64;
@@ -391,7 +396,7 @@ impl Tracer<'_> {
                 *ax = base[axis] as i64 + hi as i64;
                 w *= if hi { f[axis] } else { 1.0 - f[axis] };
             }
-            let v = self.grid.asset.value(set, a);
+            let v = self.grid.asset.value_c(set, a, c);
             if v > 0.0 {
                 sum += w * v as f64;
             }

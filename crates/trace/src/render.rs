@@ -16,8 +16,8 @@ use crate::space::IndexRay;
 use crate::walk::{extent, walk, BrickCache, Grid, Holder};
 use crate::Image;
 use vdbcook_scene::{
-    blackbody_table, depth_range, length, level_start, normalize, stored_bbox, Affine, Camera,
-    Emission, LengthUnit, LevelChain, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
+    depth_range, length, level_start, normalize, stored_bbox, Affine, Camera, Emission, LengthUnit,
+    LevelChain, March, Mode, RenderSettings, TraceError, BLACKBODY_TABLE_LEN,
 };
 
 /// What one primary ray produced.
@@ -133,7 +133,7 @@ impl<'a> Tracer<'a> {
         let emit_table = settings
             .medium
             .emission
-            .map(|e| blackbody_table(e.range))
+            .map(|e| e.table())
             .unwrap_or([[0.0; 4]; BLACKBODY_TABLE_LEN]);
         if channel_emission.is_some() {
             settings.medium.emission = None;
@@ -318,6 +318,11 @@ impl<'a> Tracer<'a> {
         let (Some((lo, hi)), Some((t0, t1))) = (ce.bbox, ray.clip(self.extent)) else {
             return light;
         };
+        // The trilinear filter reads both channels at each part's midpoint, over the box grown
+        // by the taps' reach (one voxel).
+        let smooth = self.settings.integrator.filter == crate::Filter::Trilinear;
+        let grow = if smooth { 1.0 } else { 0.0 };
+        let (lo, hi) = (lo.map(|c| c - grow), hi.map(|c| c + grow));
         let Some((a, b)) = ray.clip_box(lo, hi) else {
             return light;
         };
@@ -337,15 +342,20 @@ impl<'a> Tracer<'a> {
         let (clo, chi) = (lo.map(|c| c as i64), hi.map(|c| c as i64));
         walk_cells(ray, 1.0, clo, chi, a, b, |cell, ta, tb| {
             let l = (tb - ta) * ray.per_t;
-            let rho = if ext > 0.0 {
-                asset.value(frame, cell)
-            } else {
-                0.0
+            // The part's midpoint (cell space).
+            let mid = ray.at(0.5 * (ta + tb));
+            let rho = match (ext > 0.0, smooth) {
+                (false, _) => 0.0,
+                (true, true) => self.trilinear_in(frame, 0, mid) as f32,
+                (true, false) => asset.value(frame, cell),
             };
             let x = if rho > 0.0 { ext * rho as f64 * l } else { 0.0 };
-            let r = ce
-                .emission
-                .radiance(&self.emit_table, asset.value_c(frame, cell, ce.channel));
+            let v = if smooth {
+                self.trilinear_in(frame, ce.channel, mid) as f32
+            } else {
+                asset.value_c(frame, cell, ce.channel)
+            };
+            let r = ce.emission.radiance(&self.emit_table, v);
             let w = trans * l * crate::exact::phi(x);
             for (o, r) in light.iter_mut().zip(r) {
                 *o += w * r as f64;

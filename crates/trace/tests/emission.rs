@@ -28,6 +28,7 @@ fn settings(absorb: f32) -> RenderSettings {
             absorb,
             emission: Some(Emission {
                 range: [800.0, 2000.0],
+                kelvin: [800.0, 2000.0],
                 intensity: 2.0,
                 channel: 0,
             }),
@@ -66,7 +67,7 @@ fn emitted_light_matches_the_closed_form() {
     for absorb in [0.0f32, 2e-4, 2e-3] {
         let s = settings(absorb);
         let e = s.medium.emission.unwrap();
-        let radiance = e.radiance(&blackbody_table(e.range), value);
+        let radiance = e.radiance(&e.table(), value);
         let tracer = Tracer::new(&asset, &camera(), &s).unwrap();
         for (eye, dir) in rays {
             let n: f64 = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
@@ -136,6 +137,7 @@ fn emission_outside_the_shaded_modes_or_out_of_range_is_refused() {
                 medium: Medium {
                     emission: Some(Emission {
                         range: [2000.0, 800.0],
+                        kelvin: [2000.0, 800.0],
                         intensity: 1.0,
                         channel: 0,
                     }),
@@ -150,6 +152,7 @@ fn emission_outside_the_shaded_modes_or_out_of_range_is_refused() {
                 medium: Medium {
                     emission: Some(Emission {
                         range: [800.0, 2000.0],
+                        kelvin: [800.0, 2000.0],
                         intensity: f32::NAN,
                         channel: 0,
                     }),
@@ -195,7 +198,7 @@ fn scatter_mode_emission_sums_to_the_closed_form_over_its_samples() {
             }
         };
         let e = s.medium.emission.unwrap();
-        let radiance = e.radiance(&blackbody_table(e.range), value);
+        let radiance = e.radiance(&e.table(), value);
         let tracer = Tracer::new(&asset, &camera(), &s).unwrap();
         for (eye, dir) in [
             ([60.0, 12.0, -5.0], [0.0, 0.0, 1.0]),

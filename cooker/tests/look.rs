@@ -1,0 +1,358 @@
+//! The production look (issue 32) as a user meets it through `vdbcook render`: fire glows by
+//! its tool's convention (Blender/Mantaflow, Houdini, Kelvin) where flame or heat is high and
+//! nowhere else; the up axis comes from the source; every PNG goes through one colour pipeline
+//! (its bytes are the tone-mapped, sRGB-encoded PFM radiance, with and without a plate); EXR is
+//! the linear radiance as the `exr` crate reads it back; a level set is refused, never drawn as
+//! a flat fog.
+
+mod common;
+
+use std::path::Path;
+
+use common::{gpu_required, json, read_pfm, read_png, vdbcook};
+use serde_json::Value;
+use vdbcook_trace::{Display, Tonemap};
+
+const W: u32 = 128;
+const H: u32 = 96;
+
+/// The pixel a world point projects to, through the camera matrices `render --json` reports.
+fn project(doc: &Value, p: [f64; 3]) -> (usize, usize) {
+    let m = |k: &str| -> Vec<Vec<f64>> {
+        doc["camera"][k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| {
+                r.as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap())
+                    .collect()
+            })
+            .collect()
+    };
+    let (v, pr) = (m("view_matrix"), m("projection_matrix"));
+    let mul = |a: &Vec<Vec<f64>>, x: [f64; 4]| -> [f64; 4] {
+        std::array::from_fn(|i| (0..4).map(|j| a[i][j] * x[j]).sum())
+    };
+    let c = mul(&pr, mul(&v, [p[0], p[1], p[2], 1.0]));
+    let (x, y) = (c[0] / c[3], c[1] / c[3]);
+    (
+        ((x * 0.5 + 0.5) * W as f64) as usize,
+        ((0.5 - y * 0.5) * H as f64) as usize,
+    )
+}
+
+/// Warmth of the 3×3 pixels around `(i, j)`: the largest red minus blue (8-bit).
+fn warmth(px: &[u8], (i, j): (usize, usize)) -> i32 {
+    let mut best = i32::MIN;
+    for y in j.saturating_sub(1)..=(j + 1).min(H as usize - 1) {
+        for x in i.saturating_sub(1)..=(i + 1).min(W as usize - 1) {
+            let k = 4 * (y * W as usize + x);
+            best = best.max(px[k] as i32 - px[k + 2] as i32);
+        }
+    }
+    best
+}
+
+fn render(dir: &Path, input: &str, name: &str, extra: &[&str]) -> (Value, Vec<u8>) {
+    let out = dir.join(name);
+    let (w, h) = (W.to_string(), H.to_string());
+    let mut args = vec![
+        "render",
+        input,
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        &w,
+        "--height",
+        &h,
+        "--json",
+    ];
+    args.extend_from_slice(extra);
+    let doc = json(&args);
+    (doc, read_png(&out).2)
+}
+
+/// Index `ijk` of the conventions fixtures (voxel size 0.1, no translation) in world units.
+fn world(ijk: [f64; 3]) -> [f64; 3] {
+    ijk.map(|v| 0.1 * v)
+}
+
+/// The fixtures of `gen_fire_conventions.py`: the smoke ball's centre (16, 16, 16), the hot
+/// core 7 voxels below it along the tool's up axis. The default render glows at the core and
+/// not at the top of the ball, 14 voxels away, where flame and heat are zero; `--emission off`
+/// glows nowhere. Each tool's convention and up axis are the ones `render --json` states.
+#[test]
+fn fire_glows_by_its_tools_convention_where_it_is_hot_and_nowhere_else() {
+    let dir = tempfile::tempdir().unwrap();
+    for (file, up, convention, channel) in [
+        (
+            "fixtures/vdb/fire_blender.vdb",
+            [0.0, 0.0, 1.0],
+            "flame",
+            "flame",
+        ),
+        (
+            "fixtures/vdb/fire_houdini.vdb",
+            [0.0, 1.0, 0.0],
+            "flame",
+            "heat",
+        ),
+    ] {
+        let core = world([0, 1, 2].map(|a| 16.0 - 7.0 * up[a]));
+        let top = world([0, 1, 2].map(|a| 16.0 + 7.0 * up[a]));
+        for mode in ["density", "lit"] {
+            let (doc, px) = render(
+                dir.path(),
+                file,
+                "fire.png",
+                // Lit: thin smoke (scattering 0.1), so that the core shows through it.
+                &["--mode", mode, "--backend", "cpu", "--scatter", "0.1"],
+            );
+            let e = &doc["settings"]["emission"];
+            assert_eq!(e["convention"], convention, "{file}: {e}");
+            assert_eq!(e["channel"], channel, "{file}: {e}");
+            let got_up: Vec<f64> = doc["camera"]["up"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            assert_eq!(got_up, up.to_vec(), "{file}: up axis");
+            let (hot, cold) = (
+                warmth(&px, project(&doc, core)),
+                warmth(&px, project(&doc, top)),
+            );
+            assert!(
+                hot > 40,
+                "{file} {mode}: the core is not glowing (red − blue {hot})"
+            );
+            assert!(
+                cold < 12,
+                "{file} {mode}: the cold top glows (red − blue {cold})"
+            );
+        }
+        let (_, px) = render(
+            dir.path(),
+            file,
+            "off.png",
+            &["--emission", "off", "--backend", "cpu"],
+        );
+        let warm = px
+            .chunks_exact(4)
+            .filter(|p| p[0] as i32 - p[2] as i32 > 12)
+            .count();
+        assert_eq!(warm, 0, "{file}: --emission off still glows");
+    }
+    // Kelvin (fixtures/seq/fire: temperature 300..1800 K): glows from the Draper point, coloured
+    // by its own temperatures.
+    let (doc, px) = render(
+        dir.path(),
+        "fixtures/seq/fire/fire.0001.vdb",
+        "kelvin.png",
+        &["--backend", "cpu"],
+    );
+    let e = &doc["settings"]["emission"];
+    assert_eq!(e["convention"], "kelvin", "{e}");
+    assert_eq!(
+        e["range"][0].as_f64().unwrap(),
+        vdbcook_trace::DRAPER_KELVIN as f64
+    );
+    assert_eq!(e["range"], e["range_kelvin"]);
+    assert!(px.chunks_exact(4).any(|p| p[0] as i32 - p[2] as i32 > 40));
+    // `--up` overrides the source's convention.
+    let (doc, _) = render(
+        dir.path(),
+        "fixtures/vdb/fire_blender.vdb",
+        "y.png",
+        &["--up", "y", "--backend", "cpu"],
+    );
+    assert_eq!(doc["camera"]["up"][1].as_f64().unwrap(), 1.0);
+}
+
+/// The GPU tracer glows where the CPU does (the same emission, resolved once).
+#[test]
+fn gpu_fire_glows_as_the_cpu_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = "fixtures/vdb/fire_blender.vdb";
+    let out = dir.path().join("gpu.png");
+    let (w, h) = (W.to_string(), H.to_string());
+    let (code, _, err) = vdbcook(&[
+        "render",
+        file,
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        &w,
+        "--height",
+        &h,
+        "--backend",
+        "gpu",
+    ]);
+    if code != 0 && !gpu_required() && err.contains("adapter") {
+        eprintln!("skipped: no GPU adapter ({err})");
+        return;
+    }
+    assert_eq!(code, 0, "{err}");
+    let gpu = read_png(&out).2;
+    let (_, cpu) = render(dir.path(), file, "cpu.png", &["--backend", "cpu"]);
+    let warm = |px: &[u8]| {
+        px.chunks_exact(4)
+            .filter(|p| p[0] as i32 - p[2] as i32 > 40)
+            .count()
+    };
+    let (g, c) = (warm(&gpu), warm(&cpu));
+    assert!(c > 20, "the CPU render shows {c} glowing pixels");
+    assert!(g.abs_diff(c) * 10 <= c, "GPU {g} glowing pixels, CPU {c}");
+}
+
+/// One colour pipeline: a PNG's bytes are the PFM's radiance (the same render) through exposure,
+/// the tone map and the sRGB curve, alone (the sky behind) and over a plate alike; the EXR is
+/// that radiance, with the volume's opacity (or the sky's 1) as alpha.
+#[test]
+fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = common::cook_smoke(dir.path());
+    let plate = dir.path().join("plate.png");
+    let plate_px: Vec<u8> = (0..W * H)
+        .flat_map(|k| [(k % 251) as u8, 90, 200, 255])
+        .collect();
+    std::fs::write(
+        &plate,
+        vdbcook::render::encode_png(W, H, &plate_px).unwrap(),
+    )
+    .unwrap();
+    let plate_s = plate.to_str().unwrap().to_string();
+    for (tonemap, ev, over) in [
+        ("pbr-neutral", "0", None),
+        ("aces", "1.5", None),
+        ("none", "-1", None),
+        ("pbr-neutral", "0", Some(plate_s.as_str())),
+    ] {
+        let mut extra = vec![
+            "--mode",
+            "lit",
+            "--backend",
+            "cpu",
+            "--tonemap",
+            tonemap,
+            "--exposure",
+            ev,
+        ];
+        if let Some(p) = over {
+            extra.extend_from_slice(&["--background", p]);
+        }
+        let (_, png) = render(dir.path(), &asset, "x.png", &extra);
+        let pfm = dir.path().join("x.pfm");
+        let (w, h) = (W.to_string(), H.to_string());
+        let mut args = vec![
+            "render",
+            &asset,
+            "-o",
+            pfm.to_str().unwrap(),
+            "--width",
+            &w,
+            "--height",
+            &h,
+        ];
+        args.extend_from_slice(&extra);
+        let (code, _, err) = vdbcook(&args);
+        assert_eq!(code, 0, "{err}");
+        let (_, _, rgb) = read_pfm(&pfm);
+        let d = Display {
+            exposure_ev: ev.parse().unwrap(),
+            tonemap: Tonemap::parse(tonemap).unwrap(),
+        };
+        let mut lit = 0;
+        for (k, c) in rgb.chunks_exact(3).enumerate() {
+            let want = d.encode8([c[0], c[1], c[2]]);
+            for ch in 0..3 {
+                let got = png[4 * k + ch];
+                assert!(
+                    (got as i32 - want[ch] as i32).abs() <= 1,
+                    "{tonemap} {ev} EV over {over:?}: pixel {k} channel {ch}: PNG {got}, pipeline {}",
+                    want[ch]
+                );
+            }
+            lit += (c[0] > 0.3) as usize;
+        }
+        assert!(lit > 100, "{tonemap}: only {lit} bright pixels");
+        // EXR (float and half) read back by the `exr` crate: the PFM's radiance.
+        for half in [false, true] {
+            let exr = dir.path().join("x.exr");
+            let mut args = args.clone();
+            args[3] = exr.to_str().unwrap();
+            if half {
+                args.push("--exr-half");
+            }
+            let (code, _, err) = vdbcook(&args);
+            assert_eq!(code, 0, "{err}");
+            let img = exr::prelude::read_first_rgba_layer_from_file(
+                &exr,
+                |res, _| vec![[0f32; 4]; res.width() * res.height()],
+                |px: &mut Vec<[f32; 4]>, pos, (r, g, b, a): (f32, f32, f32, f32)| {
+                    px[pos.y() * W as usize + pos.x()] = [r, g, b, a];
+                },
+            )
+            .unwrap();
+            let px = &img.layer_data.channel_data.pixels;
+            assert_eq!(px.len(), (W * H) as usize);
+            let tol = if half { 1e-3 } else { 0.0 };
+            for (k, c) in rgb.chunks_exact(3).enumerate() {
+                for ch in 0..3 {
+                    let (got, want) = (px[k][ch], c[ch]);
+                    assert!(
+                        (got - want).abs() <= tol * want.abs().max(1.0),
+                        "EXR {half} {k}: {got} vs {want}"
+                    );
+                }
+                assert!((0.0..=1.0).contains(&px[k][3]));
+            }
+        }
+    }
+}
+
+/// A level set cooks exactly (its class kept in the asset), and every command that would march
+/// its signed distance as a fog refuses it, naming what it is and what to do.
+#[test]
+fn level_sets_are_cooked_and_refused_by_the_fog_renderers() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = dir.path().join("ls.vdbc");
+    let doc = json(&[
+        "cook",
+        "fixtures/vdb/levelset_sphere.vdb",
+        "-o",
+        asset.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(doc["error"]["exact"], true, "{doc}");
+    let a = vdbcook_asset::Asset::from_bytes(&std::fs::read(&asset).unwrap()).unwrap();
+    assert_eq!(a.header.source.grid_class, "level set");
+    let out = dir.path().join("ls.png");
+    for input in ["fixtures/vdb/levelset_sphere.vdb", asset.to_str().unwrap()] {
+        for mode in ["density", "lit"] {
+            let (code, _, err) = vdbcook(&[
+                "render",
+                input,
+                "-o",
+                out.to_str().unwrap(),
+                "--mode",
+                mode,
+                "--backend",
+                "cpu",
+            ]);
+            assert_eq!(code, 2, "{input} {mode}: {err}");
+            assert!(
+                err.contains("level set") && err.contains("fog volume"),
+                "{err}"
+            );
+            assert!(!out.exists(), "no output on refusal");
+        }
+        let shot = dir.path().join("shot.png");
+        let (code, _, err) = vdbcook(&["view", input, "--screenshot", shot.to_str().unwrap()]);
+        assert_eq!(code, 2, "view {input}: {err}");
+        assert!(err.contains("level set"), "{err}");
+    }
+}
