@@ -20,14 +20,19 @@ fn display_pbr_neutral(c_in: vec3<f32>) -> vec3<f32> {
 
 fn display_aces(c: vec3<f32>) -> vec3<f32> {
     let x = 0.6 * c;
-    return clamp(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), vec3<f32>(0.0), vec3<f32>(1.0));
+    // Above 1, the same rational divided through by x² (no overflow toward +inf).
+    let y = max(x, vec3<f32>(1.0));
+    let far = (2.51 + 0.03 / y) / (2.43 + 0.59 / y + 0.14 / (y * y));
+    let near = x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14);
+    return clamp(select(near, far, x > vec3<f32>(1.0)), vec3<f32>(0.0), vec3<f32>(1.0));
 }
 
-// Radiance to display-linear values in [0, 1] (NaN and negatives to 0).
+// Radiance to display-linear values in [0, 1]: NaN and negatives to 0, +inf and anything above
+// 1e30 to 1e30 (white), before and after the exposure (`DISPLAY_MAX`).
 fn display_map(rgb: vec3<f32>, scale: f32, curve: u32) -> vec3<f32> {
     // `max` alone may keep a NaN on some drivers: a NaN fails every comparison.
-    let ok = (rgb >= vec3<f32>(0.0)) & (rgb <= vec3<f32>(3.0e38));
-    let c = select(vec3<f32>(0.0), rgb, ok) * scale;
+    let big = vec3<f32>(1.0e30);
+    let c = min(min(select(vec3<f32>(0.0), rgb, rgb >= vec3<f32>(0.0)), big) * scale, big);
     if (curve == 1u) {
         return display_pbr_neutral(c);
     }

@@ -201,8 +201,8 @@ fn lv_phase(phase: vec3<f32>, scale: f32, mu: f32) -> f32 {
     return phase.z * lv_hg(phase.x * scale, mu) + (1.0 - phase.z) * lv_hg(phase.y * scale, mu);
 }
 
-// Where a value `v` falls in the blackbody table of emission `e` (x, y: range in Kelvin, z:
-// intensity): (index i, fraction f, brightness b), the radiance being
+// Where a value `v` falls in the blackbody table of emission `e` (x, y: the channel's value
+// range, z: intensity; the table spans the emission's Kelvin range): (index i, fraction f, brightness b), the radiance being
 // `b · mix(table[i], table[i + 1], f)` (`vdbcook_scene::Emission::radiance`); b = 0 at or below
 // the range. The caller reads its own table (a uniform array cannot be passed by pointer).
 fn lv_emission_at(v: f32, e: vec4<f32>) -> vec3<f32> {

@@ -32,8 +32,8 @@ struct VdbShading {
     // 1: lengths are per voxel (`LengthUnit::Voxel`), 0: per world unit.
     voxel_units: u32,
     _pad: u32,
-    // Emission of the march's own channel (`vdbcook_scene::Emission`): x, y the range in Kelvin,
-    // z the intensity, w 1 when on; the blackbody colours over the range.
+    // Emission of the march's own channel (`vdbcook_scene::Emission`): x, y the value range,
+    // z the intensity, w 1 when on; the blackbody colours over its Kelvin range.
     emission: vec4<f32>,
     emit_table: array<vec4<f32>, 32>,
 }

@@ -264,8 +264,9 @@ pub fn resolve(
     let world = s.medium.unit == LengthUnit::World;
     let per_length = |i: f32| {
         if world {
-            // The convention's intensity is per voxel: per world unit, over the voxel size.
-            i / asset.header.voxel_size[0].abs().max(1e-30) as f32
+            // The convention's intensity is per voxel: per world unit, over the (smallest)
+            // voxel size, as `voxel_pixels` measures voxels.
+            i / min_voxel(asset).max(1e-30) as f32
         } else {
             i
         }
@@ -296,7 +297,9 @@ pub fn resolve(
             }
             None if channel.is_some() => {
                 return Err(CliError::Usage(format!(
-                    "--emission-grid {}: the channel is not named as flame, temperature or heat,                      so no convention maps it; give its range with --emission LO,HI",
+                    "--emission-grid {}: no convention maps the channel (it is not named as a \
+                     flame, temperature or heat, or never rises above zero); give its range with \
+                     --emission LO,HI",
                     a.emission_grid.as_deref().unwrap_or_default()
                 )))
             }
@@ -355,6 +358,16 @@ pub fn resolve(
     Ok(r)
 }
 
+/// The smallest side of a voxel in world units.
+fn min_voxel(asset: &Asset) -> f64 {
+    asset
+        .header
+        .voxel_size
+        .iter()
+        .map(|v| v.abs())
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// How many pixels the frame's nearest stored voxel spans (its size over the pixel's footprint
 /// at the nearest point of the frame's stored box; infinite with the eye inside it).
 pub fn voxel_pixels(asset: &Asset, camera: &Camera, s: &RenderSettings) -> f64 {
@@ -379,12 +392,7 @@ pub fn voxel_pixels(asset: &Asset, camera: &Camera, s: &RenderSettings) -> f64 {
             d * d
         })
         .sum();
-    let voxel = asset
-        .header
-        .voxel_size
-        .iter()
-        .map(|v| v.abs())
-        .fold(f64::INFINITY, f64::min);
+    let voxel = min_voxel(asset);
     let px = d2.sqrt() * vdbcook_trace::pixel_angle(camera.fov_y_deg, s.output.height);
     if px <= 0.0 {
         f64::INFINITY

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use serde_json::json;
 use vdbcook_asset::Asset;
-pub use vdbcook_trace::{linear_to_srgb8, srgb_to_linear};
+use vdbcook_trace::{linear_to_srgb8, srgb_to_linear};
 use vdbcook_trace::{Camera, Display, Image, March, Mode, Output, RenderSettings, Scratch, Tracer};
 
 use crate::errors::CliError;
@@ -659,6 +659,18 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .display(a.background.is_some())
         .validate()
         .map_err(CliError::Usage)?;
+    if a.background.is_some() && (a.look.exposure != 0.0 || a.look.transparent) {
+        return Err(CliError::Usage(format!(
+            "{} applies to the volume alone, and over a --background plate the image is the \
+             composite (the plate is display-referred and comes back as it is): render without \
+             the plate (--transparent, EXR) and composite it yourself",
+            if a.look.transparent {
+                "--transparent"
+            } else {
+                "--exposure"
+            }
+        )));
+    }
     if a.depth.is_some() && !matches!(s.integrator.mode, Mode::Density | Mode::Lit) {
         return Err(CliError::Usage(format!(
             "--depth cuts the density and lit modes only (the other modes do not stop at a \
@@ -838,7 +850,24 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             let rgba = display_rgba8(&image, mode, display, a.look.transparent);
             write_png(&a.output, image.width, image.height, &rgba)?;
         }
-        // The diagnostic modes' false colours are display values already.
+        // Over a plate (decoded to linear light) a diagnostic mode's image is sRGB-encoded back,
+        // so that the plate comes back as it was.
+        OutFormat::Png if plate.is_some() => {
+            let rgba: Vec<u8> = image
+                .rgba
+                .chunks_exact(4)
+                .flat_map(|p| {
+                    [
+                        linear_to_srgb8(p[0]),
+                        linear_to_srgb8(p[1]),
+                        linear_to_srgb8(p[2]),
+                        (p[3].clamp(0.0, 1.0) * 255.0).round() as u8,
+                    ]
+                })
+                .collect();
+            write_png(&a.output, image.width, image.height, &rgba)?;
+        }
+        // Alone, the diagnostic modes' false colours are display values already.
         OutFormat::Png => write_png(&a.output, image.width, image.height, &image.to_rgba8())?,
     }
     let seconds = t0.elapsed().as_secs_f64();

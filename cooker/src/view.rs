@@ -125,6 +125,9 @@ pub struct Start {
     pub settings: vdbcook_trace::RenderSettings,
     pub camera: vdbcook_trace::Camera,
     pub display: vdbcook_trace::Display,
+    /// `--filter auto`: the filter was chosen for the lit mode, and the other modes read
+    /// nearest, as `render` does in them.
+    pub filter_auto: bool,
     pub transparent: bool,
 }
 
@@ -135,6 +138,7 @@ pub fn start(a: &Args, asset: &vdbcook_asset::Asset) -> Result<Start, CliError> 
         settings,
         camera: camera.expect("resolved on the asset"),
         display: a.look.display(false),
+        filter_auto: a.look.filter == "auto",
         transparent: a.look.transparent,
     })
 }
@@ -330,6 +334,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         clock: f64,
         settings: Settings,
         display: vdbcook_trace::Display,
+        filter_auto: bool,
         transparent: bool,
         srgb_target: bool,
         look_buf: wgpu::Buffer,
@@ -453,6 +458,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 clock: 0.0,
                 settings: start.settings.clone(),
                 display: start.display,
+                filter_auto: start.filter_auto,
                 transparent: start.transparent,
                 srgb_target: format.is_srgb(),
                 look_buf,
@@ -586,6 +592,12 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
                 },
                 integrator: Integrator {
                     mode,
+                    // `--filter auto` is trilinear in the lit mode only (as `render` resolves it).
+                    filter: if self.filter_auto && mode != Mode::Lit {
+                        vdbcook_trace::Filter::Nearest
+                    } else {
+                        self.settings.integrator.filter
+                    },
                     ..self.settings.integrator.clone()
                 },
                 ..self.settings.clone()
@@ -735,11 +747,8 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             a.look.emission_grid.as_deref(),
             a.look.emission != "off",
         )?;
-        crate::render::refuse_unshowable(
-            &asset,
-            &a.input,
-            Mode::parse(&a.mode).expect("clap checked"),
-        )?;
+        // `m` cycles through modes that march: refused whatever mode the view starts in.
+        crate::render::refuse_unshowable(&asset, &a.input, Mode::Density)?;
         if a.frame >= asset.frame_count() {
             return Err(CliError::Usage(format!(
                 "--frame {} is out of range: {} has {} frame(s)",

@@ -11,7 +11,6 @@ use std::path::Path;
 
 use common::{gpu_required, json, read_pfm, read_png, vdbcook};
 use serde_json::Value;
-use vdbcook_trace::{Display, Tonemap};
 
 const W: u32 = 128;
 const H: u32 = 96;
@@ -129,6 +128,14 @@ fn fire_glows_by_its_tools_convention_where_it_is_hot_and_nowhere_else() {
                 hot > 40,
                 "{file} {mode}: the core is not glowing (red − blue {hot})"
             );
+            // The top is smoke, not the background: what is judged there is covered.
+            let (ti, tj) = project(&doc, top);
+            let k = 4 * (tj * W as usize + ti);
+            let off = (0..3).map(|c| px[k + c].abs_diff(px[c])).max().unwrap();
+            assert!(
+                off > 8,
+                "{file} {mode}: the top of the smoke is not in the image"
+            );
             assert!(
                 cold < 12,
                 "{file} {mode}: the cold top glows (red − blue {cold})"
@@ -208,9 +215,63 @@ fn gpu_fire_glows_as_the_cpu_does() {
     assert!(g.abs_diff(c) * 10 <= c, "GPU {g} glowing pixels, CPU {c}");
 }
 
+/// The RGBA pixels of a `W`×`H` EXR as the `exr` crate reads them (row 0 at the top).
+fn read_exr(path: &Path) -> Vec<[f32; 4]> {
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| vec![[0f32; 4]; res.width() * res.height()],
+        |px: &mut Vec<[f32; 4]>, pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            px[pos.y() * W as usize + pos.x()] = [r, g, b, a];
+        },
+    )
+    .unwrap();
+    img.layer_data.channel_data.pixels
+}
+
+/// The published curves, written here from their definitions in f64, apart from
+/// `vdbcook_scene::display`: exposure, Khronos PBR Neutral, Narkowicz's ACES fit or a clamp,
+/// then IEC 61966-2-1's sRGB encoding to 8 bits.
+fn reference_display(rgb: [f32; 3], tonemap: &str, ev: f64) -> [u8; 3] {
+    let c = rgb.map(|v| (v as f64).max(0.0) * ev.exp2());
+    let m = match tonemap {
+        "none" => c.map(|v| v.min(1.0)),
+        "aces" => c.map(|v| {
+            let x = 0.6 * v;
+            (x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+        }),
+        "pbr-neutral" => {
+            let x = c[0].min(c[1]).min(c[2]);
+            let offset = if x < 0.08 { x - 6.25 * x * x } else { 0.04 };
+            let c = c.map(|v| v - offset);
+            let peak = c[0].max(c[1]).max(c[2]);
+            if peak < 0.76 {
+                c
+            } else {
+                let d = 0.24;
+                let new_peak = 1.0 - d * d / (peak + d - 0.76);
+                let g = 1.0 - 1.0 / (0.15 * (peak - new_peak) + 1.0);
+                c.map(|v| (v * new_peak / peak) * (1.0 - g) + new_peak * g)
+            }
+        }
+        t => panic!("no reference for {t}"),
+    };
+    m.map(|v| {
+        let v = v.clamp(0.0, 1.0);
+        let s = if v <= 0.003_130_8 {
+            12.92 * v
+        } else {
+            1.055 * v.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round() as u8
+    })
+}
+
 /// One colour pipeline: a PNG's bytes are the PFM's radiance (the same render) through exposure,
-/// the tone map and the sRGB curve, alone (the sky behind) and over a plate alike; the EXR is
-/// that radiance, with the volume's opacity (or the sky's 1) as alpha.
+/// the tone map and the sRGB curve (as written here from the curves' definitions), alone (the
+/// sky behind) and over a plate alike; over a plate the default (`auto`: no tone map) gives the
+/// plate back byte for byte where the volume is not; the EXR is that radiance, opaque over the
+/// sky; `--transparent` gives the volume's opacity as alpha, straight colour in the PNG and
+/// premultiplied in the EXR.
 #[test]
 fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
     let dir = tempfile::tempdir().unwrap();
@@ -230,17 +291,12 @@ fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
         ("aces", "1.5", None),
         ("none", "-1", None),
         ("pbr-neutral", "0", Some(plate_s.as_str())),
+        ("auto", "0", Some(plate_s.as_str())),
     ] {
-        let mut extra = vec![
-            "--mode",
-            "lit",
-            "--backend",
-            "cpu",
-            "--tonemap",
-            tonemap,
-            "--exposure",
-            ev,
-        ];
+        let mut extra = vec!["--mode", "lit", "--backend", "cpu", "--tonemap", tonemap];
+        if ev != "0" {
+            extra.extend_from_slice(&["--exposure", ev]);
+        }
         if let Some(p) = over {
             extra.extend_from_slice(&["--background", p]);
         }
@@ -261,13 +317,15 @@ fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
         let (code, _, err) = vdbcook(&args);
         assert_eq!(code, 0, "{err}");
         let (_, _, rgb) = read_pfm(&pfm);
-        let d = Display {
-            exposure_ev: ev.parse().unwrap(),
-            tonemap: Tonemap::parse(tonemap).unwrap(),
+        let curve = match (tonemap, over) {
+            ("auto", Some(_)) => "none",
+            ("auto", None) => "pbr-neutral",
+            (t, _) => t,
         };
+        let ev_f: f64 = ev.parse().unwrap();
         let mut lit = 0;
         for (k, c) in rgb.chunks_exact(3).enumerate() {
-            let want = d.encode8([c[0], c[1], c[2]]);
+            let want = reference_display([c[0], c[1], c[2]], curve, ev_f);
             for ch in 0..3 {
                 let got = png[4 * k + ch];
                 assert!(
@@ -279,6 +337,15 @@ fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
             lit += (c[0] > 0.3) as usize;
         }
         assert!(lit > 100, "{tonemap}: only {lit} bright pixels");
+        if tonemap == "auto" {
+            let same = (0..(W * H) as usize)
+                .filter(|&k| png[4 * k..4 * k + 4] == plate_px[4 * k..4 * k + 4])
+                .count();
+            assert!(
+                same > (W * H) as usize / 3,
+                "the plate comes back where the volume is not: {same} pixels"
+            );
+        }
         // EXR (float and half) read back by the `exr` crate: the PFM's radiance.
         for half in [false, true] {
             let exr = dir.path().join("x.exr");
@@ -289,15 +356,7 @@ fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
             }
             let (code, _, err) = vdbcook(&args);
             assert_eq!(code, 0, "{err}");
-            let img = exr::prelude::read_first_rgba_layer_from_file(
-                &exr,
-                |res, _| vec![[0f32; 4]; res.width() * res.height()],
-                |px: &mut Vec<[f32; 4]>, pos, (r, g, b, a): (f32, f32, f32, f32)| {
-                    px[pos.y() * W as usize + pos.x()] = [r, g, b, a];
-                },
-            )
-            .unwrap();
-            let px = &img.layer_data.channel_data.pixels;
+            let px = &read_exr(&exr);
             assert_eq!(px.len(), (W * H) as usize);
             let tol = if half { 1e-3 } else { 0.0 };
             for (k, c) in rgb.chunks_exact(3).enumerate() {
@@ -308,10 +367,56 @@ fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
                         "EXR {half} {k}: {got} vs {want}"
                     );
                 }
-                assert!((0.0..=1.0).contains(&px[k][3]));
+                // Opaque: the sky (alone) or the plate's alpha (255) behind.
+                assert_eq!(px[k][3], 1.0, "EXR alpha {k}");
             }
         }
     }
+    // --transparent: no sky; the PNG's alpha is the EXR's, its colour the EXR's divided by it.
+    let (png_t, exr_t) = (dir.path().join("t.png"), dir.path().join("t.exr"));
+    let (w, h) = (W.to_string(), H.to_string());
+    for out in [&png_t, &exr_t] {
+        let (code, _, err) = vdbcook(&[
+            "render",
+            &asset,
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            &w,
+            "--height",
+            &h,
+            "--mode",
+            "lit",
+            "--backend",
+            "cpu",
+            "--transparent",
+        ]);
+        assert_eq!(code, 0, "{err}");
+    }
+    let png = read_png(&png_t).2;
+    let px = &read_exr(&exr_t);
+    let (mut clear, mut partial) = (0, 0);
+    for (k, p) in px.iter().enumerate() {
+        let a = p[3];
+        assert!((0.0..=1.0).contains(&a));
+        assert_eq!(png[4 * k + 3], (a * 255.0).round() as u8, "alpha {k}");
+        clear += (a == 0.0) as usize;
+        if a > 0.05 {
+            partial += (a < 0.95) as usize;
+            let want = reference_display([p[0] / a, p[1] / a, p[2] / a], "pbr-neutral", 0.0);
+            for c in 0..3 {
+                let got = png[4 * k + c];
+                assert!(
+                    (got as i32 - want[c] as i32).abs() <= 1,
+                    "straight colour {k}"
+                );
+            }
+        }
+    }
+    assert!(
+        clear > px.len() / 3 && partial > 20,
+        "{clear} clear, {partial} partly covered"
+    );
 }
 
 /// A level set cooks exactly (its class kept in the asset), and every command that would march
@@ -349,6 +454,22 @@ fn level_sets_are_cooked_and_refused_by_the_fog_renderers() {
                 "{err}"
             );
             assert!(!out.exists(), "no output on refusal");
+        }
+        // `report`'s renders too (its cooks would be fine, its images flat).
+        if input.ends_with(".vdb") {
+            let rep = dir.path().join("rep");
+            let (code, _, err) = vdbcook(&[
+                "report",
+                input,
+                "-o",
+                rep.to_str().unwrap(),
+                "--quick",
+                "--no-gpu",
+                "--no-peers",
+            ]);
+            assert_eq!(code, 2, "report {input}: {err}");
+            assert!(err.contains("level set"), "{err}");
+            assert!(!rep.join("report.md").exists());
         }
         let shot = dir.path().join("shot.png");
         let (code, _, err) = vdbcook(&["view", input, "--screenshot", shot.to_str().unwrap()]);

@@ -22,6 +22,18 @@ fn gpu_run(args: &[&str]) -> Option<(i32, String, String)> {
     Some((code, out, err))
 }
 
+/// The `--camera` argument of `render` that reproduces a `view --json` run's final camera.
+fn camera_arg(doc: &Value) -> String {
+    let c = &doc["camera"];
+    let num = |v: &Value| v.as_f64().unwrap().to_string();
+    (0..3)
+        .map(|i| num(&c["eye"][i]))
+        .chain((0..3).map(|i| num(&c["look_at"][i])))
+        .chain([num(&c["fov_y_deg"])])
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
 #[test]
 fn headless_screenshot_shows_the_volume_and_matches_render() {
     let dir = tempfile::tempdir().unwrap();
@@ -87,13 +99,7 @@ fn headless_screenshot_shows_the_volume_and_matches_render() {
         );
 
         // `render` with the reported camera draws the same picture.
-        let c = &doc["camera"];
-        let num = |v: &Value| v.as_f64().unwrap().to_string();
-        let cam: Vec<String> = (0..3)
-            .map(|i| num(&c["eye"][i]))
-            .chain((0..3).map(|i| num(&c["look_at"][i])))
-            .chain([num(&c["fov_y_deg"])])
-            .collect();
+        let cam = camera_arg(&doc);
         let reference = dir.path().join(format!("render-{mode}.png"));
         let (code, _, err) = vdbcook(&[
             "render",
@@ -111,7 +117,7 @@ fn headless_screenshot_shows_the_volume_and_matches_render() {
             "--height",
             "90",
             "--camera",
-            &cam.join(","),
+            &cam,
             "--light",
             "0.3,0.3,0",
         ]);
@@ -308,13 +314,21 @@ fn bad_input_is_refused_with_a_reason() {
 fn the_viewer_tone_maps_as_render_does() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
-    for (tonemap, ev) in [("aces", "1"), ("pbr-neutral", "2"), ("none", "0.5")] {
-        let shot = dir.path().join(format!("view-{tonemap}.png"));
+    // The lit mode adds the sky behind the volume (the blit's sky flag).
+    for (tonemap, ev, mode) in [
+        ("aces", "1", "density"),
+        ("pbr-neutral", "2", "density"),
+        ("none", "0.5", "density"),
+        ("pbr-neutral", "0", "lit"),
+    ] {
+        let shot = dir.path().join(format!("view-{tonemap}-{mode}.png"));
         let look = [
             "--tonemap",
             tonemap,
             "--exposure",
             ev,
+            "--mode",
+            mode,
             "--width",
             "96",
             "--height",
@@ -333,15 +347,8 @@ fn the_viewer_tone_maps_as_render_does() {
         };
         assert_eq!(code, 0, "{err}");
         let doc: Value = serde_json::from_str(&stdout).unwrap();
-        let c = &doc["camera"];
-        let num = |v: &Value| v.as_f64().unwrap().to_string();
-        let cam: Vec<String> = (0..3)
-            .map(|i| num(&c["eye"][i]))
-            .chain((0..3).map(|i| num(&c["look_at"][i])))
-            .chain([num(&c["fov_y_deg"])])
-            .collect();
-        let reference = dir.path().join(format!("render-{tonemap}.png"));
-        let cam = cam.join(",");
+        let reference = dir.path().join(format!("render-{tonemap}-{mode}.png"));
+        let cam = camera_arg(&doc);
         let mut args = vec![
             "render",
             &asset,
@@ -365,7 +372,7 @@ fn the_viewer_tone_maps_as_render_does() {
             .unwrap();
         assert!(
             worst <= 2,
-            "{tonemap}: view and render differ by {worst}/255"
+            "{tonemap} {mode}: view and render differ by {worst}/255"
         );
         let white = want.chunks(4).filter(|p| p[0] >= 128).count();
         assert!(

@@ -189,9 +189,20 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
             };
             active = d.active_voxels;
             grid_name = cooked.asset.header.grid_name.clone();
+            // Its renders would march a level set as a fog: refused as `render` refuses it.
+            crate::render::refuse_unshowable(
+                &cooked.asset,
+                std::path::Path::new(&a.inputs[0]),
+                mode,
+            )?;
             camera = Some(
-                Camera::framing(&cooked.asset, a.frame, w as f64 / h as f64)
-                    .map_err(|e| other(format!("{}: {e}", a.inputs[0])))?,
+                Camera::framing_up(
+                    &cooked.asset,
+                    a.frame,
+                    w as f64 / h as f64,
+                    vdbcook_trace::source_up(&cooked.asset),
+                )
+                .map_err(|e| other(format!("{}: {e}", a.inputs[0])))?,
             );
         }
         let cam = camera.as_ref().expect("set by the first cook");

@@ -91,13 +91,16 @@ impl Asset {
                     h.lod_levels
                 ));
             }
-            if (version == FORMAT_VERSION_LOD_FROM && h.lod_first < 2)
-                || h.lod_first < 1
-                || (h.lod_levels == 0 && h.lod_first != 1)
-            {
+            if version == FORMAT_VERSION_LOD_FROM && h.lod_first < 2 {
                 return bad(format!(
                     "a version-{version} asset's levels start at level 2 or coarser, this one's at {}",
                     h.lod_first
+                ));
+            }
+            if h.lod_first < 1 || (h.lod_levels == 0 && h.lod_first != 1) {
+                return bad(format!(
+                    "a version-{version} asset with {} coarser levels cannot start them at level {}",
+                    h.lod_levels, h.lod_first
                 ));
             }
             if (version == FORMAT_VERSION_CHANNELS || !h.channels.is_empty())

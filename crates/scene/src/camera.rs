@@ -324,3 +324,45 @@ pub fn stored_boxes(asset: &Asset, frame: usize) -> Vec<([f64; 3], [f64; 3])> {
     }
     boxes
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each of the six axes: `up_frame` is a rotation (lengths and handedness kept) taking +Y to
+    /// the axis, and `from_up_frame` undoes it.
+    #[test]
+    fn up_frames_are_rotations_and_invert() {
+        let axes = [
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+        ];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        for up in axes {
+            assert_eq!(up_frame([0.0, 1.0, 0.0], up), up);
+            let (x, y) = (up_frame([1.0, 0.0, 0.0], up), up_frame([0.0, 1.0, 0.0], up));
+            assert_eq!(
+                cross(x, y),
+                up_frame([0.0, 0.0, 1.0], up),
+                "{up:?}: a reflection"
+            );
+            for v in [[1.0, 0.6, 1.4], [-2.0, 3.0, 0.5]] {
+                assert_eq!(from_up_frame(up_frame(v, up), up), v, "{up:?}");
+            }
+        }
+        // Not an axis: the nearest one; nothing usable: Y.
+        assert_eq!(up_frame([0.0, 1.0, 0.0], [0.1, 0.2, 0.9]), [0.0, 0.0, 1.0]);
+        assert_eq!(up_frame([1.0, 2.0, 3.0], [0.0; 3]), [1.0, 2.0, 3.0]);
+        assert_eq!(up_frame([1.0, 2.0, 3.0], [f64::NAN; 3]), [1.0, 2.0, 3.0]);
+    }
+}

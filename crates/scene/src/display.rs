@@ -12,10 +12,11 @@
 /// The tone map: how radiance above display white is brought into `[0, 1]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Tonemap {
-    /// Khronos PBR Neutral (2024): colours whose largest component stays under 0.76 pass
-    /// unchanged but for a small offset of the darkest component (at most 0.04), brighter ones
-    /// are compressed toward 1 along their hue and desaturated as they approach it. Keeps
-    /// smoke's greys grey and fire's hues; the default.
+    /// Khronos PBR Neutral (2024): an offset (at most 0.04, set by the darkest component) is
+    /// taken from all three components; colours whose largest component is then under 0.76 (an
+    /// input of about 0.8) pass as they are, brighter ones are compressed toward 1 along their
+    /// hue and desaturated as they approach it. Keeps smoke's greys grey and fire's hues; the
+    /// default.
     #[default]
     PbrNeutral,
     /// Narkowicz's 2015 fit of the ACES filmic curve (input scaled by 0.6, as the fit is
@@ -56,21 +57,41 @@ impl Tonemap {
         }
     }
 
-    /// Maps linear radiance (already exposed) to display-linear values in `[0, 1]`.
+    /// Maps linear radiance (already exposed) to display-linear values in `[0, 1]`: NaN and
+    /// negatives read 0, +∞ and anything above [`DISPLAY_MAX`] read `DISPLAY_MAX` (white).
     pub fn apply(self, c: [f32; 3]) -> [f32; 3] {
-        let c = c.map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 });
+        let c = c.map(clean);
         match self {
             Tonemap::None => c.map(|v| v.min(1.0)),
             Tonemap::Aces => c.map(|v| {
                 let x = 0.6 * v;
-                (x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+                // Above 1, the same rational divided through by x² (no overflow toward +∞).
+                let f = if x > 1.0 {
+                    (2.51 + 0.03 / x) / (2.43 + 0.59 / x + 0.14 / (x * x))
+                } else {
+                    x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14)
+                };
+                f.clamp(0.0, 1.0)
             }),
             Tonemap::PbrNeutral => pbr_neutral(c),
         }
     }
 }
 
-/// Where PBR Neutral starts compressing (0.8 minus the offset 0.04).
+/// The largest radiance the pipeline takes (above: white; an `Rgba16Float` image's overflow
+/// to +∞ included).
+pub const DISPLAY_MAX: f32 = 1.0e30;
+
+/// NaN and negatives to 0, +∞ and beyond [`DISPLAY_MAX`] to it (the GPU's `display_map`).
+fn clean(v: f32) -> f32 {
+    if v >= 0.0 {
+        v.min(DISPLAY_MAX)
+    } else {
+        0.0
+    }
+}
+
+/// Where PBR Neutral's compression starts, after the offset (an input of about 0.8).
 pub const PBR_NEUTRAL_START: f32 = 0.76;
 /// PBR Neutral's desaturation speed.
 pub const PBR_NEUTRAL_DESATURATION: f32 = 0.15;
@@ -119,7 +140,7 @@ impl Display {
     /// Radiance to display-linear values in `[0, 1]` (before the transfer curve).
     pub fn map(&self, rgb: [f32; 3]) -> [f32; 3] {
         let s = self.scale();
-        self.tonemap.apply(rgb.map(|v| v * s))
+        self.tonemap.apply(rgb.map(|v| clean(v) * s))
     }
 
     /// Radiance to 8-bit sRGB codes.
@@ -232,7 +253,11 @@ mod tests {
             tonemap: Tonemap::None,
         };
         assert_eq!(d.map([0.25, 0.5, 2.0]), [0.5, 1.0, 1.0]);
-        assert_eq!(d.map([f32::NAN, -1.0, f32::INFINITY]), [0.0, 0.0, 0.0]);
+        assert_eq!(d.map([f32::NAN, -1.0, f32::INFINITY]), [0.0, 0.0, 1.0]);
+        for t in [Tonemap::PbrNeutral, Tonemap::Aces] {
+            let w = t.apply([f32::INFINITY, f32::MAX, 1e38]);
+            assert!(w.iter().all(|v| *v > 0.99 && *v <= 1.0), "{t:?}: {w:?}");
+        }
         assert!(Display {
             exposure_ev: f32::NAN,
             ..d

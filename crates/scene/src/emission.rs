@@ -1,5 +1,6 @@
 //! Emission of hot media: the blackbody colour of a temperature (Planck's law through the CIE
-//! 1931 observer to linear sRGB) and the emitted radiance of a voxel value read as Kelvin. The
+//! 1931 observer to linear sRGB) and the emitted radiance of a voxel value, whose range maps to
+//! a Kelvin range (a Kelvin grid's own values, or a simulation's units by `crate::fire`). The
 //! CPU tracer and the GPU runtime both evaluate emission from the same table
 //! ([`blackbody_table`], uploaded as is), so their images agree to f32 rounding.
 //!

@@ -4,7 +4,7 @@
 //!
 //! Simulation tools store heat in their own units, not Kelvin (measured on real caches, see
 //! `docs/rendering.md`):
-//! - **Kelvin grids** (EmberGen's and renderer-oriented exports, `--emission` in Kelvin): a
+//! - **Kelvin grids** (renderer-oriented exports; some tools write Kelvin, unmeasured here): a
 //!   temperature-named channel whose maximum exceeds [`KELVIN_MIN_MAX`]. It glows from
 //!   [`DRAPER_KELVIN`] (where a body starts to glow visibly) to its maximum, coloured by its own
 //!   temperature.
@@ -14,15 +14,19 @@
 //!   maximum, coloured from [`FLAME_KELVIN`]`[0]` to 1000 K × the temperature channel's
 //!   maximum (or [`FLAME_KELVIN`]`[1]` without one).
 //! - **Houdini's `heat`** (its pyro's burn field, 0..1) glows as a flame channel does when the
-//!   source is not Blender's (Blender's `heat` is its smoke's buoyancy temperature).
+//!   file says Houdini wrote it (`creator`; Blender's old smoke writes a `heat` that is its
+//!   buoyancy temperature).
 //! - **Simulation temperature alone** (a `temperature` of a few units and no flame: the
 //!   buoyancy of a smoke simulation, not fire) does not glow by default; named with
 //!   `--emission-grid`, it glows above a quarter of its maximum at 1000 K per unit (Blender's
 //!   convention), at least [`FLAME_KELVIN`]`[0]`.
 //!
 //! The intensity is chosen so that a flame whose hottest part spans about a sixth of the
-//! frame's longest side reaches about radiance 1 through it (`FIRE_DEPTH / longest side`, per
-//! voxel of length): fire looks alike at any resolution and exposure corrects the rest.
+//! frame's longest side reaches about radiance [`FIRE_RADIANCE`] through it (`FIRE_RADIANCE ·
+//! FIRE_DEPTH / longest side`, per voxel of length): brighter than sunlit smoke (about 1), as
+//! fire is, alike at any resolution; exposure corrects the rest. A flame channel reaches full
+//! brightness at [`FLAME_FULL`] of its maximum (a flame's core is a few voxels: most of its
+//! voxels sit well below the peak, and the s⁴ rise would leave them dark).
 
 use vdbcook_asset::Asset;
 
@@ -38,9 +42,12 @@ pub const FLAME_KELVIN: [f32; 2] = [1500.0, 2800.0];
 /// Kelvin per simulation unit of temperature (Blender's Principled Volume: temperature
 /// attribute × 1000 K).
 pub const KELVIN_PER_UNIT: f32 = 1000.0;
-/// The depth (in units of the frame's longest side) over which the hottest part of a flame
-/// adds radiance 1.
+/// The hottest part of a flame spans a `1/FIRE_DEPTH` of the frame's longest side...
 pub const FIRE_DEPTH: f32 = 6.0;
+/// ...and adds this radiance through it.
+pub const FIRE_RADIANCE: f32 = 5.0;
+/// The share of a flame channel's maximum at which it glows at full brightness.
+pub const FLAME_FULL: f32 = 0.6;
 
 /// Names of channels that burn (normalised flame).
 pub const FLAME_NAMES: [&str; 3] = ["flame", "flames", "fire"];
@@ -73,13 +80,14 @@ pub fn channel_named(asset: &Asset, names: &[&str]) -> Option<usize> {
     })
 }
 
-/// The intensity that makes a flame of the given frame glow about 1 across [`FIRE_DEPTH`]ths
-/// of its longest side (per voxel of length; a world-unit caller divides by the voxel size).
+/// The intensity that makes a flame of the given frame glow about [`FIRE_RADIANCE`] across a
+/// [`FIRE_DEPTH`]th of its longest side (per voxel of length; a world-unit caller divides by
+/// the voxel size).
 pub fn fire_intensity(asset: &Asset, frame: usize) -> f32 {
     let side = crate::stored_bbox(asset, frame)
         .map(|(lo, hi)| (0..3).map(|a| hi[a] - lo[a]).fold(1.0, f64::max))
         .unwrap_or(1.0);
-    (FIRE_DEPTH as f64 / side) as f32
+    (FIRE_RADIANCE as f64 * FIRE_DEPTH as f64 / side) as f32
 }
 
 /// The emission an asset's channels call for, or `None` when no channel is named as heat or
@@ -92,16 +100,19 @@ pub fn fire_convention(asset: &Asset, channel: Option<usize>) -> Option<FireConv
         Some(c) => is(c, &HEAT_NAMES).then_some(c),
         None => channel_named(asset, &HEAT_NAMES),
     };
-    // Houdini's `heat` burns (Blender's is its smoke's buoyancy temperature).
-    let blender = asset.header.source.up == "z";
-    let burns = |c: usize| is(c, &FLAME_NAMES) || (!blender && is(c, &["heat"]));
+    // Houdini's `heat` burns (Blender's old smoke writes a `heat` that is its buoyancy
+    // temperature; a file that does not say who wrote it gets no glow from `heat`).
+    let houdini = asset
+        .header
+        .source
+        .creator
+        .to_ascii_lowercase()
+        .contains("houdini");
+    let burns = |c: usize| is(c, &FLAME_NAMES) || (houdini && is(c, &["heat"]));
     let flame = match channel {
         Some(c) => burns(c).then_some(c),
-        None => channel_named(asset, &FLAME_NAMES).or_else(|| {
-            (!blender)
-                .then(|| channel_named(asset, &["heat"]))
-                .flatten()
-        }),
+        None => channel_named(asset, &FLAME_NAMES)
+            .or_else(|| houdini.then(|| channel_named(asset, &["heat"])).flatten()),
     };
     let heat = match (heat, flame) {
         // The burning channel is not also the heat that colours it.
@@ -130,6 +141,8 @@ pub fn fire_convention(asset: &Asset, channel: Option<usize>) -> Option<FireConv
     if let Some(fl) = flame {
         let (max, f) = channel_max(asset, fl);
         if max > 0.0 {
+            // The colour from the temperature channel, whichever channel was named to glow.
+            let heat = channel_named(asset, &["temperature", "temp"]).filter(|&h| h != fl);
             let t_max = heat.map(|h| channel_max(asset, h).0).filter(|m| *m > 0.0);
             let hot = t_max.map_or(FLAME_KELVIN[1], |t| {
                 (t * KELVIN_PER_UNIT).max(FLAME_KELVIN[0])
@@ -137,20 +150,25 @@ pub fn fire_convention(asset: &Asset, channel: Option<usize>) -> Option<FireConv
             return Some(FireConvention {
                 name: "flame",
                 emission: Emission {
-                    range: [0.0, max],
+                    range: [0.0, FLAME_FULL * max],
                     kelvin: [FLAME_KELVIN[0], hot],
                     intensity: fire_intensity(asset, f),
                     channel: fl,
                 },
                 why: match t_max {
                     Some(t) => format!(
-                        "channel {} (0..{max}) glows; its colour runs to {} × {KELVIN_PER_UNIT} K \
-                         = {hot} K (channel {}'s maximum, simulation units)",
+                        "channel {} (0..{max}) glows, fully from {FLAME_FULL} of its maximum; its \
+                         colour runs to {} × {KELVIN_PER_UNIT} K = {hot} K (channel {}'s maximum, \
+                         simulation units)",
                         name(fl),
                         t,
                         name(heat.unwrap_or(0))
                     ),
-                    None => format!("channel {} (0..{max}) glows, {FLAME_KELVIN:?} K", name(fl)),
+                    None => format!(
+                        "channel {} (0..{max}) glows, fully from {FLAME_FULL} of its maximum, \
+                         {FLAME_KELVIN:?} K",
+                        name(fl)
+                    ),
                 },
             });
         }

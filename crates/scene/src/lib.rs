@@ -35,7 +35,8 @@ pub use display::{
 pub use emission::{blackbody_rgb, blackbody_table, blackbody_xyz, Emission, BLACKBODY_TABLE_LEN};
 pub use fire::{
     channel_max, channel_named, fire_convention, fire_intensity, FireConvention, DRAPER_KELVIN,
-    FIRE_DEPTH, FLAME_KELVIN, FLAME_NAMES, HEAT_NAMES, KELVIN_MIN_MAX, KELVIN_PER_UNIT,
+    FIRE_DEPTH, FIRE_RADIANCE, FLAME_FULL, FLAME_KELVIN, FLAME_NAMES, HEAT_NAMES, KELVIN_MIN_MAX,
+    KELVIN_PER_UNIT,
 };
 pub use footprint::{level_start, pixel_angle};
 pub use light::{

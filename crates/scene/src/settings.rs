@@ -236,8 +236,9 @@ pub struct Medium {
     /// `[−MAX_PHASE_G, MAX_PHASE_G]` (positive: forward), `w = phase_w ∈ [0, 1]`.
     pub phase_g: [f32; 2],
     pub phase_w: f32,
-    /// Blackbody emission of a channel read as Kelvin (the shaded modes: `Density`,
-    /// `SingleScatter`, `DeltaTracking`, `Reference`, `Lit`).
+    /// Blackbody emission of a channel, its values mapped to a Kelvin range (the shaded modes:
+    /// `Density`, `SingleScatter`, `DeltaTracking`, `Reference`, `Lit`; `crate::fire_convention`
+    /// picks one by a tool's conventions).
     pub emission: Option<crate::Emission>,
 }
 

@@ -44,8 +44,8 @@
 //! # Modes (`Sample::rgba` display colour, `Sample::value` raw quantity)
 //! - **Density**: `τ = Σ max(v, 0)·ℓ` over the voxels crossed (`ℓ` = segment length in the
 //!   unit) — exact, no step error — stopping once `absorb·τ ≥ 20`; `T = exp(−absorb·τ)`;
-//!   rgba = `(1−T, 1−T, 1−T, 1)`, value = `T`. With `emission` (the voxel values read as Kelvin,
-//!   `vdbcook_scene::Emission`), rgb also gains the emitted light that reaches the eye: over a
+//!   rgba = `(1−T, 1−T, 1−T, 1)`, value = `T`. With `emission` (the voxel values mapped to blackbody
+//!   light, `vdbcook_scene::Emission`), rgb also gains the emitted light that reaches the eye: over a
 //!   segment of length `ℓ` with value `v`, `T_before · E(v) · ℓ · (1 − e^{−x})/x`,
 //!   `x = absorb·v·ℓ` (exact for the constant segment), `E` read from the blackbody table of the
 //!   range (`blackbody_table`, linear interpolation) in f32 on both tracers.
