@@ -55,8 +55,8 @@ fn warmth(px: &[u8], (i, j): (usize, usize)) -> i32 {
     best
 }
 
-fn render(dir: &Path, input: &str, name: &str, extra: &[&str]) -> (Value, Vec<u8>) {
-    let out = dir.join(name);
+/// `vdbcook render INPUT -o OUT --width W --height H EXTRA...`: exit code and stderr.
+fn run_render(input: &str, out: &Path, extra: &[&str]) -> (i32, String) {
     let (w, h) = (W.to_string(), H.to_string());
     let mut args = vec![
         "render",
@@ -67,11 +67,20 @@ fn render(dir: &Path, input: &str, name: &str, extra: &[&str]) -> (Value, Vec<u8
         &w,
         "--height",
         &h,
-        "--json",
     ];
     args.extend_from_slice(extra);
-    let doc = json(&args);
-    (doc, read_png(&out).2)
+    let (code, _, err) = vdbcook(&args);
+    (code, err)
+}
+
+/// `render` to `dir/name` (PNG) with `--json`: the document and the pixels.
+fn render(dir: &Path, input: &str, name: &str, extra: &[&str]) -> (Value, Vec<u8>) {
+    let out = dir.join(name);
+    let (w, h) = (W.to_string(), H.to_string());
+    let mut args = vec!["render", input, "-o", out.to_str().unwrap(), "--json"];
+    args.extend_from_slice(&["--width", &w, "--height", &h]);
+    args.extend_from_slice(extra);
+    (json(&args), read_png(&out).2)
 }
 
 /// Index `ijk` of the conventions fixtures (voxel size 0.1, no translation) in world units.
@@ -185,19 +194,7 @@ fn gpu_fire_glows_as_the_cpu_does() {
     let dir = tempfile::tempdir().unwrap();
     let file = "fixtures/vdb/fire_blender.vdb";
     let out = dir.path().join("gpu.png");
-    let (w, h) = (W.to_string(), H.to_string());
-    let (code, _, err) = vdbcook(&[
-        "render",
-        file,
-        "-o",
-        out.to_str().unwrap(),
-        "--width",
-        &w,
-        "--height",
-        &h,
-        "--backend",
-        "gpu",
-    ]);
+    let (code, err) = run_render(file, &out, &["--backend", "gpu"]);
     if code != 0 && !gpu_required() && err.contains("adapter") {
         eprintln!("skipped: no GPU adapter ({err})");
         return;
@@ -374,23 +371,9 @@ fn png_is_the_tone_mapped_radiance_and_exr_is_linear() {
     }
     // --transparent: no sky; the PNG's alpha is the EXR's, its colour the EXR's divided by it.
     let (png_t, exr_t) = (dir.path().join("t.png"), dir.path().join("t.exr"));
-    let (w, h) = (W.to_string(), H.to_string());
     for out in [&png_t, &exr_t] {
-        let (code, _, err) = vdbcook(&[
-            "render",
-            &asset,
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            &w,
-            "--height",
-            &h,
-            "--mode",
-            "lit",
-            "--backend",
-            "cpu",
-            "--transparent",
-        ]);
+        let extra = ["--mode", "lit", "--backend", "cpu", "--transparent"];
+        let (code, err) = run_render(&asset, out, &extra);
         assert_eq!(code, 0, "{err}");
     }
     let png = read_png(&png_t).2;

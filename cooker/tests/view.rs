@@ -22,6 +22,11 @@ fn gpu_run(args: &[&str]) -> Option<(i32, String, String)> {
     Some((code, out, err))
 }
 
+/// The largest difference of two images' bytes.
+fn worst_diff(a: &[u8], b: &[u8]) -> u8 {
+    a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap()
+}
+
 /// The `--camera` argument of `render` that reproduces a `view --json` run's final camera.
 fn camera_arg(doc: &Value) -> String {
     let c = &doc["camera"];
@@ -123,12 +128,7 @@ fn headless_screenshot_shows_the_volume_and_matches_render() {
         ]);
         assert_eq!(code, 0, "{err}");
         let (_, _, want) = read_png(&reference);
-        let worst = px
-            .iter()
-            .zip(&want)
-            .map(|(a, b)| a.abs_diff(*b))
-            .max()
-            .unwrap();
+        let worst = worst_diff(&px, &want);
         assert!(worst <= 2, "{mode}: view and render differ by {worst}/255");
     }
 }
@@ -364,12 +364,7 @@ fn the_viewer_tone_maps_as_render_does() {
         assert_eq!(code, 0, "{err}");
         let (_, _, px) = read_png(&shot);
         let (_, _, want) = read_png(&reference);
-        let worst = px
-            .iter()
-            .zip(&want)
-            .map(|(a, b)| a.abs_diff(*b))
-            .max()
-            .unwrap();
+        let worst = worst_diff(&px, &want);
         assert!(
             worst <= 2,
             "{tonemap} {mode}: view and render differ by {worst}/255"
