@@ -39,3 +39,9 @@ fuzz seconds="60":
 # The main job on the built-in default input.
 run:
     cargo run --release -- cook fixtures/seq/smoke5 -o smoke5.vdbc
+
+# On a machine with a real GPU: the runtime's tests on it and `vdbcook bench` (WDAS, stormscape,
+# the fire fixture; 1920×1080; 1, 8, 64 instances) into docs/gpu/<adapter>.md. Under 5 minutes
+# on a GPU; commit the table.
+gpu-check:
+    bash tools/gpu-check.sh

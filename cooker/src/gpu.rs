@@ -19,6 +19,22 @@ pub struct GpuRender {
     pub wall_ms: Vec<f64>,
 }
 
+/// An IEEE 754 half float's value (what an `Rgba16Float` read-back holds).
+pub fn f16_to_f32(h: u16) -> f32 {
+    let (s, e, m) = ((h >> 15) & 1, (h >> 10) & 0x1f, (h & 0x3ff) as f32);
+    let v = match e {
+        0 => m * 2f32.powi(-24),
+        31 if m == 0.0 => f32::INFINITY,
+        31 => f32::NAN,
+        _ => (1.0 + m / 1024.0) * 2f32.powi(e as i32 - 15),
+    };
+    if s == 1 {
+        -v
+    } else {
+        v
+    }
+}
+
 #[cfg(feature = "gpu")]
 mod imp {
     use std::time::Instant;

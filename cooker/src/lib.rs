@@ -6,6 +6,7 @@
 //! `vdbcook_runtime`. `docs/architecture.md` maps the crates and the invariants each keeps.
 //! Errors are [`errors::CliError`] values whose kind matches their cause.
 
+pub mod bench;
 pub mod cook;
 pub mod errors;
 pub mod eval;

@@ -4,7 +4,9 @@
 //! exit code.
 
 use clap::{Parser, Subcommand};
-use vdbcook::{cook, errors, eval, gpu, info, inspect, output, progress, render, report, view};
+use vdbcook::{
+    bench, cook, errors, eval, gpu, info, inspect, output, progress, render, report, view,
+};
 
 /// Largest `--threads`.
 const MAX_THREADS: usize = 1024;
@@ -86,6 +88,15 @@ vdbcook report 'cache/smoke.####.vdb' -o r/ --tolerances 0.001,0.01 --mode densi
         after_help = "Controls: left-drag orbits, wheel zooms, space plays/pauses (--fps), left/right arrows step a frame, m cycles modes (density, depth, first-hit, brick-hue, steps, scatter, delta, lit), r resets the camera, Esc quits.\n\nExamples:\n  vdbcook view smoke.vdbc\n  vdbcook view 'cache/smoke.####.vdb' --mode lit --fps 30 --exposure 0.5\n  vdbcook view smoke.vdbc --frames 5 --screenshot shot.png --json   (headless, no window)"
     )]
     View(view::Args),
+    /// What an effect costs in a game on this GPU: the runtime's engine drawer, N instances,
+    /// density and lit, static and playing (the flip-book at --fps under --display-fps), median
+    /// GPU ms per displayed frame by timestamp queries, and the playing path's image error.
+    #[command(
+        after_help = "Takes render's look flags (--light, --emission, --filter, ...).\n\nExamples:\n  \
+vdbcook bench smoke.vdbc\n  vdbcook bench cloud.vdbc --width 1920 --height 1080 --instances 1,8,64 --json\n  \
+vdbcook bench fire.vdbc --modes lit --fps 30 --display-fps 120"
+    )]
+    Bench(bench::Args),
 }
 
 fn main() {
@@ -106,10 +117,11 @@ fn main() {
         Command::Render(a) => a.json,
         Command::Report(a) => a.json,
         Command::View(a) => a.json,
+        Command::Bench(a) => a.json,
     };
     if matches!(
         cli.command,
-        Command::Render(_) | Command::Report(_) | Command::View(_)
+        Command::Render(_) | Command::Report(_) | Command::View(_) | Command::Bench(_)
     ) {
         gpu::private_runtime_dir();
     }
@@ -141,6 +153,7 @@ fn main() {
         Command::Render(a) => render::run(a),
         Command::Report(a) => report::run(a),
         Command::View(a) => view::run(a),
+        Command::Bench(a) => bench::run(a),
     };
     if let Err(e) = result {
         errors::fail(json, &e);

@@ -1020,20 +1020,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
 
     const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
-    fn f16_to_f32(h: u16) -> f32 {
-        let (s, e, m) = ((h >> 15) & 1, (h >> 10) & 0x1f, (h & 0x3ff) as f32);
-        let v = match e {
-            0 => m * 2f32.powi(-24),
-            31 if m == 0.0 => f32::INFINITY,
-            31 => f32::NAN,
-            _ => (1.0 + m / 1024.0) * 2f32.powi(e as i32 - 15),
-        };
-        if s == 1 {
-            -v
-        } else {
-            v
-        }
-    }
+    use crate::gpu::f16_to_f32;
 
     /// The density mode composited by the runtime's engine drawer on `gpu`'s device over
     /// `plate` (black without one), cut at `depth` (view-axis distances, row 0 at the top): the

@@ -1,0 +1,546 @@
+//! `vdbcook bench`: what an effect costs in a game on this machine's GPU. The runtime's engine
+//! drawer (`VolumeDrawer`, the code an engine links) draws N instances of the asset, flat
+//! (density) and lit, into an `Rgba16Float` target with a depth buffer, with the look `render`
+//! gives from the same flags (`crate::look`). Per mode and count, each displayed frame timed
+//! three ways: the GPU span of the frame by timestamp queries, from a stamp submitted before
+//! the drawer's `prepare` to one after its passes (the light-volume builds `prepare` submits
+//! count, and so do the idle gaps while `prepare` encodes on the CPU); the drawer's passes
+//! alone (a second timer around `record`); `prepare`'s CPU time and the frame's wall time.
+//! - **static**: one frame drawn again and again (what a paused effect costs);
+//! - **playing**: the flip-book at `--fps` shown at `--display-fps`, one draw per displayed
+//!   frame as a game would run it (fractional times crossfade two frames; a lit draw builds the
+//!   light volumes of the crossfaded pair whenever the pair changes, inside that displayed
+//!   frame): median and mean (the amortized cost).
+//!
+//! and the image error of the playing path: three displayed frames (a third, two thirds and the
+//! end of the run) against the same view and time drawn by a fresh drawer (no light volume or
+//! pipeline carried over), the largest relative RMSE over RGB: what any shortcut of the playing
+//! path costs (today's builds every light volume exactly: 0 up to f16 rounding).
+
+use std::path::PathBuf;
+
+use crate::errors::CliError;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The cooked asset (.vdbc), or VDB sources (cooked in memory, f32, first).
+    #[arg(value_name = "ASSET|VDB")]
+    input: PathBuf,
+    #[arg(long, default_value_t = 640)]
+    width: u32,
+    #[arg(long, default_value_t = 360)]
+    height: u32,
+    /// Instance counts, each a run: N copies on a cubic lattice 2.2 radii apart, all in view.
+    #[arg(
+        long,
+        default_value = "1",
+        value_delimiter = ',',
+        value_name = "N[,N..]"
+    )]
+    instances: Vec<usize>,
+    /// The drawer's modes: density (flat) and lit (sun and sky, light volumes).
+    #[arg(long, default_value = "density,lit", value_delimiter = ',',
+          value_parser = ["density", "lit"], value_name = "MODE[,MODE..]")]
+    modes: Vec<String>,
+    /// The flip-book's frame rate.
+    #[arg(long, default_value_t = 24.0)]
+    fps: f64,
+    /// The game's display rate while playing.
+    #[arg(long, default_value_t = 60.0)]
+    display_fps: f64,
+    /// Displayed frames timed while playing (after one warm-up frame).
+    #[arg(long, default_value_t = 60)]
+    frames: u32,
+    /// Static draws timed (after one warm-up draw).
+    #[arg(long, default_value_t = 10)]
+    runs: u32,
+    /// Grid to cook when the input is VDB.
+    #[arg(long)]
+    grid: Option<String>,
+    /// Accept gaps in the frame numbering (VDB input).
+    #[arg(long)]
+    allow_gaps: bool,
+    #[command(flatten)]
+    look: crate::look::LookArgs,
+    /// Print one JSON document on stdout: `{adapter, width, height, clock, fps, display_fps,
+    /// results: [{mode, instances, static_ms, playing_ms, playing_error}]}`.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The flags' ranges, checked before any GPU work.
+fn check(a: &Args) -> Result<(), CliError> {
+    let usage = |m: String| Err(CliError::Usage(m));
+    if a.instances.iter().any(|&n| !(1..=4096).contains(&n)) {
+        return usage(format!(
+            "--instances {:?}: each count 1..=4096",
+            a.instances
+        ));
+    }
+    if !(1..=16384).contains(&a.width) || !(1..=16384).contains(&a.height) {
+        return usage(format!(
+            "--width {} --height {}: 1..=16384 each",
+            a.width, a.height
+        ));
+    }
+    let rate = |r: f64| r > 0.0 && r <= 1000.0;
+    if !(rate(a.fps) && rate(a.display_fps)) {
+        return usage(format!(
+            "--fps {} --display-fps {}: each in (0, 1000]",
+            a.fps, a.display_fps
+        ));
+    }
+    if !(1..=100_000).contains(&a.frames) || !(1..=100_000).contains(&a.runs) {
+        return usage(format!(
+            "--frames {} --runs {}: 1..=100000 each",
+            a.frames, a.runs
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "gpu"))]
+pub fn run(a: &Args) -> Result<(), CliError> {
+    check(a)?;
+    Err(CliError::Other(
+        "vdbcook bench needs the GPU runtime: this build has no `gpu` feature".into(),
+    ))
+}
+
+#[cfg(feature = "gpu")]
+pub fn run(a: &Args) -> Result<(), CliError> {
+    imp::run(a)
+}
+
+#[cfg(feature = "gpu")]
+mod imp {
+    use std::time::Instant;
+
+    use serde_json::json;
+    use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
+    use vdbcook_runtime::{
+        wgpu, DrawTarget, GpuTimer, GpuVolume, Instance, Shading, View, VolumeDrawer,
+    };
+    use vdbcook_trace::{Camera, Mode, Output};
+
+    use super::{check, Args};
+    use crate::errors::CliError;
+    use crate::gpu::{f16_to_f32, Gpu, TextureReadback};
+
+    const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+
+    fn other(m: impl Into<String>) -> CliError {
+        CliError::Other(m.into())
+    }
+
+    fn median(mut v: Vec<f64>) -> f64 {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    }
+
+    /// One run's scene: the targets, the view, the instances' placements, the depth plane.
+    struct Scene {
+        color: wgpu::Texture,
+        color_view: wgpu::TextureView,
+        depth_view: wgpu::TextureView,
+        view: View,
+        camera: Camera,
+        places: Vec<Affine3A>,
+        behind: f32,
+    }
+
+    /// N instances of the asset (world centre `centre`, radius `radius`) on a k×k×k lattice
+    /// 2.2 radii apart, framed by a 40° view from (0.6, 0.4, 1), up `up`.
+    fn scene(
+        device: &wgpu::Device,
+        (w, h): (u32, u32),
+        n: usize,
+        (centre, radius): (Vec3, f32),
+        up: Vec3,
+    ) -> Result<Scene, CliError> {
+        let tex = |format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("vdbcook bench target"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let color = tex(
+            COLOR,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth = tex(
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let k = (1..).find(|k| k * k * k >= n).unwrap_or(1);
+        let spacing = 2.2 * radius;
+        let places = (0..n)
+            .map(|i| {
+                let c = Vec3::new((i % k) as f32, ((i / k) % k) as f32, (i / (k * k)) as f32)
+                    - Vec3::splat(0.5 * (k - 1) as f32);
+                Affine3A::from_translation(c * spacing)
+            })
+            .collect();
+        let fov = 40f32.to_radians();
+        let reach = radius + spacing * 0.5 * (k - 1) as f32 * 3f32.sqrt();
+        let dist = reach / (0.5 * fov).sin();
+        let f = vdbcook_trace::up_frame([0.6, 0.4, 1.0], up.as_dvec3().to_array());
+        let dir = Vec3::new(f[0] as f32, f[1] as f32, f[2] as f32).normalize();
+        let eye = centre + dir * dist;
+        // The near plane well inside the eye's distance to the nearest instance, at any scale.
+        let near = (0.5 * (dist - reach)).max(1e-6);
+        let view = View::look_at(eye, centre, up, fov, w as f32 / h as f32, near, (w, h))
+            .map_err(|e| other(e.to_string()))?;
+        let behind = {
+            let c = view.proj * Vec4::new(0.0, 0.0, -(dist + 2.0 * reach), 1.0);
+            c.z / c.w
+        };
+        let camera = Camera {
+            eye: eye.as_dvec3().to_array(),
+            look_at: centre.as_dvec3().to_array(),
+            up: up.as_dvec3().to_array(),
+            fov_y_deg: 40.0,
+        };
+        Ok(Scene {
+            color_view: color.create_view(&Default::default()),
+            color,
+            depth_view: depth.create_view(&Default::default()),
+            view,
+            camera,
+            places,
+            behind,
+        })
+    }
+
+    /// Clears the colour target and sets the depth buffer to the plane behind the instances.
+    fn clear(enc: &mut wgpu::CommandEncoder, s: &Scene) {
+        let _ = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("vdbcook bench clear"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &s.color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &s.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(s.behind),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+    }
+
+    /// The timers of a displayed frame: the span from before `prepare` to after the passes,
+    /// and the passes alone.
+    struct Clocks {
+        span: GpuTimer,
+        draw: GpuTimer,
+    }
+
+    /// One displayed frame's times (ms): the GPU span and the passes (timestamps; `None`
+    /// without them or when a read-back failed), `prepare`'s CPU time, the wall time.
+    struct Timing {
+        span: Option<f64>,
+        draw: Option<f64>,
+        prepare: f64,
+        wall: f64,
+    }
+
+    /// One displayed frame: the span's first stamp and the clear (submitted), prepare (light
+    /// volumes built and submitted here when the crossfaded pair changes), the draw between
+    /// the draw timer's stamps and the span's second stamp (submitted), wait. Its times and,
+    /// when `read`, the image (RGB, linear).
+    #[allow(clippy::too_many_arguments)]
+    fn frame(
+        gpu: &Gpu,
+        drawer: &mut VolumeDrawer,
+        clocks: Option<&Clocks>,
+        s: &Scene,
+        time: f32,
+        shading: &Shading,
+        read: bool,
+    ) -> Result<(Timing, Option<Vec<f32>>), CliError> {
+        let (device, queue) = (gpu.device(), gpu.queue());
+        let start = Instant::now();
+        let instances: Vec<Instance> = s
+            .places
+            .iter()
+            .map(|&p| Instance {
+                time,
+                ..Instance::at(p)
+            })
+            .collect();
+        let mut enc = device.create_command_encoder(&Default::default());
+        if let Some(c) = clocks {
+            c.span.begin(&mut enc);
+        }
+        clear(&mut enc, s);
+        queue.submit([enc.finish()]);
+        let target = DrawTarget {
+            color: &s.color_view,
+            depth: Some(&s.depth_view),
+        };
+        let t_prepare = Instant::now();
+        let prepared = drawer
+            .prepare(device, queue, &target, &s.view, &instances, shading)
+            .map_err(|e| other(e.to_string()))?;
+        let prepare = t_prepare.elapsed().as_secs_f64() * 1e3;
+        let mut enc = device.create_command_encoder(&Default::default());
+        if let Some(c) = clocks {
+            c.draw.begin(&mut enc);
+        }
+        drawer.record(&mut enc, &prepared);
+        if let Some(c) = clocks {
+            c.draw.end(&mut enc);
+            c.span.end(&mut enc);
+        }
+        let readback = read.then(|| TextureReadback::record(device, &mut enc, &s.color, 8));
+        queue.submit([enc.finish()]);
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| other(format!("GPU: {e}")))?;
+        let wall = start.elapsed().as_secs_f64() * 1e3;
+        let timing = Timing {
+            span: clocks.and_then(|c| c.span.read_ms(device)),
+            draw: clocks.and_then(|c| c.draw.read_ms(device)),
+            prepare,
+            wall,
+        };
+        let image = match readback {
+            Some(r) => {
+                let bytes = r.read(device).map_err(other)?;
+                Some(
+                    bytes
+                        .chunks_exact(8)
+                        .flat_map(|t| {
+                            (0..3).map(move |c| {
+                                f16_to_f32(u16::from_le_bytes([t[2 * c], t[2 * c + 1]]))
+                            })
+                        })
+                        .collect(),
+                )
+            }
+            None => None,
+        };
+        Ok((timing, image))
+    }
+
+    /// The medians (and the mean of the span) of a run's frames; the clock they came from.
+    struct Summary {
+        ms: f64,
+        mean_ms: f64,
+        draw_ms: Option<f64>,
+        prepare_ms: f64,
+        wall_ms: f64,
+        /// Frames whose span had no timestamps (their wall time stands in).
+        walls: usize,
+    }
+
+    fn summary(t: &[Timing]) -> Summary {
+        let span: Vec<f64> = t.iter().map(|f| f.span.unwrap_or(f.wall)).collect();
+        let draws: Vec<f64> = t.iter().filter_map(|f| f.draw).collect();
+        Summary {
+            ms: median(span.clone()),
+            mean_ms: span.iter().sum::<f64>() / span.len() as f64,
+            draw_ms: (!draws.is_empty()).then(|| median(draws)),
+            prepare_ms: median(t.iter().map(|f| f.prepare).collect()),
+            wall_ms: median(t.iter().map(|f| f.wall).collect()),
+            walls: t.iter().filter(|f| f.span.is_none()).count(),
+        }
+    }
+
+    /// Relative RMSE of `a` against `b` (0 when both are black).
+    fn rel_rmse(a: &[f32], b: &[f32]) -> f64 {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (x, y) in a.iter().zip(b) {
+            num += (*x as f64 - *y as f64).powi(2);
+            den += (*y as f64).powi(2);
+        }
+        if den > 0.0 {
+            (num / den).sqrt()
+        } else {
+            num.sqrt()
+        }
+    }
+
+    pub fn run(a: &Args) -> Result<(), CliError> {
+        check(a)?;
+        let (asset, _) = crate::render::load_input(
+            &a.input,
+            a.grid.clone(),
+            a.allow_gaps,
+            None,
+            a.look.emission_grid.as_deref(),
+            a.look.emission != "off",
+        )?;
+        let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
+        crate::render::refuse_unshowable(&asset, &a.input, Mode::Density)?;
+        let gpu = Gpu::open().map_err(other)?;
+        let (device, queue) = (gpu.device(), gpu.queue());
+        let max = device.limits().max_texture_dimension_2d;
+        if a.width > max || a.height > max {
+            return Err(CliError::Usage(format!(
+                "--width {} --height {}: this adapter's textures reach {max} pixels a side",
+                a.width, a.height
+            )));
+        }
+        let volume = GpuVolume::upload(device, queue, &asset).map_err(|e| at(&e))?;
+        let clocks = GpuTimer::new(device, queue)
+            .zip(GpuTimer::new(device, queue))
+            .map(|(span, draw)| Clocks { span, draw });
+        let mut walls = 0usize;
+        // The asset's stored box (frame 0, else any frame) in world space.
+        let bbox = (0..asset.frame_count())
+            .find_map(|f| volume.frame_bbox(f))
+            .ok_or_else(|| at(&"no frame stores anything"))?;
+        let m = asset.header.index_to_world;
+        let world = |p: [f64; 3]| {
+            Vec3::from_array(
+                [0, 1, 2]
+                    .map(|r| (m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]) as f32),
+            )
+        };
+        let (wlo, whi) = (world(bbox.0), world(bbox.1));
+        let bounds = (0.5 * (wlo + whi), 0.5 * (whi - wlo).length().max(1e-6));
+        let up = {
+            let u = a.look.up_axis(&asset);
+            Vec3::new(u[0] as f32, u[1] as f32, u[2] as f32)
+        };
+        let frames = asset.frame_count() as f64;
+        let mut results = Vec::new();
+        if !a.json {
+            println!(
+                "{} on {}: {}×{}, flip-book {} fps shown at {} fps; GPU ms per displayed frame \
+                 (timestamp span: light builds and passes), median unless said",
+                a.input.display(),
+                gpu.describe(),
+                a.width,
+                a.height,
+                a.fps,
+                a.display_fps
+            );
+            println!(
+                "| mode | instances | static ms | playing ms | playing / static | playing error |"
+            );
+            println!("|---|---:|---:|---:|---:|---:|");
+        }
+        for mode_name in &a.modes {
+            let mode = Mode::parse(mode_name).expect("clap checked");
+            for &n in &a.instances {
+                let s = scene(device, (a.width, a.height), n, bounds, up)?;
+                let mut settings = crate::look::settings(
+                    &a.look,
+                    Output {
+                        width: a.width,
+                        height: a.height,
+                        frame: 0,
+                    },
+                    mode,
+                )?;
+                crate::look::resolve(&a.look, &mut settings, &asset, &s.camera)?;
+                let shading = Shading::of_settings(&settings);
+                let mut drawer = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                // Static: frame 0 again and again (the first draw compiles and builds).
+                let c = clocks.as_ref();
+                let mut statics = Vec::new();
+                for run in 0..=a.runs {
+                    let (t, _) = frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
+                    if run > 0 {
+                        statics.push(t);
+                    }
+                }
+                // Playing: one draw per displayed frame, the flip-book time advancing by
+                // fps / display_fps frames each (wrapping), light built as pairs change; the
+                // image kept at three checkpoints.
+                let mut playing = Vec::new();
+                let checks = [a.frames / 3, 2 * a.frames / 3, a.frames];
+                let mut kept = Vec::new();
+                for k in 0..=a.frames {
+                    // Times run over [0, frames − 1] (the last frame has no successor to
+                    // crossfade to), wrapping; a one-frame asset stays at 0.
+                    let t = if frames > 1.0 {
+                        ((k as f64 + 1.0) * a.fps / a.display_fps) % (frames - 1.0)
+                    } else {
+                        0.0
+                    } as f32;
+                    let read = k > 0 && checks.contains(&k);
+                    let (timing, img) = frame(&gpu, &mut drawer, c, &s, t, &shading, read)?;
+                    if k > 0 {
+                        playing.push(timing);
+                    }
+                    if let Some(img) = img {
+                        kept.push((t, img));
+                    }
+                }
+                // The same views and times drawn from nothing: a fresh drawer each.
+                let mut error = 0.0f64;
+                for (t, img) in &kept {
+                    let mut fresh =
+                        VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                    let (_, exact) = frame(&gpu, &mut fresh, None, &s, *t, &shading, true)?;
+                    let e = exact.map_or(f64::NAN, |x| rel_rmse(img, &x));
+                    error = if e.is_nan() { e } else { error.max(e) };
+                }
+                let (st, pl) = (summary(&statics), summary(&playing));
+                walls += st.walls + pl.walls;
+                if !a.json {
+                    println!(
+                        "| {mode_name} | {n} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {error:.1e} |",
+                        st.ms,
+                        pl.ms,
+                        pl.mean_ms,
+                        pl.ms / st.ms,
+                        pl.draw_ms.map_or("–".into(), |d| format!("{d:.2}")),
+                    );
+                }
+                results.push(json!({
+                    "mode": mode_name, "instances": n, "static_ms": st.ms, "playing_ms": pl.ms,
+                    "playing_error": error, "playing_mean_ms": pl.mean_ms,
+                    "static_draw_ms": st.draw_ms, "playing_draw_ms": pl.draw_ms,
+                    "static_prepare_ms": st.prepare_ms, "playing_prepare_ms": pl.prepare_ms,
+                    "static_wall_ms": st.wall_ms, "playing_wall_ms": pl.wall_ms,
+                }));
+            }
+        }
+        let clock = match (clocks.is_some(), walls) {
+            (false, _) => "wall",
+            (true, 0) => "timestamps",
+            (true, _) => "mixed",
+        };
+        if a.json {
+            let doc = json!({
+                "adapter": gpu.describe(),
+                "asset": a.input.display().to_string(),
+                "width": a.width,
+                "height": a.height,
+                "clock": clock,
+                "fps": a.fps,
+                "display_fps": a.display_fps,
+                "frames": a.frames,
+                "runs": a.runs,
+                "results": results,
+            });
+            println!("{}", serde_json::to_string_pretty(&doc).expect("json"));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,104 @@
+//! `vdbcook bench` (issue 34): the engine drawer's cost per displayed frame, static and playing,
+//! and the playing path's image error, as one JSON document a script reads; flags out of range
+//! refused before any GPU work.
+
+mod common;
+
+use common::{cook_smoke, gpu_required, vdbcook};
+use serde_json::Value;
+
+/// The JSON keys are there, every time is a positive number, and the playing path (which builds
+/// every light volume exactly) draws what a fresh drawer draws for the same time, up to f16
+/// rounding.
+#[test]
+fn bench_reports_static_and_playing_costs_and_the_playing_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let (code, out, err) = vdbcook(&[
+        "bench",
+        &asset,
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--instances",
+        "1,2",
+        "--frames",
+        "5",
+        "--runs",
+        "2",
+        "--json",
+    ]);
+    if code != 0 && !gpu_required() && err.contains("adapter") {
+        eprintln!("skipped: no GPU adapter ({err})");
+        return;
+    }
+    assert_eq!(code, 0, "{err}");
+    let doc: Value = serde_json::from_str(&out).unwrap();
+    assert!(
+        doc["adapter"].as_str().is_some_and(|a| !a.is_empty()),
+        "{doc}"
+    );
+    assert_eq!(
+        (doc["width"].as_u64(), doc["height"].as_u64()),
+        (Some(64), Some(36))
+    );
+    assert!(matches!(doc["clock"].as_str(), Some("timestamps" | "wall")));
+    let results = doc["results"].as_array().unwrap();
+    // Modes × counts, in that order.
+    let order: Vec<(String, u64)> = results
+        .iter()
+        .map(|r| {
+            (
+                r["mode"].as_str().unwrap().to_string(),
+                r["instances"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        order,
+        [("density", 1), ("density", 2), ("lit", 1), ("lit", 2)]
+            .map(|(m, n)| (m.to_string(), n))
+            .to_vec()
+    );
+    for r in results {
+        for k in [
+            "static_ms",
+            "playing_ms",
+            "playing_mean_ms",
+            "static_prepare_ms",
+            "playing_prepare_ms",
+            "static_wall_ms",
+            "playing_wall_ms",
+        ] {
+            let v = r[k].as_f64().unwrap_or(f64::NAN);
+            assert!(v > 0.0 && v.is_finite(), "{k} = {v}: {r}");
+        }
+        let e = r["playing_error"].as_f64().unwrap();
+        assert!((0.0..1e-3).contains(&e), "playing error {e}: {r}");
+    }
+}
+
+#[test]
+fn bench_refuses_flags_out_of_range_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    for (extra, want) in [
+        (&["--instances", "0"][..], "--instances"),
+        (&["--fps", "0"][..], "--fps"),
+        (&["--frames", "0"][..], "--frames"),
+        (&["--width", "0"][..], "--width"),
+    ] {
+        let mut args = vec!["bench", asset.as_str()];
+        args.extend_from_slice(extra);
+        let (code, _, err) = vdbcook(&args);
+        assert_eq!(code, 2, "{extra:?}: {err}");
+        assert!(err.contains(want), "{extra:?}: {err}");
+    }
+    let (code, _, err) = vdbcook(&["bench", asset.as_str(), "--modes", "scatter"]);
+    assert_eq!(code, 2, "{err}");
+    let (code, _, err) = vdbcook(&["bench", "fixtures/vdb/levelset_sphere.vdb"]);
+    // Refused before the GPU is opened: the same answer with or without an adapter.
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("level set"), "{err}");
+}

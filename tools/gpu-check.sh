@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# `just gpu-check`: what a machine with a real GPU runs (in under 5 minutes on one) so that the
+# project has figures from hardware, not only from lavapipe: the runtime's tests on the adapter
+# (VDBCOOK_REQUIRE_GPU=1: a missing adapter fails instead of skipping), then `vdbcook bench` at
+# 1920×1080 with 1, 8 and 64 instances on the WDAS cloud, the 200-frame stormscape sequence
+# (both from ../shared/samples) and the fire fixture, written as a table with the adapter's name
+# and the date to docs/gpu/<adapter>.md (commit it). SIZE=WxH and COUNTS=1,8,64 override;
+# SKIP_TESTS=1 skips the tests (a dry run of the tables).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SAMPLES=${SAMPLES:-../shared/samples}
+SIZE=${SIZE:-1920x1080}
+COUNTS=${COUNTS:-1,8,64}
+W=${SIZE%x*}
+H=${SIZE#*x}
+OUT=${OUT:-bench-data/gpu-check}
+mkdir -p "$OUT" docs/gpu
+cargo build --release -p vdbcook
+if [ -z "${SKIP_TESTS:-}" ]; then VDBCOOK_REQUIRE_GPU=1 cargo test --release -p vdbcook-runtime; fi
+assets=()
+cook() { # name, input... (cooked fresh each run: vdbcook writes atomically, never a partial file)
+    local name=$1
+    shift
+    target/release/vdbcook cook "$@" -o "$OUT/$name.vdbc" >/dev/null || exit 1
+    assets+=("$name")
+}
+if [ -f "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb" ]; then
+    cook wdas "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb"
+fi
+if [ -d "$SAMPLES/stormscape-cloud-seq" ]; then
+    cook stormscape "$SAMPLES/stormscape-cloud-seq"
+fi
+cook fire fixtures/seq/fire --grids auto
+for name in "${assets[@]}"; do
+    target/release/vdbcook bench "$OUT/$name.vdbc" --width "$W" --height "$H" \
+        --instances "$COUNTS" --frames 60 --runs 10 --json >"$OUT/$name.json" || exit 1
+done
+python3 - "$OUT" "${assets[@]}" <<'PY'
+import json, re, sys, datetime
+out, names = sys.argv[1], sys.argv[2:]
+docs = {n: json.load(open(f"{out}/{n}.json")) for n in names}
+adapter = next(iter(docs.values()))["adapter"]
+slug = re.sub(r"[^a-z0-9]+", "-", adapter.lower()).strip("-")[:60]
+clocks = sorted({d["clock"] for d in docs.values()})
+lines = [f"# `vdbcook bench` on {adapter}", "",
+         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames).", "",
+         "| asset | size | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error |",
+         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+def num(v, f=".2f"):
+    return "–" if v is None else format(v, f)
+for n, d in docs.items():
+    for r in d["results"]:
+        ratio = r["playing_ms"] / r["static_ms"] if r["static_ms"] else None
+        lines.append(f"| {n} | {d['width']}×{d['height']} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} |")
+path = f"docs/gpu/{slug}.md"
+open(path, "w").write("\n".join(lines) + "\n")
+print(f"wrote {path}")
+PY
