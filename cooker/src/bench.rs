@@ -125,7 +125,7 @@ mod imp {
 
     use super::{check, Args};
     use crate::errors::CliError;
-    use crate::gpu::{f16_to_f32, Gpu, TextureReadback};
+    use crate::gpu::{f16_to_f32, texture_2d, Gpu, TextureReadback};
 
     const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
@@ -158,22 +158,7 @@ mod imp {
         (centre, radius): (Vec3, f32),
         up: Vec3,
     ) -> Result<Scene, CliError> {
-        let tex = |format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("vdbcook bench target"),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
+        let tex = |format, usage| texture_2d(device, "vdbcook bench target", format, usage, (w, h));
         let color = tex(
             COLOR,
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
@@ -384,14 +369,8 @@ mod imp {
 
     pub fn run(a: &Args) -> Result<(), CliError> {
         check(a)?;
-        let (asset, _) = crate::render::load_input(
-            &a.input,
-            a.grid.clone(),
-            a.allow_gaps,
-            None,
-            a.look.emission_grid.as_deref(),
-            a.look.emission != "off",
-        )?;
+        let (asset, _) =
+            crate::render::load_input(&a.input, a.grid.clone(), a.allow_gaps, None, &a.look)?;
         let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
         crate::render::refuse_unshowable(&asset, &a.input, Mode::Density)?;
         let gpu = Gpu::open().map_err(other)?;

@@ -56,6 +56,31 @@ mod imp {
         height: usize,
     }
 
+    /// A 2D texture of `size` (one mip, one sample): the CLI's one way to make its targets,
+    /// images and scene plates.
+    pub fn texture_2d(
+        device: &wgpu::Device,
+        label: &str,
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+        (width, height): (u32, u32),
+    ) -> wgpu::Texture {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    }
+
     impl TextureReadback {
         pub fn record(
             device: &wgpu::Device,
@@ -386,7 +411,7 @@ mod imp {
 
 pub use imp::Gpu;
 #[cfg(feature = "gpu")]
-pub use imp::{describe_adapter, TextureReadback};
+pub use imp::{describe_adapter, texture_2d, TextureReadback};
 
 /// Containers usually run without `XDG_RUNTIME_DIR`; the Vulkan loader's window-system probes
 /// then print "error: XDG_RUNTIME_DIR is invalid or not set" on stderr although nothing failed.

@@ -450,15 +450,18 @@ fn near_plane(camera: &Camera) -> f64 {
 }
 
 /// The asset to draw: `input` loaded, or, when it names VDB sources, cooked in memory (f32,
-/// lossless; `grid`, `allow_gaps` and `replace_non_finite` as `cook`'s options) with the seconds that took. Shared by `render` and `view`.
+/// lossless; `grid`, `allow_gaps` and `replace_non_finite` as `cook`'s options; the emission's
+/// grid, or a fire's grids, as `look` asks) with the seconds that took. Shared by `render`,
+/// `view` and `bench`.
 pub fn load_input(
     input: &Path,
     grid: Option<String>,
     allow_gaps: bool,
     replace_non_finite: Option<f32>,
-    extra_grid: Option<&str>,
-    fire_grids: bool,
+    look: &crate::look::LookArgs,
 ) -> Result<(Asset, Option<f64>), CliError> {
+    let extra_grid = look.emission_grid.as_deref();
+    let fire_grids = look.emission != "off";
     if looks_like_vdb(input) {
         let t = Instant::now();
         let frames = vdbcook_cook::frames::resolve_frames(
@@ -725,8 +728,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         a.grid.clone(),
         a.allow_gaps,
         a.replace_non_finite,
-        a.look.emission_grid.as_deref(),
-        a.look.emission != "off",
+        &a.look,
     )?;
     let at = |e: &dyn std::fmt::Display| other(format!("{}: {e}", a.input.display()));
     refuse_unshowable(&asset, &a.input, mode)?;
@@ -1047,20 +1049,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         let view = View::new(m4(view), m4(proj), (w, h)).map_err(|e| e.to_string())?;
 
         let tex = |format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("vdbcook render composite"),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            crate::gpu::texture_2d(device, "vdbcook render composite", format, usage, (w, h))
         };
         let upload = |format, texel: u32, bytes: &[u8]| {
             let t = tex(

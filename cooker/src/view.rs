@@ -486,20 +486,13 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             if size.0 == 0 || size.1 == 0 {
                 return Ok(());
             }
-            let texture = device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("vdbcook view image"),
-                size: wgpu::Extent3d {
-                    width: size.0,
-                    height: size.1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: TRACE_FORMAT,
-                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            });
+            let texture = crate::gpu::texture_2d(
+                device,
+                "vdbcook view image",
+                TRACE_FORMAT,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+                size,
+            );
             let view = texture.create_view(&Default::default());
             let target = self
                 .renderer
@@ -739,14 +732,8 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             crate::output::refuse_inputs(shot, &frames, &[input], "PNG")?;
             crate::output::check_writable(shot, "PNG")?;
         }
-        let (asset, _) = crate::render::load_input(
-            &a.input,
-            a.grid.clone(),
-            a.allow_gaps,
-            None,
-            a.look.emission_grid.as_deref(),
-            a.look.emission != "off",
-        )?;
+        let (asset, _) =
+            crate::render::load_input(&a.input, a.grid.clone(), a.allow_gaps, None, &a.look)?;
         // `m` cycles through modes that march: refused whatever mode the view starts in.
         crate::render::refuse_unshowable(&asset, &a.input, Mode::Density)?;
         if a.frame >= asset.frame_count() {
@@ -785,20 +772,13 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             &start(a, asset)?,
         )
         .map_err(at)?;
-        let target = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("vdbcook view headless target"),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: HEADLESS_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let target = crate::gpu::texture_2d(
+            &device,
+            "vdbcook view headless target",
+            HEADLESS_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            (w, h),
+        );
         let target_view = target.create_view(&Default::default());
         let mut per_frame = Vec::new();
         for i in 0..n {
