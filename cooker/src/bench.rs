@@ -125,7 +125,7 @@ mod imp {
 
     use super::{check, Args};
     use crate::errors::CliError;
-    use crate::gpu::{f16_to_f32, texture_2d, Gpu, TextureReadback};
+    use crate::gpu::{cleared_pass, f16_to_f32, texture_2d, Gpu, TextureReadback};
 
     const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
@@ -209,29 +209,13 @@ mod imp {
 
     /// Clears the colour target and sets the depth buffer to the plane behind the instances.
     fn clear(enc: &mut wgpu::CommandEncoder, s: &Scene) {
-        let _ = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("vdbcook bench clear"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &s.color_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &s.depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(s.behind),
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        cleared_pass(
+            enc,
+            "vdbcook bench clear",
+            &s.color_view,
+            &s.depth_view,
+            s.behind,
+        );
     }
 
     /// The timers of a displayed frame: the span from before `prepare` to after the passes,

@@ -81,6 +81,54 @@ mod imp {
         })
     }
 
+    /// A fragment shader's unfilterable 2D float texture at `binding` (the CLI's passes read
+    /// their images with `textureLoad`).
+    pub fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+        wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        }
+    }
+
+    /// A render pass that clears `color` to black and `depth` to `depth_clear`, stored.
+    pub fn cleared_pass<'e>(
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        color: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        depth_clear: f32,
+    ) -> wgpu::RenderPass<'e> {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(depth_clear),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
     impl TextureReadback {
         pub fn record(
             device: &wgpu::Device,
@@ -411,7 +459,7 @@ mod imp {
 
 pub use imp::Gpu;
 #[cfg(feature = "gpu")]
-pub use imp::{describe_adapter, texture_2d, TextureReadback};
+pub use imp::{cleared_pass, describe_adapter, texture_2d, texture_entry, TextureReadback};
 
 /// Containers usually run without `XDG_RUNTIME_DIR`; the Vulkan loader's window-system probes
 /// then print "error: XDG_RUNTIME_DIR is invalid or not set" on stderr although nothing failed.

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use serde_json::json;
 use vdbcook_asset::Asset;
-use vdbcook_trace::{linear_to_srgb8, srgb_to_linear};
+use vdbcook_trace::srgb_to_linear;
 use vdbcook_trace::{Camera, Display, Image, March, Mode, Output, RenderSettings, Scratch, Tracer};
 
 use crate::errors::CliError;
@@ -848,25 +848,19 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 "EXR",
             )?;
         }
-        OutFormat::Png if is_radiance(mode) => {
+        // Radiance through the colour pipeline; over a plate (decoded to linear light) a
+        // diagnostic mode's image is sRGB-encoded back with no tone map, so that the plate comes
+        // back as it was.
+        OutFormat::Png if is_radiance(mode) || plate.is_some() => {
+            let display = if is_radiance(mode) {
+                display
+            } else {
+                Display {
+                    exposure_ev: 0.0,
+                    tonemap: vdbcook_trace::Tonemap::None,
+                }
+            };
             let rgba = display_rgba8(&image, mode, display, a.look.transparent);
-            write_png(&a.output, image.width, image.height, &rgba)?;
-        }
-        // Over a plate (decoded to linear light) a diagnostic mode's image is sRGB-encoded back,
-        // so that the plate comes back as it was.
-        OutFormat::Png if plate.is_some() => {
-            let rgba: Vec<u8> = image
-                .rgba
-                .chunks_exact(4)
-                .flat_map(|p| {
-                    [
-                        linear_to_srgb8(p[0]),
-                        linear_to_srgb8(p[1]),
-                        linear_to_srgb8(p[2]),
-                        (p[3].clamp(0.0, 1.0) * 255.0).round() as u8,
-                    ]
-                })
-                .collect();
             write_png(&a.output, image.width, image.height, &rgba)?;
         }
         // Alone, the diagnostic modes' false colours are display values already.
@@ -1109,19 +1103,9 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
             label: Some("vdbcook render scene"),
             source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),
         });
-        let unfiltered = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vdbcook render scene"),
-            entries: &[unfiltered(0), unfiltered(1)],
+            entries: &[crate::gpu::texture_entry(0), crate::gpu::texture_entry(1)],
         });
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("vdbcook render scene"),
@@ -1173,29 +1157,13 @@ fn fs(@builtin(position) pos: vec4<f32>) -> Out {
         let timer = GpuTimer::new(device, queue);
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("vdbcook render scene"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = crate::gpu::cleared_pass(
+                &mut encoder,
+                "vdbcook render scene",
+                &color_view,
+                &depth_view,
+                0.0,
+            );
             pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &group, &[]);
             pass.draw(0..3, 0..1);

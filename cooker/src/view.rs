@@ -76,12 +76,18 @@ pub struct Args {
 }
 
 /// The render settings the flags ask for (the mode is the viewer's own, switched with `m`)
-/// and the starting camera, resolved on `asset` as `render` resolves them (`look::resolve`):
-/// the same flags give the same picture.
+/// and, on `asset`, the starting camera and what `look::resolve` decided, as `render` resolves
+/// them: the same flags give the same picture.
 fn base_settings(
     a: &Args,
     asset: Option<&vdbcook_asset::Asset>,
-) -> Result<(vdbcook_trace::RenderSettings, Option<vdbcook_trace::Camera>), CliError> {
+) -> Result<
+    (
+        vdbcook_trace::RenderSettings,
+        Option<(vdbcook_trace::Camera, crate::look::Resolved)>,
+    ),
+    CliError,
+> {
     let usage = |m: String| CliError::Usage(m);
     // A flag the viewer cannot take is a usage error (exit 2) before any window opens.
     let as_usage = |e: CliError| match e {
@@ -100,7 +106,7 @@ fn base_settings(
     )
     .map_err(as_usage)?;
     a.look.display(false).validate().map_err(usage)?;
-    let camera = match asset {
+    let resolved = match asset {
         Some(asset) => {
             let camera = crate::render::camera(
                 None,
@@ -109,14 +115,14 @@ fn base_settings(
                 a.width as f64 / a.height.max(1) as f64,
                 a.look.up_axis(asset),
             )?;
-            crate::look::resolve(&a.look, &mut s, asset, &camera).map_err(as_usage)?;
-            Some(camera)
+            let r = crate::look::resolve(&a.look, &mut s, asset, &camera).map_err(as_usage)?;
+            Some((camera, r))
         }
         None => None,
     };
     s.validate(asset.map_or(a.frame + 1, |x| x.frame_count()))
         .map_err(|e| usage(e.to_string()))?;
-    Ok((s, camera))
+    Ok((s, resolved))
 }
 
 /// How a view starts: the settings and camera [`base_settings`] resolves, the colour pipeline,
@@ -133,12 +139,13 @@ pub struct Start {
 
 /// The start of a view of `asset` from the flags.
 pub fn start(a: &Args, asset: &vdbcook_asset::Asset) -> Result<Start, CliError> {
-    let (settings, camera) = base_settings(a, Some(asset))?;
+    let (settings, resolved) = base_settings(a, Some(asset))?;
+    let (camera, resolved) = resolved.expect("resolved on the asset");
     Ok(Start {
         settings,
-        camera: camera.expect("resolved on the asset"),
+        camera,
         display: a.look.display(false),
-        filter_auto: a.look.filter == "auto",
+        filter_auto: resolved.filter_auto,
         transparent: a.look.transparent,
     })
 }
@@ -392,16 +399,7 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
             let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("vdbcook view blit"),
                 entries: &[
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 0,
-                        visibility: wgpu::ShaderStages::FRAGMENT,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
+                    crate::gpu::texture_entry(0),
                     wgpu::BindGroupLayoutEntry {
                         binding: 1,
                         visibility: wgpu::ShaderStages::FRAGMENT,
