@@ -5,7 +5,9 @@
 # 1920×1080 with 1, 8 and 64 instances on the WDAS cloud, the 200-frame stormscape sequence
 # (both from ../shared/samples) and the fire fixture, written as a table with the adapter's name
 # and the date to docs/gpu/<adapter>.md (commit it). SIZE=WxH and COUNTS=1,8,64 override;
-# SKIP_TESTS=1 skips the tests (a dry run of the tables).
+# SKIP_TESTS=1 skips the tests (a dry run of the tables). For a machine without cargo (binaries built
+# elsewhere): VDBCOOK=path/to/vdbcook skips the build, RUNTIME_TESTS="bin ..." runs those prebuilt
+# test binaries of the runtime instead of `cargo test`, ASSETS=dir benches the dir's *.vdbc as cooked.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SAMPLES=${SAMPLES:-../shared/samples}
@@ -15,15 +17,31 @@ W=${SIZE%x*}
 H=${SIZE#*x}
 OUT=${OUT:-bench-data/gpu-check}
 mkdir -p "$OUT" docs/gpu
-cargo build --release -p vdbcook
-if [ -z "${SKIP_TESTS:-}" ]; then VDBCOOK_REQUIRE_GPU=1 cargo test --release -p vdbcook-runtime; fi
+if [ -z "${VDBCOOK:-}" ]; then
+    cargo build --release -p vdbcook
+    VDBCOOK=target/release/vdbcook
+fi
+if [ -z "${SKIP_TESTS:-}" ]; then
+    if [ -n "${RUNTIME_TESTS:-}" ]; then
+        for t in $RUNTIME_TESTS; do VDBCOOK_REQUIRE_GPU=1 "$t"; done
+    else
+        VDBCOOK_REQUIRE_GPU=1 cargo test --release -p vdbcook-runtime
+    fi
+fi
 assets=()
 cook() { # name, input... (cooked fresh each run: vdbcook writes atomically, never a partial file)
     local name=$1
     shift
-    target/release/vdbcook cook "$@" -o "$OUT/$name.vdbc" >/dev/null || exit 1
+    "$VDBCOOK" cook "$@" -o "$OUT/$name.vdbc" >/dev/null || exit 1
     assets+=("$name")
 }
+if [ -n "${ASSETS:-}" ]; then
+    for f in "$ASSETS"/*.vdbc; do
+        name=$(basename "$f" .vdbc)
+        cp "$f" "$OUT/$name.vdbc"
+        assets+=("$name")
+    done
+else
 if [ -f "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb" ]; then
     cook wdas "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb"
 fi
@@ -31,8 +49,9 @@ if [ -d "$SAMPLES/stormscape-cloud-seq" ]; then
     cook stormscape "$SAMPLES/stormscape-cloud-seq"
 fi
 cook fire fixtures/seq/fire --grids auto
+fi
 for name in "${assets[@]}"; do
-    target/release/vdbcook bench "$OUT/$name.vdbc" --width "$W" --height "$H" \
+    "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" \
         --instances "$COUNTS" --frames 60 --runs 10 --json >"$OUT/$name.json" || exit 1
 done
 python3 - "$OUT" "${assets[@]}" <<'PY'

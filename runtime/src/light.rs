@@ -114,6 +114,13 @@ pub(crate) struct MsParams {
     pub medium: [f32; 4],
 }
 
+/// The bytes between two diffusion records in the uniform buffer: the record's size rounded up to
+/// a multiple of the device's dynamic-offset alignment (a power of two; 64 on NVIDIA, so a
+/// 96-byte record takes 128, not 96 — every offset must be a multiple of the alignment).
+fn ms_record_stride(min_uniform_offset_alignment: u32) -> usize {
+    (MS_PARAMS_SIZE as usize).next_multiple_of(min_uniform_offset_alignment.max(1) as usize)
+}
+
 /// The records of one volume's solve, `[level][parity]`, and the scratch it needs (f32s).
 fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize) {
     let levels = ms_levels(dims);
@@ -444,8 +451,7 @@ impl LightPass {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("vdbcook light volumes"),
         });
-        let align =
-            (limits.min_uniform_buffer_offset_alignment as usize).max(MS_PARAMS_SIZE as usize);
+        let align = ms_record_stride(limits.min_uniform_buffer_offset_alignment);
         let mut bytes: Vec<u8> = Vec::new();
         for (records, _) in solves.iter().flatten() {
             for r in records.iter().flatten() {
@@ -596,6 +602,22 @@ impl LightPass {
 mod tests {
     use super::*;
     use crate::layout_check::{assert_mirrors, rust_layout};
+
+    /// Found on an H100 (alignment 64): a stride of max(alignment, record) = 96 put records at
+    /// offsets wgpu refuses; lavapipe's smaller alignment hid it. Every alignment a conformant
+    /// device may report (powers of two, 1..=256) gives offsets that respect it.
+    #[test]
+    fn diffusion_records_respect_every_dynamic_offset_alignment() {
+        for shift in 0..=8 {
+            let alignment = 1u32 << shift;
+            let stride = ms_record_stride(alignment);
+            assert!(stride >= MS_PARAMS_SIZE as usize, "{alignment}: {stride}");
+            assert!(stride < MS_PARAMS_SIZE as usize + alignment as usize);
+            for k in 0..20 {
+                assert_eq!((k * stride) % alignment as usize, 0, "{alignment}: record {k}");
+            }
+        }
+    }
 
     #[test]
     fn light_params_mirror_the_wgsl() {
