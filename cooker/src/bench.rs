@@ -51,6 +51,12 @@ pub struct Args {
     /// The game's display rate while playing.
     #[arg(long, default_value_t = 60.0)]
     display_fps: f64,
+    /// How the playing run shows the flip-book between its frames: crossfade (fractional
+    /// times: two frames read and lerped per sample, their light volumes built as pairs change)
+    /// or hold (whole frames, as an engine passing floor(time) draws: one frame read, one light
+    /// volume built per frame change).
+    #[arg(long, default_value = "crossfade", value_parser = ["crossfade", "hold"])]
+    blend: String,
     /// Displayed frames timed while playing (after one warm-up frame).
     #[arg(long, default_value_t = 60)]
     frames: u32,
@@ -395,19 +401,21 @@ mod imp {
         let mut results = Vec::new();
         if !a.json {
             println!(
-                "{} on {}: {}×{}, flip-book {} fps shown at {} fps; GPU ms per displayed frame \
-                 (timestamp span: light builds and passes), median unless said",
+                "{} on {}: {}×{}, flip-book {} fps shown at {} fps ({}); GPU ms per displayed \
+                 frame (timestamp span: light builds and passes), median unless said",
                 a.input.display(),
                 gpu.describe(),
                 a.width,
                 a.height,
                 a.fps,
-                a.display_fps
+                a.display_fps,
+                a.blend
             );
             println!(
-                "| mode | instances | static ms | playing ms | playing / static | playing error |"
+                "| mode | instances | static ms | playing ms | playing mean ms | playing / static \
+                 | playing draw ms | light builds / frame | playing error |"
             );
-            println!("|---|---:|---:|---:|---:|---:|");
+            println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
         }
         for mode_name in &a.modes {
             let mode = Mode::parse(mode_name).expect("clap checked");
@@ -446,6 +454,8 @@ mod imp {
                 // fps / display_fps frames each (wrapping), light built as pairs change; the
                 // image kept at three checkpoints.
                 let mut playing = Vec::new();
+                let hold = a.blend == "hold";
+                let mut builds_before = 0;
                 let checks = [a.frames / 3, 2 * a.frames / 3, a.frames];
                 let mut kept = Vec::new();
                 for k in 0..=a.frames {
@@ -456,6 +466,10 @@ mod imp {
                     } else {
                         0.0
                     } as f32;
+                    let t = if hold { t.floor() } else { t };
+                    if k == 1 {
+                        builds_before = drawer.light_builds().built;
+                    }
                     let read = k > 0 && checks.contains(&k);
                     let (timing, img) = frame(&gpu, &mut drawer, c, &s, t, &shading, read)?;
                     if k > 0 {
@@ -465,6 +479,8 @@ mod imp {
                         kept.push((t, img));
                     }
                 }
+                // Light volumes built per timed displayed frame (the rest were reused or copied).
+                let builds = (drawer.light_builds().built - builds_before) as f64 / a.frames as f64;
                 // The same views and times drawn from nothing: a fresh drawer each.
                 let mut error = 0.0f64;
                 for (t, img) in &kept {
@@ -478,7 +494,8 @@ mod imp {
                 walls += st.walls + pl.walls;
                 if !a.json {
                     println!(
-                        "| {mode_name} | {n} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {error:.1e} |",
+                        "| {mode_name} | {n} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {builds:.2} | \
+                         {error:.1e} |",
                         st.ms,
                         pl.ms,
                         pl.mean_ms,
@@ -492,6 +509,7 @@ mod imp {
                     "static_draw_ms": st.draw_ms, "playing_draw_ms": pl.draw_ms,
                     "static_prepare_ms": st.prepare_ms, "playing_prepare_ms": pl.prepare_ms,
                     "static_wall_ms": st.wall_ms, "playing_wall_ms": pl.wall_ms,
+                    "playing_light_builds": builds,
                 }));
             }
         }
@@ -509,6 +527,7 @@ mod imp {
                 "clock": clock,
                 "fps": a.fps,
                 "display_fps": a.display_fps,
+                "blend": a.blend,
                 "frames": a.frames,
                 "runs": a.runs,
                 "results": results,

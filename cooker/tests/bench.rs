@@ -79,6 +79,37 @@ fn bench_reports_static_and_playing_costs_and_the_playing_error() {
     }
 }
 
+/// Playing the 5-frame smoke at 24 fps under 60 for 10 displayed frames reaches frames 2, 3 and
+/// 4 for the first time (frames 0 and 1 were built before the timed frames): with a volume a
+/// kept build holds copied rather than rebuilt, about 3 builds in 10 frames, in both blends;
+/// rebuilding each crossfaded pair whenever it changes (the drawer before) built about 8.
+#[test]
+fn bench_builds_each_frames_light_volume_about_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    for blend in ["crossfade", "hold"] {
+        let (code, out, err) = vdbcook(&[
+            "bench", &asset, "--width", "48", "--height", "27", "--modes", "lit", "--frames", "10",
+            "--runs", "1", "--blend", blend, "--json",
+        ]);
+        if code != 0 && !gpu_required() && err.contains("adapter") {
+            eprintln!("skipped: no GPU adapter ({err})");
+            return;
+        }
+        assert_eq!(code, 0, "{err}");
+        let doc: Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(doc["blend"].as_str(), Some(blend));
+        let r = &doc["results"][0];
+        let builds = r["playing_light_builds"].as_f64().unwrap();
+        assert!(
+            (0.1..=0.5).contains(&builds),
+            "{blend}: {builds} builds per frame"
+        );
+        let e = r["playing_error"].as_f64().unwrap();
+        assert!((0.0..1e-3).contains(&e), "{blend}: playing error {e}");
+    }
+}
+
 #[test]
 fn bench_refuses_flags_out_of_range_before_any_work() {
     let dir = tempfile::tempdir().unwrap();

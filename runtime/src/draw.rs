@@ -836,6 +836,13 @@ impl VolumeDrawer {
         self.light.invalidate();
     }
 
+    /// Light volumes this drawer's `prepare` calls have built and reused so far: a flip-book
+    /// crossfade whose pair moves on by one frame builds one volume and copies the other from
+    /// the build before (a GPU copy), and a repeated pair reuses its whole build.
+    pub fn light_builds(&self) -> crate::LightBuilds {
+        self.light.counts()
+    }
+
     /// The layout of [`SunShadows::bind_group`] (for an engine's pipeline layout).
     pub fn shadow_layout(&self) -> &wgpu::BindGroupLayout {
         &self.shadow_layout

@@ -64,6 +64,7 @@ pub use draw::{
     VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
+pub use light::LightBuilds;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
 pub use timer::GpuTimer;
 pub use upload::stream::{StreamingVolume, WindowStats};

@@ -93,6 +93,21 @@ impl LightParams {
     fn cells(&self) -> usize {
         self.dims[..3].iter().map(|&d| d as usize).product()
     }
+
+    /// The same light volume wherever it is placed (all but `base`).
+    fn same_volume(&self, other: &LightParams) -> bool {
+        LightParams { base: 0, ..*self } == LightParams { base: 0, ..*other }
+    }
+}
+
+/// How many light volumes a renderer's or a drawer's `prepare` calls have built and how many
+/// they took from earlier builds (a kept build of the same list, or a copy of one volume).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LightBuilds {
+    /// Volumes built by the light passes (and the diffusion solve).
+    pub built: u64,
+    /// Volumes read from an earlier build: whole lists kept, or single volumes copied.
+    pub reused: u64,
 }
 
 /// `MsParams` of `light_build.wgsl`: one level of the diffusion solve and one sweep parity.
@@ -192,6 +207,7 @@ struct State {
     scratch: Option<(wgpu::Buffer, usize)>,
     /// The diffusion solve's scratch (every level of one volume) and its capacity in f32s.
     ms_scratch: Option<(wgpu::Buffer, usize)>,
+    counts: LightBuilds,
 }
 
 /// The light-volume passes of one renderer or drawer.
@@ -329,6 +345,11 @@ impl LightPass {
         }
     }
 
+    /// Volumes built and reused so far.
+    pub fn counts(&self) -> LightBuilds {
+        self.state.lock().expect("light state").counts
+    }
+
     /// Forgets the kept builds (the volume behind them changed).
     pub fn invalidate(&self) {
         self.state.lock().expect("light state").builds.clear();
@@ -379,14 +400,34 @@ impl LightPass {
         if let Some(i) = state.builds.iter().position(|b| b.key == key) {
             let b = state.builds.remove(i);
             state.builds.push(b.clone());
+            state.counts.reused += key.0.len() as u64;
             return Ok(b);
         }
         let (placed, diffusion) = &key;
+        // A volume a kept build already holds (the same frame, light, medium and grid) is copied
+        // from it instead of built: a crossfade whose pair moves on by one frame builds one
+        // volume, not two. The clones held here keep the sources from being picked as the
+        // destination below (a build no one else holds).
+        let sources: Vec<Option<(Arc<LightEntry>, u32)>> = placed
+            .iter()
+            .zip(diffusion)
+            .map(|(lp, m)| {
+                state.builds.iter().rev().find_map(|b| {
+                    let (vols, solves) = &b.key;
+                    vols.iter()
+                        .zip(solves)
+                        .find(|(v, d)| v.same_volume(lp) && *d == m)
+                        .map(|(v, _)| (b.clone(), v.base))
+                })
+            })
+            .collect();
         let buffer = |label: &str, bytes: usize| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: bytes.max(8) as u64,
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
@@ -427,11 +468,15 @@ impl LightPass {
         if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
             state.scratch = Some((buffer("vdbcook light density", 4 * largest), largest));
         }
-        // The diffusion solves' records, all volumes', each `align`-aligned.
+        // The diffusion solves' records, all built volumes', each `align`-aligned.
         let solves: Vec<Option<(Vec<[MsParams; 2]>, usize)>> = placed
             .iter()
             .zip(diffusion)
-            .map(|(lp, m)| m.map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m)))
+            .zip(&sources)
+            .map(|((lp, m), src)| {
+                m.filter(|_| src.is_none())
+                    .map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m))
+            })
             .collect();
         let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
         if 4 * ms_floats > most {
@@ -490,7 +535,23 @@ impl LightPass {
             })
         });
         let mut next_record = 0usize;
-        for (lp, solve) in placed.iter().zip(&solves) {
+        let mut copied = 0u64;
+        for ((lp, solve), (src, m)) in placed
+            .iter()
+            .zip(&solves)
+            .zip(sources.iter().zip(diffusion))
+        {
+            if let Some((from, at)) = src {
+                let n = lp.cells() as u64;
+                let (at, to) = (u64::from(*at), u64::from(lp.base));
+                encoder.copy_buffer_to_buffer(&from.pool, 8 * at, &pool, 8 * to, 8 * n);
+                if m.is_some() {
+                    let w = MS_OUT_BYTES as u64;
+                    encoder.copy_buffer_to_buffer(&from.ms_pool, w * at, &ms_pool, w * to, w * n);
+                }
+                copied += 1;
+                continue;
+            }
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vdbcook light params"),
                 contents: bytemuck::bytes_of(lp),
@@ -574,6 +635,9 @@ impl LightPass {
             }
         }
         queue.submit([encoder.finish()]);
+        drop(sources);
+        state.counts.reused += copied;
+        state.counts.built += placed.len() as u64 - copied;
         let bases = placed.iter().map(|lp| lp.base).collect();
         let entry = Arc::new(LightEntry {
             key: key.clone(),
@@ -614,7 +678,11 @@ mod tests {
             assert!(stride >= MS_PARAMS_SIZE as usize, "{alignment}: {stride}");
             assert!(stride < MS_PARAMS_SIZE as usize + alignment as usize);
             for k in 0..20 {
-                assert_eq!((k * stride) % alignment as usize, 0, "{alignment}: record {k}");
+                assert_eq!(
+                    (k * stride) % alignment as usize,
+                    0,
+                    "{alignment}: record {k}"
+                );
             }
         }
     }

@@ -1516,6 +1516,64 @@ fn a_dropped_encoder_leaves_the_next_lit_draw_right() {
     assert_eq!(again, want);
 }
 
+/// A crossfade moving on by one frame builds one light volume and copies the other from the
+/// build before (issue 34: crossfaded frames share work), in both multiple-scattering models
+/// (the diffusion model copies its solve too): the image is the one a fresh drawer, which
+/// builds both, gives at the same time, bit for bit; a pair drawn again builds nothing.
+#[test]
+fn a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer() {
+    let Some(gpu) =
+        Gpu::new("a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer")
+    else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    for ms_model in [MsModel::Diffusion, MsModel::Octaves] {
+        let (_vol, mut drawer) = setup(&gpu, &asset);
+        let medium = Shading {
+            lighting: Some(Lighting {
+                light_res: 20,
+                ms_model,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let at = |time: f32| {
+            [Instance {
+                time,
+                ..Default::default()
+            }]
+        };
+        gpu.draw(&mut drawer, &f, &view, &at(0.5), &medium, BG, None);
+        let first = drawer.light_builds();
+        assert_eq!((first.built, first.reused), (2, 0), "{ms_model:?}");
+        let moved_on = gpu.draw(&mut drawer, &f, &view, &at(1.5), &medium, BG, None);
+        let next = drawer.light_builds();
+        assert_eq!(
+            (next.built, next.reused),
+            (3, 1),
+            "{ms_model:?}: frame 1 copied"
+        );
+        let (_vol2, mut fresh) = setup(&gpu, &asset);
+        let want = gpu.draw(&mut fresh, &f, &view, &at(1.5), &medium, BG, None);
+        assert!(
+            want.chunks(4).any(|p| (p[0] as f64 - BG[0]).abs() > 0.05),
+            "the cloud shows"
+        );
+        assert_eq!(moved_on, want, "{ms_model:?}");
+        assert_eq!(fresh.light_builds().built, 2);
+        gpu.draw(&mut drawer, &f, &view, &at(1.75), &medium, BG, None);
+        let again = drawer.light_builds();
+        assert_eq!(
+            (again.built, again.reused),
+            (3, 3),
+            "{ms_model:?}: same pair"
+        );
+    }
+}
+
 /// The draw covers the pixels its instances can reach and no more: a small instance far off
 /// costs a small dispatch (`PreparedDraw::covered`), every pixel it changes lies inside it, and
 /// the image is what a draw over the whole viewport gives (the moved instance's CPU image
