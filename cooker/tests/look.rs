@@ -460,3 +460,36 @@ fn level_sets_are_cooked_and_refused_by_the_fog_renderers() {
         assert!(err.contains("level set"), "{err}");
     }
 }
+
+/// Under `--units world` the steps not given are one voxel (three for shadows), not one world
+/// unit: on a fog of 0.25-unit voxels the lit march steps 0.25 and draws what `--step 0.25`
+/// draws, pixel for pixel, and a world-unit step (four voxels) draws something else.
+#[test]
+fn world_units_step_one_voxel_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = "fixtures/vdb/fog_f32_none_nomask.vdb";
+    let base = ["--mode", "lit", "--units", "world", "--backend", "cpu"];
+    let with = |name: &str, extra: &[&str]| {
+        let mut args = base.to_vec();
+        args.extend_from_slice(extra);
+        render(dir.path(), input, name, &args)
+    };
+    let (doc, default) = with("default.png", &[]);
+    let settings = &doc["settings"];
+    assert!(
+        (settings["step"].as_f64().unwrap() - 0.25).abs() < 1e-6,
+        "{settings}"
+    );
+    assert!(
+        (settings["shadow_step"].as_f64().unwrap() - 0.75).abs() < 1e-6,
+        "{settings}"
+    );
+    let (_, voxel) = with("voxel.png", &["--step", "0.25", "--shadow-step", "0.75"]);
+    assert_eq!(default, voxel);
+    let (doc1, unit) = with("unit.png", &["--step", "1"]);
+    assert!((doc1["settings"]["step"].as_f64().unwrap() - 1.0).abs() < 1e-6);
+    assert_ne!(
+        default, unit,
+        "a step of four voxels should change the lit image"
+    );
+}
