@@ -15,10 +15,15 @@
 //   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths and light), the
 //   near field toward the sun walked per frame of a crossfade (`LIT_NEAR`; both frames gated on
 //   the lerped density and the one transmittance: the CPU draws single frames only).
+// - `draw_half_main` (compute, one invocation per 2×2 or 4×4 block of pixels; `MarchResolution`
+//   `Half`/`Quarter`): marches the block's centre ray where no scene depth of the block cuts the
+//   instances' boxes, into a per-block (L, T) texture that `draw_main` then upsamples
+//   bilinearly, marching at full resolution the pixels next to a block it left (a depth edge).
 // The composite that blends (L, T) over the engine's colour target is `composite.wgsl`.
 //
 // Concatenated after `volume.wgsl`, `light.wgsl` and `lit.wgsl` (group 0: the volume). Group 1: the view
-// (uniform), the instances (storage), the scene depth, the (L, T) output. Group 2: the light
+// (uniform), the instances (storage), the scene depth, the (L, T) output, the per-block (L, T)
+// written (4) and read (5). Group 2: the light
 // volumes, (τ_sun, τ_sky) per cell, each instance's at its own base elements, and (binding 1)
 // the diffusion model's light, six words per cell at 6·(base + cell). The structs mirror `runtime/src/
 // draw.rs` (`DrawView`, `DrawInstance`; sizes checked by its unit tests and by the bindings'
@@ -45,7 +50,13 @@ struct DrawView {
     // The pixel of the dispatch's first invocation: the dispatch covers only the pixels the
     // instances can reach (`PreparedDraw::covered`).
     origin: vec2<u32>,
-    _pad: vec2<u32>,
+    // The reduced-resolution march (`MarchResolution::Half`, `Quarter`): its blocks [half_lo,
+    // half_hi) of `block`² pixels (block b: pixels [block·b, block·b + block) on each axis);
+    // `block` 0: it did not run.
+    half_lo: vec2<u32>,
+    half_hi: vec2<u32>,
+    block: u32,
+    _pad: u32,
     // The light, phase, emission, step and seed (`lit.wgsl`; the renderer's packing too).
     shading: VdbShading,
 }
@@ -79,6 +90,11 @@ struct DrawInstance {
 @group(1) @binding(1) var<storage, read> draw_instances: array<DrawInstance>;
 @group(1) @binding(2) var draw_depth: texture_depth_2d;
 @group(1) @binding(3) var draw_out: texture_storage_2d<rgba16float, write>;
+// The reduced-resolution march's (L, T) per block: written by `draw_half_main` (binding 4), read by
+// `draw_main` (binding 5); a 1×1 stand-in at the other binding. T < 0: not marched (a depth
+// edge in the block).
+@group(1) @binding(4) var draw_half_out: texture_storage_2d<rgba16float, write>;
+@group(1) @binding(5) var draw_half_in: texture_2d<f32>;
 // Group 2: the light volumes (`lit.wgsl`'s `lit_tau` and `lit_ms`).
 
 // Whether this pipeline marches lit instances (the flat pipeline compiles the lit march out).
@@ -376,6 +392,89 @@ fn draw_unproject(xy: vec2<f32>, z: f32) -> vec4<f32> {
     return vec4<f32>(h.xyz / h.w, 1.0);
 }
 
+// A pixel-space point's ray in view space (origin `ov`, unit direction `dv`; t is view
+// distance) and its NDC.
+struct DrawPixelRay {
+    ov: vec3<f32>,
+    dv: vec3<f32>,
+    ndc: vec2<f32>,
+}
+
+fn draw_pixel_ray(pc: vec2<f32>) -> DrawPixelRay {
+    let size = draw_view.viewport;
+    var r: DrawPixelRay;
+    r.ndc = vec2<f32>(2.0 * pc.x / f32(size.x) - 1.0, 1.0 - 2.0 * pc.y / f32(size.y));
+    r.ov = vec3<f32>(0.0);
+    r.dv = draw_view.forward.xyz;
+    if (draw_view.forward.w != 0.0) {
+        let p = draw_unproject(r.ndc, 0.5);
+        r.dv = normalize(p.xyz);
+    } else {
+        r.ov = draw_unproject(r.ndc, draw_view.near_ndc).xyz;
+    }
+    return r;
+}
+
+// The view distance along `r` to the scene depth stored at pixel `pix` (VDB_BIG without one).
+fn draw_depth_t(pix: vec2<u32>, r: DrawPixelRay) -> f32 {
+    var t_max = VDB_BIG;
+    if (draw_view.has_depth != 0u) {
+        let d = textureLoad(draw_depth, vec2<i32>(pix), 0);
+        let p = draw_unproject(r.ndc, d);
+        if (p.w != 0.0) {
+            let t = dot(p.xyz - r.ov, r.dv);
+            if (abs(t) < VDB_BIG) {
+                t_max = t;
+            }
+        }
+    }
+    return t_max;
+}
+
+// A view ray in world space: origin, unit direction, and its cut (a view distance, VDB_BIG for
+// none) in world units (a view matrix with a scale makes a view-space length `s` world units).
+struct DrawWorldRay {
+    ow: vec3<f32>,
+    dw: vec3<f32>,
+    t_max: f32,
+}
+
+fn draw_world_ray(r: DrawPixelRay, t_view: f32) -> DrawWorldRay {
+    let wfv = draw_view.world_from_view;
+    var w: DrawWorldRay;
+    w.ow = (wfv * vec4<f32>(r.ov, 1.0)).xyz;
+    let dws = (wfv * vec4<f32>(r.dv, 0.0)).xyz;
+    let s = length(dws);
+    w.dw = dws / s;
+    w.t_max = t_view;
+    if (t_view < VDB_BIG) {
+        w.t_max = t_view * s;
+    }
+    return w;
+}
+
+// The reduced-resolution (L, T) at pixel `pix`: bilinear over the four nearest block centres
+// (block b's at pixel coordinate block·b + block/2), clamped to the marched blocks; T < 0 when
+// one of them was not marched (the pixel is marched at full resolution).
+fn draw_upsample(pix: vec2<u32>) -> vec4<f32> {
+    let k = f32(draw_view.block);
+    let u = (vec2<f32>(pix) + vec2<f32>(0.5 - 0.5 * k)) / k;
+    let b0f = floor(u);
+    let f = u - b0f;
+    let lo = vec2<i32>(draw_view.half_lo);
+    let hi = vec2<i32>(draw_view.half_hi) - vec2<i32>(1);
+    let b0 = clamp(vec2<i32>(b0f), lo, hi);
+    let b1 = clamp(vec2<i32>(b0f) + vec2<i32>(1), lo, hi);
+    let s00 = textureLoad(draw_half_in, b0, 0);
+    let s10 = textureLoad(draw_half_in, vec2<i32>(b1.x, b0.y), 0);
+    let s01 = textureLoad(draw_half_in, vec2<i32>(b0.x, b1.y), 0);
+    let s11 = textureLoad(draw_half_in, b1, 0);
+    if (min(min(s00.w, s10.w), min(s01.w, s11.w)) < 0.0) {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    return mix(mix(s00, s10, f.x), mix(s01, s11, f.x), f.y);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
     let size = draw_view.viewport;
@@ -383,38 +482,72 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
     if (pix.x >= size.x || pix.y >= size.y) {
         return;
     }
-    let pc = vec2<f32>(pix) + vec2<f32>(0.5) + draw_view.jitter;
-    let ndc = vec2<f32>(2.0 * pc.x / f32(size.x) - 1.0, 1.0 - 2.0 * pc.y / f32(size.y));
-    // The ray in view space: origin `ov`, unit direction `dv`; t is view (= world) distance.
-    var ov = vec3<f32>(0.0);
-    var dv = draw_view.forward.xyz;
-    if (draw_view.forward.w != 0.0) {
-        let p = draw_unproject(ndc, 0.5);
-        dv = normalize(p.xyz);
-    } else {
-        ov = draw_unproject(ndc, draw_view.near_ndc).xyz;
+    if (draw_view.block != 0u) {
+        let up = draw_upsample(pix);
+        if (up.w >= 0.0) {
+            textureStore(draw_out, vec2<i32>(pix), up);
+            return;
+        }
     }
-    var t_max = VDB_BIG;
-    if (draw_view.has_depth != 0u) {
-        let d = textureLoad(draw_depth, vec2<i32>(pix), 0);
-        let p = draw_unproject(ndc, d);
-        if (p.w != 0.0) {
-            let t = dot(p.xyz - ov, dv);
-            if (abs(t) < VDB_BIG) {
-                t_max = t;
+    let r = draw_pixel_ray(vec2<f32>(pix) + vec2<f32>(0.5) + draw_view.jitter);
+    let w = draw_world_ray(r, draw_depth_t(pix, r));
+    textureStore(draw_out, vec2<i32>(pix), draw_lt(w.ow, w.dw, w.t_max, pix.y * size.x + pix.x));
+}
+
+// The reduced-resolution march (`MarchResolution::Half`, `Quarter`): one ray per block of
+// `block`² pixels through its centre, where the block's scene depths all lie beyond every
+// instance's boxes along it (or all in front of them: nothing drawn); a block with a depth edge
+// among the volumes is left to `draw_main`, which marches its pixels at full resolution.
+@compute @workgroup_size(8, 8, 1)
+fn draw_half_main(@builtin(global_invocation_id) global: vec3<u32>) {
+    let size = draw_view.viewport;
+    let b = global.xy + draw_view.half_lo;
+    if (b.x >= draw_view.half_hi.x || b.y >= draw_view.half_hi.y) {
+        return;
+    }
+    let bk = draw_view.block;
+    let p0 = bk * b;
+    let centre = draw_world_ray(draw_pixel_ray(vec2<f32>(p0) + vec2<f32>(0.5 * f32(bk)) + draw_view.jitter), VDB_BIG);
+    // The block's depth cuts, each along its own pixel's ray.
+    var t_lo = VDB_BIG;
+    var t_hi = 0.0;
+    for (var k = 0u; k < bk * bk; k++) {
+        let pix = min(p0 + vec2<u32>(k % bk, k / bk), size - vec2<u32>(1u));
+        let r = draw_pixel_ray(vec2<f32>(pix) + vec2<f32>(0.5) + draw_view.jitter);
+        let t = draw_world_ray(r, draw_depth_t(pix, r)).t_max;
+        t_lo = min(t_lo, t);
+        t_hi = max(t_hi, t);
+    }
+    // Where the instances' boxes (content and glow) lie along the centre ray.
+    var e_lo = VDB_BIG;
+    var e_hi = -VDB_BIG;
+    for (var i = 0u; i < draw_view.instance_count; i++) {
+        let ray = draw_ray(i, centre.ow, centre.dw);
+        let c = draw_span(i, ray, VDB_BIG);
+        if (c.y > c.x) {
+            e_lo = min(e_lo, c.x);
+            e_hi = max(e_hi, c.y);
+        }
+        if (DRAW_EMIT) {
+            let g = vdb_clip_box(ray, draw_instances[i].emit_lo.xyz, draw_instances[i].emit_hi.xyz);
+            if (g.y > g.x) {
+                e_lo = min(e_lo, g.x);
+                e_hi = max(e_hi, g.y);
             }
         }
     }
-    // To world; a view matrix with a scale makes a view-space length `s` world units long.
-    let wfv = draw_view.world_from_view;
-    let ow = (wfv * vec4<f32>(ov, 1.0)).xyz;
-    let dws = (wfv * vec4<f32>(dv, 0.0)).xyz;
-    let s = length(dws);
-    let dw = dws / s;
-    if (t_max < VDB_BIG) {
-        t_max *= s;
+    var out = vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    if (!(e_hi > e_lo) || t_hi <= e_lo) {
+        out = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    } else if (t_lo >= e_hi) {
+        out = draw_lt(centre.ow, centre.dw, t_lo, b.y * size.x + b.x);
     }
+    textureStore(draw_half_out, vec2<i32>(b), out);
+}
 
+// (L, T) of every instance along the world ray from `ow` along `dw`, cut at `t_max` (world
+// distance); `pixel` seeds the lit march's jitter.
+fn draw_lt(ow: vec3<f32>, dw: vec3<f32>, t_max: f32, pixel: u32) -> vec4<f32> {
     let n = draw_view.instance_count;
     var lt = vec4<f32>(vec3<f32>(0.0), 1.0);
     if (!DRAW_INTERLEAVE) {
@@ -433,7 +566,7 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
             let span = draw_span(i, ray, t_max);
             var r = vec4<f32>(vec3<f32>(0.0), 1.0);
             if (span.y > span.x) {
-                r = draw_march(inst, ray, span.x, span.y, dw, pix.y * size.x + pix.x);
+                r = draw_march(inst, ray, span.x, span.y, dw, pixel);
             }
             lt = vec4<f32>(lt.xyz + lt.w * (r.xyz + glow), lt.w * r.w);
         }
@@ -475,7 +608,7 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
                 break;
             }
             if (covering > 0u) {
-                let r = draw_pieces(ow, dw, t, e, t_max, pix.y * size.x + pix.x, covering == 1u);
+                let r = draw_pieces(ow, dw, t, e, t_max, pixel, covering == 1u);
                 lt = vec4<f32>(lt.xyz + lt.w * r.xyz, lt.w * r.w);
             }
             t = e;
@@ -484,7 +617,5 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
             }
         }
     }
-    let lum = lt.xyz;
-    let trans = lt.w;
-    textureStore(draw_out, vec2<i32>(pix), vec4<f32>(lum, trans));
+    return lt;
 }

@@ -5,7 +5,8 @@
 # 1920×1080 with 1, 8 and 64 instances on the WDAS cloud, the 200-frame stormscape sequence
 # (both from ../shared/samples) and the fire fixture, written as a table with the adapter's name
 # and the date to docs/gpu/<adapter>.md (commit it). SIZE=WxH and COUNTS=1,8,64 override;
-# SKIP_TESTS=1 skips the tests (a dry run of the tables). For a machine without cargo (binaries built
+# SKIP_TESTS=1 skips the tests (a dry run of the tables); RESOLUTIONS=full,half,quarter the marches
+# benched. For a machine without cargo (binaries built
 # elsewhere): VDBCOOK=path/to/vdbcook skips the build, RUNTIME_TESTS="bin ..." runs those prebuilt
 # test binaries of the runtime instead of `cargo test`, ASSETS=dir benches the dir's *.vdbc as cooked.
 set -euo pipefail
@@ -50,11 +51,16 @@ if [ -d "$SAMPLES/stormscape-cloud-seq" ]; then
 fi
 cook fire fixtures/seq/fire --grids auto
 fi
+RESOLUTIONS=${RESOLUTIONS:-full,half,quarter}
+runs=()
 for name in "${assets[@]}"; do
-    "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" \
-        --instances "$COUNTS" --frames 60 --runs 10 --json >"$OUT/$name.json" || exit 1
+    for res in ${RESOLUTIONS//,/ }; do
+        "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" --march-resolution "$res" \
+            --instances "$COUNTS" --frames 60 --runs 10 --json >"$OUT/$name-$res.json" || exit 1
+        runs+=("$name-$res")
+    done
 done
-python3 - "$OUT" "${assets[@]}" <<'PY'
+python3 - "$OUT" "${runs[@]}" <<'PY'
 import json, re, sys, datetime
 out, names = sys.argv[1], sys.argv[2:]
 docs = {n: json.load(open(f"{out}/{n}.json")) for n in names}
@@ -62,15 +68,16 @@ adapter = next(iter(docs.values()))["adapter"]
 slug = re.sub(r"[^a-z0-9]+", "-", adapter.lower()).strip("-")[:60]
 clocks = sorted({d["clock"] for d in docs.values()})
 lines = [f"# `vdbcook bench` on {adapter}", "",
-         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames).", "",
-         "| asset | size | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error |",
-         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march.", "",
+         "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error | vs full march |",
+         "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
 def num(v, f=".2f"):
     return "–" if v is None else format(v, f)
 for n, d in docs.items():
     for r in d["results"]:
         ratio = r["playing_ms"] / r["static_ms"] if r["static_ms"] else None
-        lines.append(f"| {n} | {d['width']}×{d['height']} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} |")
+        asset = n.rsplit("-", 1)[0]
+        lines.append(f"| {asset} | {d['width']}×{d['height']} | {d.get('march_resolution', 'full')} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} | {num(r.get('resolution_error'), '.3f')} |")
 path = f"docs/gpu/{slug}.md"
 open(path, "w").write("\n".join(lines) + "\n")
 print(f"wrote {path}")

@@ -57,6 +57,15 @@ pub struct Args {
     /// volume built per frame change).
     #[arg(long, default_value = "crossfade", value_parser = ["crossfade", "hold"])]
     blend: String,
+    /// Rays the drawer marches: full (one per pixel), half or quarter (one per 2×2 or 4×4 block
+    /// away from depth edges, upsampled: `MarchResolution`); with half or quarter,
+    /// `resolution_error` is the static frame's relative RMSE against the full-resolution draw.
+    #[arg(long, default_value = "full", value_parser = ["full", "half", "quarter"])]
+    march_resolution: String,
+    /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png (tone-mapped sRGB over
+    /// the bench's backdrop, as `render` maps radiance): to see what was timed.
+    #[arg(long, value_name = "DIR")]
+    png: Option<PathBuf>,
     /// Displayed frames timed while playing (after one warm-up frame).
     #[arg(long, default_value_t = 60)]
     frames: u32,
@@ -128,7 +137,8 @@ mod imp {
     use serde_json::json;
     use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
     use vdbcook_runtime::{
-        wgpu, DrawTarget, GpuTimer, GpuVolume, Instance, Shading, View, VolumeDrawer,
+        wgpu, DrawTarget, GpuTimer, GpuVolume, Instance, MarchResolution, Shading, View,
+        VolumeDrawer,
     };
     use vdbcook_trace::{Camera, Mode, Output};
 
@@ -432,7 +442,17 @@ mod imp {
                 )?;
                 crate::look::resolve(&a.look, &mut settings, &asset, &s.camera)?;
                 let shading = Shading::of_settings(&settings);
-                let mut drawer = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                let resolution = match a.march_resolution.as_str() {
+                    "half" => MarchResolution::Half,
+                    "quarter" => MarchResolution::Quarter,
+                    _ => MarchResolution::Full,
+                };
+                let fresh_drawer = || -> Result<VolumeDrawer, CliError> {
+                    let mut d = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                    d.set_march_resolution(resolution);
+                    Ok(d)
+                };
+                let mut drawer = fresh_drawer()?;
                 // Static: frame 0 again and again, after a warm-up of at least WARM_UP of
                 // draws (the first compiles and builds; a real GPU idles at a low clock and
                 // needs a fraction of a second of work to ramp up, which an H100 showed as a
@@ -484,12 +504,41 @@ mod imp {
                 // The same views and times drawn from nothing: a fresh drawer each.
                 let mut error = 0.0f64;
                 for (t, img) in &kept {
-                    let mut fresh =
-                        VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                    let mut fresh = fresh_drawer()?;
                     let (_, exact) = frame(&gpu, &mut fresh, None, &s, *t, &shading, true)?;
                     let e = exact.map_or(f64::NAN, |x| rel_rmse(img, &x));
                     error = if e.is_nan() { e } else { error.max(e) };
                 }
+                if let Some(dir) = &a.png {
+                    let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
+                    if let Some(img) = img {
+                        let display = a.look.display(false);
+                        let rgba: Vec<u8> = img
+                            .chunks_exact(3)
+                            .flat_map(|p| {
+                                let [r, g, b] = display.encode8([p[0], p[1], p[2]]);
+                                [r, g, b, 255]
+                            })
+                            .collect();
+                        std::fs::create_dir_all(dir).map_err(|e| {
+                            CliError::Other(format!("cannot create {}: {e}", dir.display()))
+                        })?;
+                        let name = format!("{mode_name}-{n}-{}.png", a.march_resolution);
+                        crate::render::write_png(&dir.join(name), a.width, a.height, &rgba)?;
+                    }
+                }
+                // The reduced-resolution march against the full one, static frame (same view).
+                let resolution_error = if resolution != MarchResolution::Full {
+                    let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
+                    let mut full = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                    let (_, exact) = frame(&gpu, &mut full, None, &s, 0.0, &shading, true)?;
+                    match (img, exact) {
+                        (Some(i), Some(x)) => Some(rel_rmse(&i, &x)),
+                        _ => None,
+                    }
+                } else {
+                    None
+                };
                 let (st, pl) = (summary(&statics), summary(&playing));
                 walls += st.walls + pl.walls;
                 if !a.json {
@@ -510,6 +559,7 @@ mod imp {
                     "static_prepare_ms": st.prepare_ms, "playing_prepare_ms": pl.prepare_ms,
                     "static_wall_ms": st.wall_ms, "playing_wall_ms": pl.wall_ms,
                     "playing_light_builds": builds,
+                    "resolution_error": resolution_error,
                 }));
             }
         }
@@ -528,6 +578,7 @@ mod imp {
                 "fps": a.fps,
                 "display_fps": a.display_fps,
                 "blend": a.blend,
+                "march_resolution": a.march_resolution,
                 "frames": a.frames,
                 "runs": a.runs,
                 "results": results,

@@ -110,6 +110,49 @@ fn bench_builds_each_frames_light_volume_about_once() {
     }
 }
 
+/// `--march-resolution half`: the JSON says so and states the static frame's error against the
+/// full march (not 0: fewer rays; small on the smoke), `--png` writes the frame it timed.
+#[test]
+fn bench_half_resolution_states_its_error_and_writes_the_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let pngs = dir.path().join("frames");
+    let (code, out, err) = vdbcook(&[
+        "bench",
+        &asset,
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--modes",
+        "density",
+        "--frames",
+        "2",
+        "--runs",
+        "1",
+        "--march-resolution",
+        "half",
+        "--png",
+        pngs.to_str().unwrap(),
+        "--json",
+    ]);
+    if code != 0 && !gpu_required() && err.contains("adapter") {
+        eprintln!("skipped: no GPU adapter ({err})");
+        return;
+    }
+    assert_eq!(code, 0, "{err}");
+    let doc: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(doc["march_resolution"].as_str(), Some("half"));
+    let e = doc["results"][0]["resolution_error"].as_f64().unwrap();
+    assert!(e > 0.0 && e < 0.1, "half vs full: {e}");
+    let (w, h, px) = common::read_png(&pngs.join("density-1-half.png"));
+    assert_eq!((w, h), (64, 36));
+    assert!(
+        px.chunks(4).any(|p| p[..3] != px[..3]),
+        "the frame is not flat"
+    );
+}
+
 #[test]
 fn bench_refuses_flags_out_of_range_before_any_work() {
     let dir = tempfile::tempdir().unwrap();

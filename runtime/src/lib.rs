@@ -60,8 +60,8 @@ mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, Interleave, PreparedDraw, Shading, SunShadows, View, ViewRays,
-    VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, Interleave, MarchResolution, PreparedDraw, Shading, SunShadows, View,
+    ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 pub use light::LightBuilds;
