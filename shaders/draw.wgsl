@@ -455,7 +455,8 @@ fn draw_world_ray(r: DrawPixelRay, t_view: f32) -> DrawWorldRay {
 
 // The reduced-resolution (L, T) at pixel `pix`: bilinear over the four nearest block centres
 // (block b's at pixel coordinate block·b + block/2), clamped to the marched blocks; T < 0 when
-// one of them was not marched (the pixel is marched at full resolution).
+// one of them was not marched, or when hidden blocks (T = 2: scene depth in front of every
+// volume) meet others (an occluder's edge), so that the pixel is marched at full resolution.
 fn draw_upsample(pix: vec2<u32>) -> vec4<f32> {
     let k = f32(draw_view.block);
     let u = (vec2<f32>(pix) + vec2<f32>(0.5 - 0.5 * k)) / k;
@@ -469,8 +470,13 @@ fn draw_upsample(pix: vec2<u32>) -> vec4<f32> {
     let s10 = textureLoad(draw_half_in, vec2<i32>(b1.x, b0.y), 0);
     let s01 = textureLoad(draw_half_in, vec2<i32>(b0.x, b1.y), 0);
     let s11 = textureLoad(draw_half_in, b1, 0);
-    if (min(min(s00.w, s10.w), min(s01.w, s11.w)) < 0.0) {
+    let t = vec4<f32>(s00.w, s10.w, s01.w, s11.w);
+    let hidden = t == vec4<f32>(DRAW_HIDDEN);
+    if (any(t < vec4<f32>(0.0)) || (any(hidden) && !all(hidden))) {
         return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    if (all(hidden)) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
     }
     return mix(mix(s00, s10, f.x), mix(s01, s11, f.x), f.y);
 }
@@ -494,10 +500,15 @@ fn draw_main(@builtin(global_invocation_id) global: vec3<u32>) {
     textureStore(draw_out, vec2<i32>(pix), draw_lt(w.ow, w.dw, w.t_max, pix.y * size.x + pix.x));
 }
 
+// The T a hidden block stores (every pixel's scene depth in front of every volume on its ray).
+const DRAW_HIDDEN: f32 = 2.0;
+
 // The reduced-resolution march (`MarchResolution::Half`, `Quarter`): one ray per block of
-// `block`² pixels through its centre, where the block's scene depths all lie beyond every
-// instance's boxes along it (or all in front of them: nothing drawn); a block with a depth edge
-// among the volumes is left to `draw_main`, which marches its pixels at full resolution.
+// `block`² pixels through its centre, where every pixel's scene depth lies beyond every
+// instance's boxes along that pixel's own ray (or meets none); a block where every pixel's depth
+// lies in front of the boxes on its ray is hidden (T = DRAW_HIDDEN: nothing drawn); any other
+// block (a depth edge among the volumes, or both kinds of pixel) is left to `draw_main`, which
+// marches its pixels at full resolution.
 @compute @workgroup_size(8, 8, 1)
 fn draw_half_main(@builtin(global_invocation_id) global: vec3<u32>) {
     let size = draw_view.viewport;
@@ -508,39 +519,44 @@ fn draw_half_main(@builtin(global_invocation_id) global: vec3<u32>) {
     let bk = draw_view.block;
     let p0 = bk * b;
     let centre = draw_world_ray(draw_pixel_ray(vec2<f32>(p0) + vec2<f32>(0.5 * f32(bk)) + draw_view.jitter), VDB_BIG);
-    // The block's depth cuts, each along its own pixel's ray.
-    var t_lo = VDB_BIG;
-    var t_hi = 0.0;
+    // Each pixel against the boxes (content and glow) on its own ray: beyond them all, in front
+    // of them all, or cutting through.
+    var beyond = 0u;
+    var in_front = 0u;
     for (var k = 0u; k < bk * bk; k++) {
         let pix = min(p0 + vec2<u32>(k % bk, k / bk), size - vec2<u32>(1u));
         let r = draw_pixel_ray(vec2<f32>(pix) + vec2<f32>(0.5) + draw_view.jitter);
+        let w = draw_world_ray(r, VDB_BIG);
         let t = draw_world_ray(r, draw_depth_t(pix, r)).t_max;
-        t_lo = min(t_lo, t);
-        t_hi = max(t_hi, t);
-    }
-    // Where the instances' boxes (content and glow) lie along the centre ray.
-    var e_lo = VDB_BIG;
-    var e_hi = -VDB_BIG;
-    for (var i = 0u; i < draw_view.instance_count; i++) {
-        let ray = draw_ray(i, centre.ow, centre.dw);
-        let c = draw_span(i, ray, VDB_BIG);
-        if (c.y > c.x) {
-            e_lo = min(e_lo, c.x);
-            e_hi = max(e_hi, c.y);
-        }
-        if (DRAW_EMIT) {
-            let g = vdb_clip_box(ray, draw_instances[i].emit_lo.xyz, draw_instances[i].emit_hi.xyz);
-            if (g.y > g.x) {
-                e_lo = min(e_lo, g.x);
-                e_hi = max(e_hi, g.y);
+        var e_lo = VDB_BIG;
+        var e_hi = -VDB_BIG;
+        for (var i = 0u; i < draw_view.instance_count; i++) {
+            let ray = draw_ray(i, w.ow, w.dw);
+            let c = draw_span(i, ray, VDB_BIG);
+            if (c.y > c.x) {
+                e_lo = min(e_lo, c.x);
+                e_hi = max(e_hi, c.y);
             }
+            if (DRAW_EMIT) {
+                let g = vdb_clip_box(ray, draw_instances[i].emit_lo.xyz, draw_instances[i].emit_hi.xyz);
+                if (g.y > g.x) {
+                    e_lo = min(e_lo, g.x);
+                    e_hi = max(e_hi, g.y);
+                }
+            }
+        }
+        if (!(e_hi > e_lo) || t >= e_hi) {
+            beyond += 1u;
+        } else if (t <= e_lo) {
+            in_front += 1u;
         }
     }
     var out = vec4<f32>(0.0, 0.0, 0.0, -1.0);
-    if (!(e_hi > e_lo) || t_hi <= e_lo) {
-        out = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-    } else if (t_lo >= e_hi) {
-        out = draw_lt(centre.ow, centre.dw, t_lo, b.y * size.x + b.x);
+    if (in_front == bk * bk) {
+        out = vec4<f32>(0.0, 0.0, 0.0, DRAW_HIDDEN);
+    } else if (beyond == bk * bk) {
+        // Every pixel sees its volumes whole: the centre ray is not cut either.
+        out = draw_lt(centre.ow, centre.dw, VDB_BIG, b.y * size.x + b.x);
     }
     textureStore(draw_half_out, vec2<i32>(b), out);
 }

@@ -21,9 +21,6 @@ use std::path::PathBuf;
 
 use crate::errors::CliError;
 
-/// The least wall time of static draws before the timed ones (clock ramp-up, compilation).
-const WARM_UP: std::time::Duration = std::time::Duration::from_millis(300);
-
 #[derive(clap::Args)]
 pub struct Args {
     /// The cooked asset (.vdbc), or VDB sources (cooked in memory, f32, first).
@@ -144,6 +141,9 @@ mod imp {
 
     use super::{check, Args};
     use crate::errors::CliError;
+
+    /// The least wall time of static draws before the timed ones (clock ramp-up, compilation).
+    const WARM_UP: std::time::Duration = std::time::Duration::from_millis(300);
     use crate::gpu::{cleared_pass, f16_to_f32, texture_2d, Gpu, TextureReadback};
 
     const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -461,7 +461,7 @@ mod imp {
                 let warm = std::time::Instant::now();
                 loop {
                     frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
-                    if warm.elapsed() >= super::WARM_UP {
+                    if warm.elapsed() >= WARM_UP {
                         break;
                     }
                 }

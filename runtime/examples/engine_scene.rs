@@ -17,7 +17,8 @@ use std::process::ExitCode;
 use vdbcook_runtime::glam::{Affine3A, Quat, Vec3};
 use vdbcook_runtime::wgpu::util::DeviceExt;
 use vdbcook_runtime::{
-    wgpu, Asset, DrawTarget, GpuVolume, Instance, Lighting, Shading, View, VolumeDrawer,
+    wgpu, Asset, DrawTarget, GpuVolume, Instance, Lighting, MarchResolution, Shading, View,
+    VolumeDrawer,
 };
 
 /// The colour target's format: 8-bit sRGB, as a swapchain (the drawer blends in linear space).
@@ -149,10 +150,23 @@ pub fn render_scene(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     asset: &Asset,
+    size: (u32, u32),
+) -> Result<SceneImages, Box<dyn Error>> {
+    render_scene_at(device, queue, asset, size, MarchResolution::Full)
+}
+
+/// [`render_scene`] with the drawer marching at `resolution` (`MarchResolution::Half` or
+/// `Quarter`: fewer rays, upsampled, the box's edges still marched per pixel).
+pub fn render_scene_at(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    asset: &Asset,
     (width, height): (u32, u32),
+    resolution: MarchResolution,
 ) -> Result<SceneImages, Box<dyn Error>> {
     let volume = GpuVolume::upload(device, queue, asset)?;
     let mut drawer = VolumeDrawer::new(device, &volume, COLOR_FORMAT)?;
+    drawer.set_march_resolution(resolution);
 
     // The cloud's world box: the stored content of every frame, one voxel wider all round.
     let i2w = volume.index_to_world();

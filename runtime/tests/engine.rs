@@ -1655,6 +1655,154 @@ fn half_resolution_march_upsamples_away_from_depth_edges() {
     }
 }
 
+/// Writes `left` as the depth of the pixels left of column `split` and `right` right of it
+/// (a depth-only pass: an occluder's straight edge), with the colour cleared to `BG`.
+fn step_depth(gpu: &Gpu, enc: &mut wgpu::CommandEncoder, f: &Frame, split: u32, depths: [f32; 2]) {
+    gpu.clear(enc, f, BG, Some(0.0));
+    let source = format!(
+        "@vertex fn vs(@builtin(vertex_index) v: u32, @builtin(instance_index) i: u32) \
+         -> @builtin(position) vec4<f32> {{\n\
+         let xy = vec2<f32>(f32((v << 1u) & 2u), f32(v & 2u)) * 2.0 - 1.0;\n\
+         return vec4<f32>(xy, select({:.9}, {:.9}, i == 1u), 1.0);\n}}",
+        depths[0], depths[1]
+    );
+    let module = gpu
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("test step depth"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+    let pipeline = gpu
+        .device
+        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("test step depth"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        });
+    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("test step depth"),
+        color_attachments: &[],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: &f.depth_view,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_pipeline(&pipeline);
+    pass.set_scissor_rect(0, 0, split, H);
+    pass.draw(0..3, 0..1);
+    pass.set_scissor_rect(split, 0, W - split, H);
+    pass.draw(0..3, 1..2);
+}
+
+/// An occluder's straight edge in front of the cloud, on a block boundary (column 80, a multiple
+/// of 2 and 4), with the cloud showing beside it: at every march resolution the occluder's
+/// pixels keep the background bit for bit (no cloud bleeds over the edge: the blocks beside it
+/// are marched per pixel) and the first visible column is what the full march draws there.
+#[test]
+fn reduced_resolution_keeps_an_occluders_edge() {
+    let Some(gpu) = Gpu::new("reduced_resolution_keeps_an_occluders_edge") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (view, cam) = framing_view(&asset);
+    let mid = centre_distance(&cam);
+    let f = gpu.frame();
+    let inst = [Instance::default()];
+    let split = W / 2;
+    let depths = [
+        ndc_depth(&view.proj, 0.2 * mid),
+        ndc_depth(&view.proj, 4.0 * mid),
+    ];
+    let lit = Shading {
+        lighting: Some(Lighting {
+            light_res: 20,
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    let bg16 = BG.map(|v| half::f16::from_f64(v).to_f32());
+    for (what, medium) in [("flat", Shading::default()), ("lit", lit)] {
+        let mut images = Vec::new();
+        for resolution in [
+            MarchResolution::Full,
+            MarchResolution::Half,
+            MarchResolution::Quarter,
+        ] {
+            let (_v, mut drawer) = setup(&gpu, &asset);
+            drawer.set_march_resolution(resolution);
+            let mut enc = gpu.device.create_command_encoder(&Default::default());
+            step_depth(&gpu, &mut enc, &f, split, depths);
+            let target = DrawTarget {
+                color: &f.color_view,
+                depth: Some(&f.depth_view),
+            };
+            let _held = drawer
+                .draw(
+                    &gpu.device,
+                    &gpu.queue,
+                    &mut enc,
+                    &target,
+                    &view,
+                    &inst,
+                    &medium,
+                )
+                .expect("draw");
+            gpu.queue.submit([enc.finish()]);
+            images.push((resolution, gpu.read(&f)));
+        }
+        let full = &images[0].1;
+        let at = |img: &[f32], x: u32, y: u32| {
+            let k = 4 * (y * W + x) as usize;
+            [img[k], img[k + 1], img[k + 2]]
+        };
+        let shows = (0..H).filter(|&y| at(full, split, y) != bg16).count();
+        assert!(
+            shows > 10,
+            "{what}: the cloud shows beside the edge ({shows} rows)"
+        );
+        for (resolution, img) in &images {
+            for y in 0..H {
+                for x in 0..split {
+                    assert_eq!(
+                        at(img, x, y),
+                        bg16,
+                        "{what} {resolution:?}: ({x}, {y}) is hidden"
+                    );
+                }
+                assert_eq!(
+                    at(img, split, y),
+                    at(full, split, y),
+                    "{what} {resolution:?}: ({split}, {y}), the first visible column"
+                );
+            }
+        }
+    }
+}
+
 /// The draw covers the pixels its instances can reach and no more: a small instance far off
 /// costs a small dispatch (`PreparedDraw::covered`), every pixel it changes lies inside it, and
 /// the image is what a draw over the whole viewport gives (the moved instance's CPU image
