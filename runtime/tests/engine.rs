@@ -355,6 +355,17 @@ fn centre_distance(cam: &Camera) -> f32 {
     d.sqrt() as f32
 }
 
+/// The default lighting with a small light volume (20 cells: quick to build on lavapipe).
+fn lit_shading() -> Shading {
+    Shading {
+        lighting: Some(Lighting {
+            light_res: 20,
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
 fn setup(gpu: &Gpu, asset: &Asset) -> (GpuVolume, VolumeDrawer) {
     let vol = GpuVolume::upload(&gpu.device, &gpu.queue, asset).expect("upload");
     let drawer = VolumeDrawer::new(&gpu.device, &vol, FORMAT).expect("drawer");
@@ -1592,13 +1603,7 @@ fn half_resolution_march_upsamples_away_from_depth_edges() {
     let mid = centre_distance(&cam);
     let f = gpu.frame();
     let inst = [Instance::default()];
-    let lit = Shading {
-        lighting: Some(Lighting {
-            light_res: 20,
-            ..Default::default()
-        }),
-        ..Default::default()
-    };
+    let lit = lit_shading();
     // Relative RMSE of the light drawn over the background (RGB), and the pixels that differ.
     let error = |full: &[f32], half: &[f32]| {
         let (mut num, mut den, mut differ) = (0.0f64, 0.0f64, 0usize);
@@ -1737,13 +1742,7 @@ fn reduced_resolution_keeps_an_occluders_edge() {
         ndc_depth(&view.proj, 0.2 * mid),
         ndc_depth(&view.proj, 4.0 * mid),
     ];
-    let lit = Shading {
-        lighting: Some(Lighting {
-            light_res: 20,
-            ..Default::default()
-        }),
-        ..Default::default()
-    };
+    let lit = lit_shading();
     let bg16 = BG.map(|v| half::f16::from_f64(v).to_f32());
     for (what, medium) in [("flat", Shading::default()), ("lit", lit)] {
         let mut images = Vec::new();

@@ -17,13 +17,9 @@ use vdbcook_asset::PayloadFormat;
 use vdbcook_runtime::glam::Vec3;
 use vdbcook_runtime::MarchResolution;
 
-#[test]
-fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
-    let Some((device, queue)) = gpu("engine_scene_clips_at_the_box_and_shows_over_the_ground")
-    else {
-        return;
-    };
-    let asset = build(
+/// A hand-built three-frame cloud, 0.1 world units a voxel, moved off the origin.
+fn three_frame_cloud() -> vdbcook_asset::Asset {
+    build(
         [1, 1, 1],
         uniform_scale(0.1, [2.0, 1.0, -3.0]),
         0.0,
@@ -33,7 +29,16 @@ fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
             blob_frame([68.0, 64.0, 62.0], 34.0, 1.4, None),
         ],
         PayloadFormat::F32,
-    );
+    )
+}
+
+#[test]
+fn engine_scene_clips_at_the_box_and_shows_over_the_ground() {
+    let Some((device, queue)) = gpu("engine_scene_clips_at_the_box_and_shows_over_the_ground")
+    else {
+        return;
+    };
+    let asset = three_frame_cloud();
     let (w, h) = (240, 135);
     let img = engine_scene::render_scene(&device, &queue, &asset, (w, h)).unwrap();
     check_scene(&img, w, h, true);
@@ -50,17 +55,7 @@ fn engine_scene_at_reduced_resolution_keeps_the_box_edges() {
     else {
         return;
     };
-    let asset = build(
-        [1, 1, 1],
-        uniform_scale(0.1, [2.0, 1.0, -3.0]),
-        0.0,
-        &[
-            blob_frame([64.0, 60.0, 64.0], 30.0, 1.0, None),
-            blob_frame([66.0, 62.0, 64.0], 32.0, 1.2, None),
-            blob_frame([68.0, 64.0, 62.0], 34.0, 1.4, None),
-        ],
-        PayloadFormat::F32,
-    );
+    let asset = three_frame_cloud();
     let (w, h) = (240, 135);
     for resolution in [MarchResolution::Half, MarchResolution::Quarter] {
         eprintln!("{resolution:?}:");
