@@ -479,10 +479,12 @@ mod imp {
                 let checks = [a.frames / 3, 2 * a.frames / 3, a.frames];
                 let mut kept = Vec::new();
                 for k in 0..=a.frames {
-                    // Times run over [0, frames − 1] (the last frame has no successor to
-                    // crossfade to), wrapping; a one-frame asset stays at 0.
+                    // Crossfaded times wrap over [0, frames − 1] (the last frame has no
+                    // successor to fade to), whole frames over all of them; a one-frame asset
+                    // stays at 0.
+                    let span = if hold { frames } else { frames - 1.0 };
                     let t = if frames > 1.0 {
-                        ((k as f64 + 1.0) * a.fps / a.display_fps) % (frames - 1.0)
+                        ((k as f64 + 1.0) * a.fps / a.display_fps) % span
                     } else {
                         0.0
                     } as f32;

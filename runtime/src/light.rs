@@ -433,6 +433,25 @@ impl LightPass {
         };
         // Cells the diffusion output must hold: all of them when any volume solves it.
         let ms_total = if per_cell == MS_OUT_BYTES { total } else { 0 };
+        // The diffusion solves' records, all built volumes', each `align`-aligned (checked
+        // before a kept build is taken over, so that an error loses none).
+        let solves: Vec<Option<(Vec<[MsParams; 2]>, usize)>> = placed
+            .iter()
+            .zip(diffusion)
+            .zip(&sources)
+            .map(|((lp, m), src)| {
+                m.filter(|_| src.is_none())
+                    .map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m))
+            })
+            .collect();
+        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
+        if 4 * ms_floats > most {
+            return Err(RuntimeError::Limits(format!(
+                "the diffusion solve needs {} bytes of scratch, the device binds at most {most} \
+                 (lower light_res, or use MsModel::Octaves)",
+                4 * ms_floats
+            )));
+        }
         // Where to build: a kept build no draw holds (its buffers when large enough), else new.
         let free = state.builds.iter().position(|b| Arc::strong_count(b) == 1);
         let old = free.map(|i| state.builds.remove(i));
@@ -467,24 +486,6 @@ impl LightPass {
         let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
         if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
             state.scratch = Some((buffer("vdbcook light density", 4 * largest), largest));
-        }
-        // The diffusion solves' records, all built volumes', each `align`-aligned.
-        let solves: Vec<Option<(Vec<[MsParams; 2]>, usize)>> = placed
-            .iter()
-            .zip(diffusion)
-            .zip(&sources)
-            .map(|((lp, m), src)| {
-                m.filter(|_| src.is_none())
-                    .map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m))
-            })
-            .collect();
-        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
-        if 4 * ms_floats > most {
-            return Err(RuntimeError::Limits(format!(
-                "the diffusion solve needs {} bytes of scratch, the device binds at most {most} \
-                 (lower light_res, or use MsModel::Octaves)",
-                4 * ms_floats
-            )));
         }
         if ms_floats > 0 && state.ms_scratch.as_ref().is_none_or(|s| s.1 < ms_floats) {
             state.ms_scratch = Some((
