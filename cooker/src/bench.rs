@@ -447,12 +447,12 @@ mod imp {
                     "quarter" => MarchResolution::Quarter,
                     _ => MarchResolution::Full,
                 };
-                let fresh_drawer = || -> Result<VolumeDrawer, CliError> {
+                let fresh_drawer = |resolution| -> Result<VolumeDrawer, CliError> {
                     let mut d = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
                     d.set_march_resolution(resolution);
                     Ok(d)
                 };
-                let mut drawer = fresh_drawer()?;
+                let mut drawer = fresh_drawer(resolution)?;
                 // Static: frame 0 again and again, after a warm-up of at least WARM_UP of
                 // draws (the first compiles and builds; a real GPU idles at a low clock and
                 // needs a fraction of a second of work to ramp up, which an H100 showed as a
@@ -506,7 +506,7 @@ mod imp {
                 // The same views and times drawn from nothing: a fresh drawer each.
                 let mut error = 0.0f64;
                 for (t, img) in &kept {
-                    let mut fresh = fresh_drawer()?;
+                    let mut fresh = fresh_drawer(resolution)?;
                     let (_, exact) = frame(&gpu, &mut fresh, None, &s, *t, &shading, true)?;
                     let e = exact.map_or(f64::NAN, |x| rel_rmse(img, &x));
                     error = if e.is_nan() { e } else { error.max(e) };
@@ -532,7 +532,7 @@ mod imp {
                 // The reduced-resolution march against the full one, static frame (same view).
                 let resolution_error = if resolution != MarchResolution::Full {
                     let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
-                    let mut full = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
+                    let mut full = fresh_drawer(MarchResolution::Full)?;
                     let (_, exact) = frame(&gpu, &mut full, None, &s, 0.0, &shading, true)?;
                     match (img, exact) {
                         (Some(i), Some(x)) => Some(rel_rmse(&i, &x)),

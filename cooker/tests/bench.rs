@@ -7,6 +7,18 @@ mod common;
 use common::{cook_smoke, gpu_required, vdbcook};
 use serde_json::Value;
 
+/// `vdbcook ARGS` (a `bench … --json` run) parsed, or `None` when it could not run for want of
+/// an adapter and none is required (the caller skips).
+fn bench_json(args: &[&str]) -> Option<Value> {
+    let (code, out, err) = vdbcook(args);
+    if code != 0 && !gpu_required() && err.contains("adapter") {
+        eprintln!("skipped: no GPU adapter ({err})");
+        return None;
+    }
+    assert_eq!(code, 0, "{err}");
+    Some(serde_json::from_str(&out).unwrap())
+}
+
 /// The JSON keys are there, every time is a positive number, and the playing path (which builds
 /// every light volume exactly) draws what a fresh drawer draws for the same time, up to f16
 /// rounding.
@@ -14,7 +26,7 @@ use serde_json::Value;
 fn bench_reports_static_and_playing_costs_and_the_playing_error() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
-    let (code, out, err) = vdbcook(&[
+    let Some(doc) = bench_json(&[
         "bench",
         &asset,
         "--width",
@@ -28,13 +40,9 @@ fn bench_reports_static_and_playing_costs_and_the_playing_error() {
         "--runs",
         "2",
         "--json",
-    ]);
-    if code != 0 && !gpu_required() && err.contains("adapter") {
-        eprintln!("skipped: no GPU adapter ({err})");
+    ]) else {
         return;
-    }
-    assert_eq!(code, 0, "{err}");
-    let doc: Value = serde_json::from_str(&out).unwrap();
+    };
     assert!(
         doc["adapter"].as_str().is_some_and(|a| !a.is_empty()),
         "{doc}"
@@ -88,16 +96,12 @@ fn bench_builds_each_frames_light_volume_about_once() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     for blend in ["crossfade", "hold"] {
-        let (code, out, err) = vdbcook(&[
+        let Some(doc) = bench_json(&[
             "bench", &asset, "--width", "48", "--height", "27", "--modes", "lit", "--frames", "10",
             "--runs", "1", "--blend", blend, "--json",
-        ]);
-        if code != 0 && !gpu_required() && err.contains("adapter") {
-            eprintln!("skipped: no GPU adapter ({err})");
+        ]) else {
             return;
-        }
-        assert_eq!(code, 0, "{err}");
-        let doc: Value = serde_json::from_str(&out).unwrap();
+        };
         assert_eq!(doc["blend"].as_str(), Some(blend));
         let r = &doc["results"][0];
         let builds = r["playing_light_builds"].as_f64().unwrap();
@@ -117,7 +121,7 @@ fn bench_half_resolution_states_its_error_and_writes_the_frame() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let pngs = dir.path().join("frames");
-    let (code, out, err) = vdbcook(&[
+    let Some(doc) = bench_json(&[
         "bench",
         &asset,
         "--width",
@@ -135,13 +139,9 @@ fn bench_half_resolution_states_its_error_and_writes_the_frame() {
         "--png",
         pngs.to_str().unwrap(),
         "--json",
-    ]);
-    if code != 0 && !gpu_required() && err.contains("adapter") {
-        eprintln!("skipped: no GPU adapter ({err})");
+    ]) else {
         return;
-    }
-    assert_eq!(code, 0, "{err}");
-    let doc: Value = serde_json::from_str(&out).unwrap();
+    };
     assert_eq!(doc["march_resolution"].as_str(), Some("half"));
     let e = doc["results"][0]["resolution_error"].as_f64().unwrap();
     assert!(e > 0.0 && e < 0.1, "half vs full: {e}");

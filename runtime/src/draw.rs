@@ -565,7 +565,8 @@ pub struct PreparedDraw {
     /// The pipeline variant (`Variant::index`).
     variant: usize,
     group: wgpu::BindGroup,
-    /// The half-resolution pass's group (`MarchResolution::Half`) and its blocks (x, y).
+    /// The reduced-resolution pass's group (`MarchResolution::Half`, `Quarter`) and its blocks
+    /// (x, y).
     half_group: Option<wgpu::BindGroup>,
     half_blocks: [u32; 2],
     light_group: wgpu::BindGroup,
@@ -604,7 +605,7 @@ impl PreparedDraw {
 struct LtTexture {
     size: (u32, u32),
     view: wgpu::TextureView,
-    /// The half-resolution march's (L, T) per 2×2 block.
+    /// The reduced-resolution march's (L, T) per block.
     half: wgpu::TextureView,
     composite_group: wgpu::BindGroup,
 }
@@ -651,7 +652,7 @@ pub struct VolumeDrawer {
     dummy_depth: wgpu::TextureView,
     lt: Option<LtTexture>,
     interleave: Interleave,
-    /// The half-resolution march's pipelines by [`Variant::index`] (made while it is on).
+    /// The reduced-resolution march's pipelines by [`Variant::index`] (made while it is on).
     half_pipelines: Vec<Option<wgpu::ComputePipeline>>,
     resolution: MarchResolution,
     /// 1×1 `(L, T)` textures bound where a pass writes (0) or reads (1) no half-resolution
@@ -660,9 +661,9 @@ pub struct VolumeDrawer {
 }
 
 /// How many rays a draw marches: one per pixel, or one per block of 2×2 (`Half`) or 4×4
-/// (`Quarter`) pixels where the block's scene depths all lie beyond (or all in front of) the
-/// volumes along it, bilinearly upsampled, with the pixels of blocks at a depth edge among the
-/// volumes marched at full resolution (`draw_half_main` in `draw.wgsl`). Half costs about a
+/// (`Quarter`) pixels where every pixel's scene depth lies beyond the volumes on its ray,
+/// bilinearly upsampled, with the pixels next to a depth edge among the volumes or an
+/// occluder's edge marched at full resolution (`draw_half_main` in `draw.wgsl`). Half costs about a
 /// quarter of the march where nothing cuts the volumes, Quarter about a sixteenth; their error
 /// against `Full` is measured in `docs/engine.md` §6.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -1531,37 +1532,29 @@ impl VolumeDrawer {
             return;
         }
         let [x, y, w, h] = draw.rect;
+        // One compute pass of the draw's variant: the reduced-resolution blocks (if any), then
+        // every covered pixel.
+        let mut dispatch =
+            |label, pipelines: &[Option<wgpu::ComputePipeline>], group, [w, h]: [u32; 2]| {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(label),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipelines[draw.variant].as_ref().expect("made by prepare"));
+                pass.set_bind_group(0, &self.vol.group, &[]);
+                pass.set_bind_group(1, group, &[]);
+                pass.set_bind_group(2, &draw.light_group, &[]);
+                pass.dispatch_workgroups(w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1);
+            };
         if let Some(half_group) = &draw.half_group {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("vdbcook draw (half resolution)"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(
-                self.half_pipelines[draw.variant]
-                    .as_ref()
-                    .expect("made by prepare"),
+            dispatch(
+                "vdbcook draw (reduced resolution)",
+                &self.half_pipelines,
+                half_group,
+                draw.half_blocks,
             );
-            pass.set_bind_group(0, &self.vol.group, &[]);
-            pass.set_bind_group(1, half_group, &[]);
-            pass.set_bind_group(2, &draw.light_group, &[]);
-            let [bw, bh] = draw.half_blocks;
-            pass.dispatch_workgroups(bw.div_ceil(WORKGROUP), bh.div_ceil(WORKGROUP), 1);
         }
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("vdbcook draw"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(
-                self.pipelines[draw.variant]
-                    .as_ref()
-                    .expect("made by prepare"),
-            );
-            pass.set_bind_group(0, &self.vol.group, &[]);
-            pass.set_bind_group(1, &draw.group, &[]);
-            pass.set_bind_group(2, &draw.light_group, &[]);
-            pass.dispatch_workgroups(w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1);
-        }
+        dispatch("vdbcook draw", &self.pipelines, &draw.group, [w, h]);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("vdbcook composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {

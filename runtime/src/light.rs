@@ -536,7 +536,6 @@ impl LightPass {
             })
         });
         let mut next_record = 0usize;
-        let mut copied = 0u64;
         for ((lp, solve), (src, m)) in placed
             .iter()
             .zip(&solves)
@@ -550,7 +549,6 @@ impl LightPass {
                     let w = MS_OUT_BYTES as u64;
                     encoder.copy_buffer_to_buffer(&from.ms_pool, w * at, &ms_pool, w * to, w * n);
                 }
-                copied += 1;
                 continue;
             }
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -636,6 +634,7 @@ impl LightPass {
             }
         }
         queue.submit([encoder.finish()]);
+        let copied = sources.iter().flatten().count() as u64;
         drop(sources);
         state.counts.reused += copied;
         state.counts.built += placed.len() as u64 - copied;
