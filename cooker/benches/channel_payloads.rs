@@ -13,7 +13,7 @@ use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 use serde_json::json;
-use vdbcook::bcenc::{encode_bc4, encode_bc7, Bc7Quality};
+use vdbcook::bcenc::{encode_bc7, Bc7Quality};
 use vdbcook::report::chart::{scatter_chart, Point, Series, PALETTE};
 use vdbcook_asset::bc::decode_bc7_block;
 use vdbcook_asset::payload::{decode_brick, dequantize, quantize, vox_index};
@@ -65,22 +65,13 @@ fn range_of(v: &[f32]) -> (f32, f32) {
         })
 }
 
-/// A brick through BC4 (8 slices of 8×8 texels, its own range): the decoded values.
+/// A brick through the cook's BC4 encoder (its own range): the decoded values.
 fn via_bc4(v: &[f32; BRICK_VOXELS]) -> [f32; BRICK_VOXELS] {
     let (lo, hi) = range_of(v);
-    let mut surf = vec![0u8; 8 * 64];
-    for z in 0..8 {
-        for y in 0..8 {
-            for x in 0..8 {
-                surf[(8 * z + y) * 8 + x] = quantize(v[vox_index(x, y, z)], lo, hi);
-            }
-        }
-    }
     let mut out = [0.0; BRICK_VOXELS];
-    // The surface's block order is the asset's BC4 brick layout.
     decode_brick(
         PayloadFormat::Bc4,
-        &encode_bc4(8, 64, &surf),
+        &vdbcook::bc4fit::encode_brick(v, lo, hi),
         [lo, hi],
         &mut out,
     );

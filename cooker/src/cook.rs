@@ -287,15 +287,31 @@ fn print_summary(d: &Value) {
         b["source"], b["unique"], b["stored"], b["tiles"]
     );
     let y = &d["bytes"];
+    let n = |v: &Value| v.as_u64().unwrap_or(0);
     println!(
-        "  bytes          file {}, GPU topology {} + atlas {}",
-        y["file"], y["topology"], y["atlas"]
-    );
-    println!(
-        "  bits/voxel     {:.3} (file), {:.3} (GPU), topology {:.3}",
-        d["bits_per_active_voxel"].as_f64().unwrap_or(0.0),
+        "  GPU            {} bytes, {:.3} bit/active voxel (topology {}, {:.3} bit/voxel; atlas {})",
+        n(&y["topology"]) + n(&y["atlas"]),
         d["bits_per_active_voxel_gpu"].as_f64().unwrap_or(0.0),
-        d["topology_bits_per_active_voxel"].as_f64().unwrap_or(0.0)
+        y["topology"],
+        d["topology_bits_per_active_voxel"].as_f64().unwrap_or(0.0),
+        y["atlas"]
+    );
+    let nano = &d["nanovdb"];
+    if !nano.is_null() {
+        let fmt = nano["format"].as_str().unwrap_or("");
+        println!(
+            "  vs NanoVDB     {} bytes as {} at the same {} ({:.3} bit/active voxel): this asset is {:.3}x",
+            nano["gpu_bytes"],
+            fmt,
+            if fmt == "float" { "exactness" } else { "bound" },
+            nano["bits_per_active_voxel"].as_f64().unwrap_or(0.0),
+            nano["ratio"].as_f64().unwrap_or(0.0)
+        );
+    }
+    println!(
+        "  file           {} bytes, {:.3} bit/active voxel",
+        y["file"],
+        d["bits_per_active_voxel"].as_f64().unwrap_or(0.0)
     );
     let e = &d["error"];
     println!(

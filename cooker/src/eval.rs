@@ -11,6 +11,8 @@ use vdbcook_asset::{Asset, LeafRef, BRICK_VOXELS, EMPTY, TILE_BIT};
 use vdbcook_vdb::sequence;
 use vdbcook_vdb::{ErrorKind, FloatGrid, TileLevel, VdbError};
 
+use vdbcook_cook::nanovdb::NanoGrids;
+
 use crate::errors::CliError;
 
 #[derive(clap::Args)]
@@ -340,7 +342,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let mut per_channel = vec![ErrStats::new(); compared.len()];
     let mut forced = Vec::new();
     let chunk = (rayon::current_num_threads() * 2).max(2);
-    type FrameResult = Result<Vec<(ErrStats, Option<String>)>, VdbError>;
+    // The source frames as NanoVDB grids, per compared channel (`vdbcook_cook::nanovdb`).
+    let mut nano = vec![NanoGrids::default(); compared.len()];
+    type FrameResult = Result<Vec<(ErrStats, Option<String>, NanoGrids)>, VdbError>;
     for (ci, group) in frames.chunks(chunk).enumerate() {
         let res: Vec<FrameResult> = group
             .par_iter()
@@ -357,12 +361,17 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                         match vdbcook_cook::frames::read_named_in(
                             &file, f, name, &how, empty, false,
                         )? {
-                            None => (ErrStats::new(), None),
-                            Some(l) => (
-                                compare_frame_c(&asset, fi, *c, &l.grid),
-                                mismatch(&asset, fi, *c, &l.grid)
-                                    .map(|m| format!("grid '{name}': {m}")),
-                            ),
+                            None => (ErrStats::new(), None, NanoGrids::default()),
+                            Some(l) => {
+                                let mut n = NanoGrids::default();
+                                n.add_grid(&l.grid);
+                                (
+                                    compare_frame_c(&asset, fi, *c, &l.grid),
+                                    mismatch(&asset, fi, *c, &l.grid)
+                                        .map(|m| format!("grid '{name}': {m}")),
+                                    n,
+                                )
+                            }
                         },
                     );
                 }
@@ -372,7 +381,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         for (k, r) in res.into_iter().enumerate() {
             let f = &group[k];
             let mut frame_stats = ErrStats::new();
-            for (i, (s, bad)) in r?.into_iter().enumerate() {
+            for (i, (s, bad, n)) in r?.into_iter().enumerate() {
+                nano[i].merge(n);
                 if let Some(m) = bad {
                     if !a.force {
                         return Err(refuse(&f.path, m));
@@ -422,6 +432,35 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     doc["format"] = json!(asset.header.options.format.name());
     doc["bits_per_active_voxel"] = json!(bpv(file_bytes));
     doc["bits_per_active_voxel_gpu"] = json!(bpv(gpu));
+    doc["bytes"] = json!({"file": file_bytes, "gpu": gpu});
+    // NanoVDB at the asset's budget per channel (float grids for a lossless channel).
+    let budget = |c: usize| {
+        h.channels
+            .get(c)
+            .map_or(h.options.max_error, |ch| ch.max_error)
+    };
+    let nano_bytes: u64 = compared
+        .iter()
+        .zip(&nano)
+        .map(|((c, _), n)| budget(*c).map_or_else(|| n.float_bytes(), |e| n.fpn_bytes(e)))
+        .sum();
+    let nano_format = match compared
+        .iter()
+        .map(|(c, _)| budget(*c).is_some())
+        .fold((false, false), |(f, x), b| (f || b, x || !b))
+    {
+        (true, true) => "FpN+float",
+        (true, false) => "FpN",
+        _ => "float",
+    };
+    doc["nanovdb"] = json!({
+        "format": nano_format,
+        "grids": nano.iter().map(|n| n.grids).sum::<u64>(),
+        "gpu_bytes": nano_bytes,
+        "node_bytes": nano.iter().map(|n| n.fixed_bytes).sum::<u64>(),
+        "bits_per_active_voxel": bpv(nano_bytes),
+        "ratio": gpu as f64 / nano_bytes.max(1) as f64,
+    });
     doc["frames"] = json!(per_frame);
     doc["grid"] = json!(grid);
     doc["mismatched_frames"] = json!(forced);
@@ -461,9 +500,20 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             total.inactive_errors
         );
         println!(
-            "  bits per active voxel {:.3} (file), {:.3} (GPU)",
-            bpv(file_bytes),
-            bpv(gpu)
+            "  GPU {gpu} bytes, {:.3} bit/active voxel; NanoVDB {nano_format} at the same {} \
+             {nano_bytes} bytes ({:.3} bit/active voxel): this asset is {:.3}x",
+            bpv(gpu),
+            if nano_format == "float" {
+                "exactness"
+            } else {
+                "bound"
+            },
+            bpv(nano_bytes),
+            gpu as f64 / nano_bytes.max(1) as f64
+        );
+        println!(
+            "  file {file_bytes} bytes, {:.3} bit/active voxel",
+            bpv(file_bytes)
         );
         if compared.len() > 1 {
             for ((_, name), s) in compared.iter().zip(&per_channel) {

@@ -172,6 +172,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         "sections": sections,
         "topology_bits_per_active_voxel": bpv(topology),
         "bits_per_active_voxel": bpv(file_bytes),
+        "bits_per_active_voxel_gpu": bpv(topology + atlas),
         "bytes_per_extra_static_frame": per_frame_bytes,
         "frames": frames,
         "channels": channels,
@@ -241,8 +242,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         h.voxel_size
     );
     println!(
-        "  bytes: file {file_bytes}, GPU {} (topology {topology}, atlas {atlas})",
-        topology + atlas
+        "  GPU {} bytes, {:.3} bit/active voxel (topology {topology}, atlas {atlas}); file {file_bytes} bytes, {:.3} bit/active voxel",
+        topology + atlas,
+        bpv(topology + atlas),
+        bpv(file_bytes)
     );
     println!("  topology {:.3} bit per active voxel; each extra frame of a static volume costs {per_frame_bytes} bytes", bpv(topology));
     if h.lod_levels > 0 {

@@ -24,5 +24,5 @@ pub mod view;
 /// The cooking library's stages, under the names this crate's modules had before they moved
 /// there (benches and tools use them).
 pub use vdbcook_cook::{
-    bcenc, build, cluster, encode, grid_pick, lod, pool, progress, report as cook_report,
+    bc4fit, bcenc, build, cluster, encode, grid_pick, lod, pool, progress, report as cook_report,
 };

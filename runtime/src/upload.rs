@@ -774,8 +774,9 @@ impl GpuVolume {
     /// Whether the specs guarantee that the GPU reads every brick exactly as the CPU decoder
     /// does, up to f32 rounding of the dequantization: false for rounded f16 buffers and for
     /// native BC4 and BC7 textures, which a conformant driver may read up to
-    /// `vdbcook_asset::payload::native_read_codes` codes of the brick range off (BC4 8.5, BC7 1;
-    /// the cooker's `--max-error` counts that slack, so the budget holds either way).
+    /// `vdbcook_asset::payload::read_codes_per_voxel` codes of the brick range off (BC4 1 to 9.15
+    /// by block, BC7 1; the cooker's `--max-error` counts that slack, so the budget holds either
+    /// way).
     pub fn exact(&self) -> bool {
         !matches!(self.layout.buffers, BufferLayout::F16 { exact: false, .. })
             && !self.layout.textures.iter().any(|t| {

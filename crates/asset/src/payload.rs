@@ -60,15 +60,12 @@ pub fn check_representable(format: PayloadFormat, values: &[f32]) -> Option<f32>
 }
 
 /// How far a conformant GPU's *native* read of a texel in `format` may be from this crate's CPU
-/// decode, in 8-bit codes of the brick's quantization range (`(hi − lo)/255` each). The cooker adds
-/// it to every brick's measured error before checking `--max-error`, the runtime's tests take
-/// their tolerance from it, and `GpuVolume::exact()` is false wherever it is not 0. Where it comes
-/// from (`docs/payloads.md`, "What a GPU may read"):
-/// - **BC4**: the APIs fix the formula but not its precision. D3D11.3 §19.5.2 allows
-///   `1/65535 + 0.03·|red_0 − red_1|/255` off the float formula (≤ 7.65 codes); Vulkan's
-///   conformance tests accept 8/255 for every BC1–5 format; OpenGL's RGTC states no bound. The
-///   CPU reference (`bcdec`) rounds the formula to 8 bits (≤ ½ code). 8 + ½ codes. Measured:
-///   lavapipe 2 codes, an NVIDIA H100 3.2.
+/// decode, at most, in 8-bit codes of the brick's quantization range (`(hi − lo)/255` each): the
+/// worst block of the format. The cooker checks every brick against its own blocks
+/// ([`read_codes_per_voxel`]); the runtime's tests take their tolerance from the same model.
+/// `GpuVolume::exact()` is false wherever this is not 0. Where it comes from (`docs/payloads.md`,
+/// "What a GPU may read"):
+/// - **BC4**: [`bc4_block_read_codes`] at the widest endpoint gap with an inexact palette.
 /// - **BC7**: D3D11 requires bit-exact BC7 decoding; Vulkan's conformance tests accept 1/255.
 ///   1 code (both GPUs measured read it exactly).
 /// - **unorm8**: `c/255` is an exact conversion on every API (and decoded-BC textures hold the
@@ -81,14 +78,92 @@ pub fn native_read_codes(format: PayloadFormat) -> f32 {
     }
 }
 
-/// BC4's [`native_read_codes`].
-pub const BC4_NATIVE_CODES: f32 = 8.5;
+/// D3D11.3 §19.5.2: a BC4 interpolant may be `0.03·|red_0 − red_1|/255` off the float formula.
+pub const BC4_GAP_SHARE: f32 = 0.03;
+/// D3D11.3 §19.5.2's absolute term, `1/65535`, in codes.
+pub const BC4_FLOAT_CODES: f32 = 255.0 / 65535.0;
+/// A decoder that returns 8-bit codes (Mesa's does) rounds the formula to an integer in either
+/// direction: up to one code even where the formula gives an integer.
+pub const BC4_ROUND_CODES: f32 = 1.0;
+/// The CPU decode (`bcdec`) rounds the formula to 8 bits: half a code where a palette entry is
+/// not an integer.
+pub const BC4_CPU_ROUND_CODES: f32 = 0.5;
+
+/// Whether every entry of a BC4 palette with endpoints `red_0`, `red_1` is an integer code, so
+/// every decoder's formula and the CPU decode agree exactly: `red_0 > red_1` with the gap a
+/// multiple of 7, or `red_0 ≤ red_1` with the gap a multiple of 5.
+pub fn bc4_palette_exact(red_0: u8, red_1: u8) -> bool {
+    if red_0 > red_1 {
+        (red_0 - red_1).is_multiple_of(7)
+    } else {
+        (red_1 - red_0).is_multiple_of(5)
+    }
+}
+
+/// How far a conformant GPU's read of any texel of this BC4 block may be from the CPU decode, in
+/// codes: D3D's rule (`BC4_GAP_SHARE` of the endpoint gap plus `BC4_FLOAT_CODES`), one code of an
+/// integer decoder's rounding, and half a code of the CPU's own rounding unless the palette is
+/// exact ([`bc4_palette_exact`]). 1.0039 codes for an exact palette with equal endpoints, 9.15 at
+/// most (gap 255, inexact). Vulkan's conformance tests accept 8/255 on any texel; this model is
+/// tighter for narrow blocks and looser for wide ones (`docs/payloads.md` says why, and what
+/// lavapipe and an H100 read).
+pub fn bc4_block_read_codes(block: &[u8; 8]) -> f32 {
+    let (r0, r1) = (block[0], block[1]);
+    let gap = r0.abs_diff(r1) as f32;
+    let cpu = if bc4_palette_exact(r0, r1) {
+        0.0
+    } else {
+        BC4_CPU_ROUND_CODES
+    };
+    BC4_ROUND_CODES + BC4_GAP_SHARE * gap + BC4_FLOAT_CODES + cpu
+}
+
+/// BC4's [`native_read_codes`]: [`bc4_block_read_codes`] of the worst block.
+pub const BC4_NATIVE_CODES: f32 =
+    BC4_ROUND_CODES + BC4_GAP_SHARE * 255.0 + BC4_FLOAT_CODES + BC4_CPU_ROUND_CODES;
 /// BC7's [`native_read_codes`].
 pub const BC7_NATIVE_CODES: f32 = 1.0;
 
-/// [`native_read_codes`] in value units for a brick quantized over `[lo, hi]`.
+/// For every voxel of one brick's bytes (voxel order), how far a conformant GPU's native read may
+/// be from [`decode_brick`], in codes of the brick's range: per block for BC4
+/// ([`bc4_block_read_codes`]), [`native_read_codes`] for the other formats.
+pub fn read_codes_per_voxel(format: PayloadFormat, bytes: &[u8], out: &mut [f32; BRICK_VOXELS]) {
+    match format {
+        PayloadFormat::Bc4 => {
+            for (bi, block) in bytes.chunks_exact(8).enumerate() {
+                let codes = bc4_block_read_codes(block.try_into().expect("8"));
+                let (z, by, bx) = (bi / 4, (bi / 2) % 2, bi % 2);
+                for t in 0..16 {
+                    out[vox_index(4 * bx + t % 4, 4 * by + t / 4, z)] = codes;
+                }
+            }
+        }
+        f => out.fill(native_read_codes(f)),
+    }
+}
+
+/// The most a conformant GPU's native read of any voxel of this brick may be from
+/// [`decode_brick`], in value units of a brick quantized over `quant`.
+pub fn brick_read_slack(format: PayloadFormat, bytes: &[u8], quant: [f32; 2]) -> f32 {
+    let codes = match format {
+        PayloadFormat::Bc4 => bytes
+            .chunks_exact(8)
+            .map(|b| bc4_block_read_codes(b.try_into().expect("8")))
+            .fold(0.0, f32::max),
+        f => native_read_codes(f),
+    };
+    codes_to_value(codes, quant)
+}
+
+/// `codes` 8-bit codes of a brick quantized over `quant`, in value units.
+pub fn codes_to_value(codes: f32, quant: [f32; 2]) -> f32 {
+    codes * (quant[1] - quant[0]).max(0.0) / 255.0
+}
+
+/// [`native_read_codes`] in value units for a brick quantized over `[lo, hi]`: the worst brick
+/// of `format` (a bound for every brick of it; [`brick_read_slack`] is the brick's own).
 pub fn native_read_slack(format: PayloadFormat, quant: [f32; 2]) -> f32 {
-    native_read_codes(format) * (quant[1] - quant[0]).max(0.0) / 255.0
+    codes_to_value(native_read_codes(format), quant)
 }
 
 /// `v` quantized to 8 bits over `[lo, hi]` (round to nearest, clamped).

@@ -48,7 +48,7 @@ pub struct Inputs<'a> {
 pub struct FrameErr {
     pub sum_sq: f64,
     pub max_abs: f64,
-    /// Bound on any conformant GPU's read: per brick, its error plus its native-read slack.
+    /// Bound on any conformant GPU's read: per voxel, its error plus its native-read slack.
     pub gpu_bound: f64,
 }
 
@@ -95,28 +95,30 @@ pub struct Assembled {
 }
 
 /// The error sums of each list of brick uses (a frame's channel's): every use of pool brick `b`
-/// compares its source values `bricks` with `decoded`, and `slack(b)` is what a GPU's native
-/// read of it may add. Inactive voxels hold the background in the pool: a lossy payload that
+/// compares its source values `bricks` with `decoded`, and `slack(b, out)` fills what a GPU's
+/// native read of each of its voxels may add. Inactive voxels hold the background in the pool: a lossy payload that
 /// moves them off it is an error too (a tracer samples them), counted as `eval` counts it. The
 /// RMSE divides by the active voxel count.
 pub fn use_errors(
     uses: &[Vec<u32>],
     bricks: &[f32],
     decoded: &[f32],
-    slack: impl Fn(u32) -> f32 + Sync,
+    slack: impl Fn(u32, &mut [f32; BRICK_VOXELS]) + Sync,
 ) -> Vec<FrameErr> {
     uses.par_iter()
         .map(|uses| {
             let mut fe = FrameErr::default();
+            let mut k = [0f32; BRICK_VOXELS];
             for &b in uses {
                 let r = b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS;
                 let mut brick_max = 0.0f64;
-                for (s, v) in bricks[r.clone()].iter().zip(&decoded[r]) {
+                slack(b, &mut k);
+                for ((s, v), k) in bricks[r.clone()].iter().zip(&decoded[r]).zip(&k) {
                     let e = (*v as f64 - *s as f64).abs();
                     fe.sum_sq += e * e;
                     brick_max = brick_max.max(e);
+                    fe.gpu_bound = fe.gpu_bound.max(e + *k as f64);
                 }
-                fe.gpu_bound = fe.gpu_bound.max(brick_max + slack(b) as f64);
                 fe.max_abs = fe.max_abs.max(brick_max);
             }
             fe
@@ -205,8 +207,8 @@ pub fn assemble(i: Inputs) -> Result<Assembled, CookError> {
     let (l2_base, l2_prefix, l3_refs) = pool.layout();
     // Error per (frame, channel) over every brick use; tiles from the source are stored exactly,
     // lossy tiles made under a bound are in `decoded`.
-    let errors = use_errors(&pool.uses, &pool.bricks, decoded, |b| {
-        enc.slack[input_of[b as usize] as usize]
+    let errors = use_errors(&pool.uses, &pool.bricks, decoded, |b, out| {
+        enc.voxel_slack(input_of[b as usize] as usize, out)
     });
     let lod_max_abs = lod_bricks.iter().fold(0.0f64, |m, &b| {
         let r = b as usize * BRICK_VOXELS..(b as usize + 1) * BRICK_VOXELS;

@@ -115,7 +115,7 @@ fn encode_strips(
 }
 
 /// R8 surface (width, height multiples of 4, row-major) -> BC4 blocks, block-row-major.
-pub fn encode_bc4(width: u32, height: u32, texels: &[u8]) -> Vec<u8> {
+pub fn encode_bc4_intel(width: u32, height: u32, texels: &[u8]) -> Vec<u8> {
     check_surface(width, height, texels.len(), 1);
     encode_strips(
         width,
@@ -271,26 +271,26 @@ mod tests {
 
     #[test]
     fn output_sizes_and_empty_surfaces() {
-        assert_eq!(encode_bc4(8, 12, &[7; 96]).len(), 6 * 8);
+        assert_eq!(encode_bc4_intel(8, 12, &[7; 96]).len(), 6 * 8);
         assert_eq!(
             encode_bc7(8, 12, &[7; 384], Bc7Quality::UltraFast).len(),
             6 * 16
         );
-        assert!(encode_bc4(0, 8, &[]).is_empty());
+        assert!(encode_bc4_intel(0, 8, &[]).is_empty());
         assert!(encode_bc7(8, 0, &[], Bc7Quality::Fast).is_empty());
     }
 
     #[test]
     #[should_panic(expected = "multiples of 4")]
     fn rejects_unaligned_sizes() {
-        encode_bc4(6, 4, &[0; 24]);
+        encode_bc4_intel(6, 4, &[0; 24]);
     }
 
     #[test]
     fn bc4_constant_blocks_are_exact() {
         for v in [0u8, 1, 77, 128, 254, 255] {
             let data = vec![v; 16 * 16];
-            let decoded = decode_bc4(16, 16, &encode_bc4(16, 16, &data));
+            let decoded = decode_bc4(16, 16, &encode_bc4_intel(16, 16, &data));
             assert_eq!(decoded, data, "constant {v}");
         }
     }
@@ -301,7 +301,7 @@ mod tests {
         // under one unit apart and the decoded value must be within 2/255 of the source.
         let (w, h) = (256, 64);
         let src = ramp_r8(w, h);
-        let decoded = decode_bc4(w, h, &encode_bc4(w, h, &src));
+        let decoded = decode_bc4(w, h, &encode_bc4_intel(w, h, &src));
         assert!(max_abs_error(&src, &decoded) <= 2);
     }
 
@@ -311,7 +311,7 @@ mod tests {
         // the best index is within half a step (18); the mean must be far below that.
         let (w, h) = (64, 64);
         let src = noise(64 * 64, 1);
-        let decoded = decode_bc4(w, h, &encode_bc4(w, h, &src));
+        let decoded = decode_bc4(w, h, &encode_bc4_intel(w, h, &src));
         assert!(max_abs_error(&src, &decoded) <= 19);
         assert!(mean_abs_error(&src, &decoded) < 10.0);
     }
@@ -500,7 +500,7 @@ mod tests {
             height: h,
             stride: w,
         });
-        assert_eq!(encode_bc4(w, h, &r8), whole);
+        assert_eq!(encode_bc4_intel(w, h, &r8), whole);
 
         let rgba = smooth_rgba(w, h);
         let q = Bc7Quality::VeryFast;
@@ -526,13 +526,13 @@ mod tests {
         }
         let one = with_threads(1, || {
             (
-                encode_bc4(w, h, &r8),
+                encode_bc4_intel(w, h, &r8),
                 encode_bc7(w, h, &rgba, Bc7Quality::Fast),
             )
         });
         let two = with_threads(2, || {
             (
-                encode_bc4(w, h, &r8),
+                encode_bc4_intel(w, h, &r8),
                 encode_bc7(w, h, &rgba, Bc7Quality::Fast),
             )
         });

@@ -7,6 +7,8 @@ use std::collections::BTreeMap;
 use vdbcook_asset::{BRICK_VOXELS, L2_SPAN};
 use vdbcook_vdb::{FloatGrid, TileLevel};
 
+use crate::nanovdb::NanoGrids;
+
 /// One leaf of a region: its slot `x + 16·(y + 16·z)` inside the L2 node and its content.
 pub struct BuiltLeaf {
     pub slot: u16,
@@ -36,6 +38,8 @@ pub struct BuiltFrame {
     pub active_voxels: u64,
     /// Finite active value range of the source.
     pub value_range: Option<[f32; 2]>,
+    /// The source grid as NanoVDB would store it (the comparison in the cook's report).
+    pub nano: NanoGrids,
 }
 
 /// How NaN/Inf active values are handled.
@@ -60,6 +64,8 @@ fn slot_of(c: [i32; 3]) -> u16 {
 /// to the background in place), so no voxel is copied.
 pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String> {
     let bg = grid.background;
+    let mut nano = NanoGrids::default();
+    nano.add_grid(&grid);
     // One pass for the source statistics and the non-finite check (cheaper than `grid.stats()`).
     let mut active_voxels = 0u64;
     let mut range = [f32::INFINITY, f32::NEG_INFINITY];
@@ -234,5 +240,6 @@ pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String>
         regions,
         active_voxels,
         value_range: (range[0] <= range[1]).then_some(range),
+        nano,
     })
 }

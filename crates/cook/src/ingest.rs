@@ -15,6 +15,7 @@ use vdbcook_vdb::{ErrorKind, Transform, VdbFile};
 use crate::build::{build_frame, BuiltFrame, NonFinite};
 use crate::error::{input, CookError};
 use crate::frames::{frame_info, read_named_in};
+use crate::nanovdb::NanoGrids;
 use crate::pool::Pool;
 use crate::progress::{self, Progress};
 
@@ -37,6 +38,8 @@ pub struct ChannelState {
     pub value_range: [f32; 2],
     /// Active voxels per frame (0 where the grid is missing).
     pub active: Vec<u64>,
+    /// Its frames as NanoVDB grids (what the report compares the asset's GPU bytes with).
+    pub nanovdb: NanoGrids,
 }
 
 impl ChannelState {
@@ -196,6 +199,7 @@ struct Tally<'a> {
     backgrounds: Vec<Option<(f32, String)>>,
     ranges: Vec<[f32; 2]>,
     active: Vec<Vec<u64>>,
+    nanovdb: Vec<NanoGrids>,
     infos: Vec<FrameInfo>,
     missing: Vec<String>,
 }
@@ -211,7 +215,7 @@ impl Tally<'_> {
         let mut built = Vec::with_capacity(n);
         let mut frame_active = 0u64;
         for (c, chan) in channels.into_iter().enumerate() {
-            let Some(chan) = chan else {
+            let Some(mut chan) = chan else {
                 self.missing.push(if n == 1 {
                     frame.path.display().to_string()
                 } else {
@@ -281,6 +285,7 @@ impl Tally<'_> {
                 *v = [v[0].min(r[0]), v[1].max(r[1])];
             }
             self.active[c].push(chan.built.active_voxels);
+            self.nanovdb[c].merge(std::mem::take(&mut chan.built.nano));
             frame_active += chan.built.active_voxels;
             built.push(Some(chan.built));
         }
@@ -304,6 +309,7 @@ pub fn ingest(
         backgrounds: vec![None; n],
         ranges: vec![[f32::INFINITY, f32::NEG_INFINITY]; n],
         active: vec![Vec::with_capacity(frames.len()); n],
+        nanovdb: vec![NanoGrids::default(); n],
         infos: Vec::with_capacity(frames.len()),
         missing: Vec::new(),
     };
@@ -379,6 +385,7 @@ pub fn ingest(
             background,
             value_range: tally.ranges[c],
             active: std::mem::take(&mut tally.active[c]),
+            nanovdb: std::mem::take(&mut tally.nanovdb[c]),
         });
     }
     // Read and build overlap (per-frame tasks on all threads): each is reported as its share of

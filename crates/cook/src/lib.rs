@@ -1,7 +1,7 @@
 //! `vdbcook-cook`, the cooking library: OpenVDB sequences in, one flip-book asset out, through
 //! one pipeline of stages — read and build (`build`), pool (`pool`, with `ingest` streaming the
 //! frames through both), levels of detail (`lod`), cluster (`cluster`), budget (`budget`),
-//! encode (`encode`, `bcenc`), assemble (`assemble`) and report (`report`) — where a single grid
+//! encode (`encode`, `bc4fit`, `bcenc`), assemble (`assemble`) and report (`report`) — where a single grid
 //! is the one-channel case of several, so every option composes with every other.
 //!
 //! A program fills in [`CookOptions`] (typed: enums and numbers, no flags to parse), resolves its
@@ -11,6 +11,7 @@
 //! program. This crate depends on no CLI, GPU or windowing crate.
 
 pub mod assemble;
+pub mod bc4fit;
 pub mod bcenc;
 pub mod budget;
 pub mod build;
@@ -21,6 +22,7 @@ pub mod frames;
 pub mod grid_pick;
 pub mod ingest;
 pub mod lod;
+pub mod nanovdb;
 pub mod options;
 pub mod pipeline;
 pub mod pool;

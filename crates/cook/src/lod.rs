@@ -205,6 +205,8 @@ fn reduce(leaves: Vec<([i32; 3], Leaf<'_>)>, offset: [i32; 3], bg: f32) -> Built
             .collect(),
         active_voxels: 0,
         value_range: None,
+        // Coarser levels are the asset's own: NanoVDB has none to compare.
+        nano: Default::default(),
     }
 }
 

@@ -61,6 +61,29 @@ pub struct CookReport {
     /// The coarser levels of `--lod`; `None` without it.
     #[serde(default)]
     pub lod: Option<LodReport>,
+    /// The same source frames as NanoVDB grids at the same error: the GPU bytes a NanoVDB
+    /// renderer would hold instead (`None` in reports written before it existed).
+    #[serde(default)]
+    pub nanovdb: Option<NanoComparison>,
+}
+
+/// What the source frames would take as NanoVDB grids (`crate::nanovdb`: NanoVDB 32.4's layout,
+/// checked byte for byte against `nanovdb_convert`): FpN under each channel's budget
+/// (`nanovdb_convert --fpN -a E`), float grids where a channel is lossless.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NanoComparison {
+    /// `"FpN"`, `"float"` (a lossless cook), or `"FpN+float"` (channels of both kinds).
+    pub format: String,
+    /// One grid per frame and channel.
+    pub grids: u64,
+    /// NanoVDB's bytes (its file is its GPU layout; file headers left out).
+    pub gpu_bytes: u64,
+    /// Of them, grid headers, root tables and internal nodes (an upper node is 270,400 bytes
+    /// whatever it holds: small volumes pay mostly for these); the rest are leaves.
+    pub node_bytes: u64,
+    pub bits_per_active_voxel: f64,
+    /// The asset's GPU bytes (`bytes.topology + bytes.atlas`) over NanoVDB's.
+    pub ratio: f64,
 }
 
 /// What `--lod` stored (`CookReport::lod`).
@@ -333,6 +356,37 @@ pub fn build(b: BuildInputs) -> CookReport {
             }
         })
         .collect();
+    let nanovdb = {
+        let (mut bytes, mut grids, mut fpn, mut float) = (0u64, 0u64, false, false);
+        let mut node_bytes = 0u64;
+        for (s, budget) in b.channels.iter().zip(b.budgets) {
+            grids += s.nanovdb.grids;
+            node_bytes += s.nanovdb.fixed_bytes;
+            bytes += match budget {
+                Some(e) => {
+                    fpn = true;
+                    s.nanovdb.fpn_bytes(*e)
+                }
+                None => {
+                    float = true;
+                    s.nanovdb.float_bytes()
+                }
+            };
+        }
+        (grids > 0).then(|| NanoComparison {
+            format: match (fpn, float) {
+                (true, true) => "FpN+float",
+                (true, false) => "FpN",
+                _ => "float",
+            }
+            .to_string(),
+            grids,
+            gpu_bytes: bytes,
+            node_bytes,
+            bits_per_active_voxel: bpv(bytes),
+            ratio: (topology + atlas) as f64 / bytes.max(1) as f64,
+        })
+    };
     let [r0, r1, r2, r3, r4] = asset.header.brick_counts;
     let shared = match b.budgets {
         [b0, rest @ ..] if rest.iter().all(|x| x == b0) => *b0,
@@ -397,6 +451,7 @@ pub fn build(b: BuildInputs) -> CookReport {
                 max_abs: b.lod_max_abs,
             }
         }),
+        nanovdb,
     }
 }
 

@@ -1,0 +1,159 @@
+//! What the same frames would cost as NanoVDB grids on the GPU — the comparison every cook
+//! states beside its own GPU bytes. A NanoVDB grid is one flat buffer that a renderer uploads as
+//! it is, so its size is its GPU footprint; `nanovdb_convert` (OpenVDB 10, NanoVDB 32.4) writes
+//! one grid per frame, nothing shared between frames.
+//!
+//! The size is a model of that layout, computed from the source grids: a grid and tree header,
+//! the root table, every upper (32³) and lower (16³) internal node at its fixed size, and every
+//! OpenVDB leaf — float leaves at a fixed size, FpN leaves at the bit width NanoVDB's own oracle
+//! picks for them under an absolute tolerance (`nanovdb_convert --fpN -a E`): the first of 1, 2,
+//! 4, 8 bits whose quantization of all 512 values is within E, else 16. The quantization is
+//! NanoVDB's arithmetic, in f32, without dithering. `tests/nanovdb.rs` checks the model against
+//! the grid size `nanovdb_convert` writes, byte for byte, on real files.
+
+use std::collections::BTreeSet;
+
+use vdbcook_vdb::{FloatGrid, TileLevel};
+
+/// `GridData` (672) and `TreeData` (64).
+pub const GRID_HEADER_BYTES: u64 = 672 + 64;
+/// `RootData` without its table.
+pub const ROOT_BYTES: u64 = 64;
+/// One root table entry (an upper node or a root tile).
+pub const ROOT_ENTRY_BYTES: u64 = 32;
+/// `InternalNode<5>`: 32³ table entries of 8 bytes, two masks, bounds and statistics.
+pub const UPPER_BYTES: u64 = 270_400;
+/// `InternalNode<4>`: 16³ entries.
+pub const LOWER_BYTES: u64 = 33_856;
+/// A float leaf: 512 values, mask, bounds and statistics.
+pub const FLOAT_LEAF_BYTES: u64 = 2144;
+/// An FpN leaf's header; its values take `64·bits` bytes more.
+pub const FPN_LEAF_HEADER_BYTES: u64 = 96;
+
+/// The FpN bit widths below 16, NanoVDB's `logBitWidth` 0..=3.
+const FPN_BITS: [u64; 4] = [1, 2, 4, 8];
+
+/// NanoVDB's view of a set of grids (the frames of one channel): fixed bytes (headers, root
+/// tables, internal nodes) and, per leaf, the smallest tolerance each FpN bit width meets.
+#[derive(Clone, Debug, Default)]
+pub struct NanoGrids {
+    pub grids: u64,
+    /// Headers, root tables and internal nodes of every grid.
+    pub fixed_bytes: u64,
+    /// Per leaf, for 1, 2, 4 and 8 bits: the largest quantization error of its 512 values
+    /// (`f32::INFINITY` where a value is not finite). A constant leaf is all zeros.
+    pub leaf_errors: Vec<[f32; 4]>,
+}
+
+impl NanoGrids {
+    /// Adds one source grid (before anything is changed in it: inactive values count, as
+    /// NanoVDB quantizes all 512 values of a leaf).
+    pub fn add_grid(&mut self, grid: &FloatGrid) {
+        let mut lower = BTreeSet::new();
+        let mut upper = BTreeSet::new();
+        let mut root_tiles = 0u64;
+        let key = |o: [i32; 3], span: i32| o.map(|v| v.div_euclid(span));
+        for leaf in &grid.leaves {
+            lower.insert(key(leaf.origin, 128));
+            upper.insert(key(leaf.origin, 4096));
+        }
+        for t in &grid.tiles {
+            match t.level {
+                TileLevel::L8 => {
+                    lower.insert(key(t.origin, 128));
+                    upper.insert(key(t.origin, 4096));
+                }
+                TileLevel::L128 => {
+                    upper.insert(key(t.origin, 4096));
+                }
+                TileLevel::L4096 => root_tiles += 1,
+            }
+        }
+        self.grids += 1;
+        self.fixed_bytes += GRID_HEADER_BYTES
+            + ROOT_BYTES
+            + ROOT_ENTRY_BYTES * (upper.len() as u64 + root_tiles)
+            + UPPER_BYTES * upper.len() as u64
+            + LOWER_BYTES * lower.len() as u64;
+        self.leaf_errors.extend(
+            grid.values
+                .chunks_exact(512)
+                .take(grid.leaves.len())
+                .map(leaf_errors),
+        );
+    }
+
+    pub fn merge(&mut self, other: NanoGrids) {
+        self.grids += other.grids;
+        self.fixed_bytes += other.fixed_bytes;
+        self.leaf_errors.extend(other.leaf_errors);
+    }
+
+    /// Bytes as float grids (`nanovdb_convert` without options: exact).
+    pub fn float_bytes(&self) -> u64 {
+        self.fixed_bytes + FLOAT_LEAF_BYTES * self.leaf_errors.len() as u64
+    }
+
+    /// Bytes as FpN grids under the absolute tolerance `tolerance` (`--fpN -a tolerance`).
+    pub fn fpn_bytes(&self, tolerance: f32) -> u64 {
+        self.fixed_bytes
+            + self
+                .leaf_errors
+                .iter()
+                .map(|e| FPN_LEAF_HEADER_BYTES + 64 * fpn_bits(e, tolerance))
+                .sum::<u64>()
+    }
+}
+
+/// The bit width NanoVDB's FpN picks for a leaf with these errors under `tolerance`.
+fn fpn_bits(errors: &[f32; 4], tolerance: f32) -> u64 {
+    errors
+        .iter()
+        .zip(FPN_BITS)
+        .find(|(e, _)| **e <= tolerance)
+        .map_or(16, |(_, b)| b)
+}
+
+/// One leaf's largest error at 1, 2, 4 and 8 bits, quantized as NanoVDB does: over the leaf's
+/// `[min, max]`, `code = u32(encode·(v − min) + 0.5)`, `approx = code·decode + min`, in f32.
+fn leaf_errors(values: &[f32]) -> [f32; 4] {
+    let (min, max) = values.iter().fold((f32::MAX, -f32::MAX), |(lo, hi), &v| {
+        (if v < lo { v } else { lo }, if v > hi { v } else { hi })
+    });
+    let range = max - min;
+    if range.is_nan() || values.iter().any(|v| v.is_nan()) {
+        return [f32::INFINITY; 4];
+    }
+    if range <= 0.0 {
+        // NanoVDB stores 1 bit and never consults its oracle.
+        return [0.0; 4];
+    }
+    FPN_BITS.map(|bits| {
+        let mask = ((1u32 << bits) - 1) as f32;
+        let (encode, decode) = (mask / range, range / mask);
+        values.iter().fold(0.0f32, |worst, &v| {
+            let code = (encode * (v - min) + 0.5) as u32;
+            let approx = code as f32 * decode + min;
+            worst.max((v - approx).abs())
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_widths_follow_the_tolerance() {
+        // A ramp over [0, 1]: 1 bit is half the range off, 8 bits half of 1/255.
+        let ramp: Vec<f32> = (0..512).map(|i| i as f32 / 511.0).collect();
+        let e = leaf_errors(&ramp);
+        assert!(e[0] > 0.49 && e[0] <= 0.5, "{e:?}");
+        assert!(e[3] <= 0.5 / 255.0 + 1e-7, "{e:?}");
+        assert!(e.windows(2).all(|w| w[0] > w[1]), "{e:?}");
+        assert_eq!(fpn_bits(&e, 0.5), 1);
+        assert_eq!(fpn_bits(&e, 0.01), 8);
+        assert_eq!(fpn_bits(&e, 1e-6), 16);
+        assert_eq!(fpn_bits(&leaf_errors(&[0.3; 512]), 0.0), 1);
+    }
+}
