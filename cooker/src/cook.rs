@@ -47,8 +47,8 @@ pub struct Args {
     /// Default f32; with --max-error and no --format, the smallest that meets the error.
     #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
     pub format: Option<String>,
-    /// Every voxel of every frame decodes within E of its source value, as any conformant GPU
-    /// reads it: each brick takes the cheapest representation that meets E (tile, bc7, bc4,
+    /// Every voxel of every frame decodes within E of its source value, as any GPU reads it
+    /// whose BC decoding meets the APIs' precision rules (docs/payloads.md): each brick takes the cheapest representation that meets E (tile, bc7, bc4,
     /// unorm8, f16, f32), starting at --format when one is given. Without it a lossy cook gets
     /// 10% of the value range as an artefact guard. With --grids, one budget per channel:
     /// `density=0.01,temperature=5` (a bare E applies to the channels not named).
@@ -329,7 +329,7 @@ fn print_summary(d: &Value) {
             _ => " (--max-error)",
         };
         println!(
-            "  budget         every voxel within {budget:.3e}{how}; any conformant GPU reads within {:.3e}",
+            "  budget         every voxel within {budget:.3e}{how}; a GPU within the BC precision rules reads within {:.3e}",
             e["max_abs_any_gpu"].as_f64().unwrap_or(0.0)
         );
     }

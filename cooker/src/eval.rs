@@ -342,7 +342,13 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let mut per_channel = vec![ErrStats::new(); compared.len()];
     let mut forced = Vec::new();
     let chunk = (rayon::current_num_threads() * 2).max(2);
-    // The source frames as NanoVDB grids, per compared channel (`vdbcook_cook::nanovdb`).
+    // The source frames as NanoVDB grids, per compared channel (`vdbcook_cook::nanovdb`), at
+    // the channel's recorded budget (measured for FpN only where there is one).
+    let budget = |c: usize| {
+        h.channels
+            .get(c)
+            .map_or(h.options.max_error, |ch| ch.max_error)
+    };
     let mut nano = vec![NanoGrids::default(); compared.len()];
     type FrameResult = Result<Vec<(ErrStats, Option<String>, NanoGrids)>, VdbError>;
     for (ci, group) in frames.chunks(chunk).enumerate() {
@@ -364,7 +370,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                             None => (ErrStats::new(), None, NanoGrids::default()),
                             Some(l) => {
                                 let mut n = NanoGrids::default();
-                                n.add_grid(&l.grid);
+                                n.add_grid(&l.grid, budget(*c).is_some());
                                 (
                                     compare_frame_c(&asset, fi, *c, &l.grid),
                                     mismatch(&asset, fi, *c, &l.grid)
@@ -433,17 +439,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     doc["bits_per_active_voxel"] = json!(bpv(file_bytes));
     doc["bits_per_active_voxel_gpu"] = json!(bpv(gpu));
     doc["bytes"] = json!({"file": file_bytes, "gpu": gpu});
-    // NanoVDB at the asset's budget per channel (float grids for a lossless channel).
-    let budget = |c: usize| {
-        h.channels
-            .get(c)
-            .map_or(h.options.max_error, |ch| ch.max_error)
-    };
-    let nano_bytes: u64 = compared
+    // NanoVDB at the asset's budget per compared channel (float grids for a lossless one); the
+    // ratio only when every channel was compared (the asset's GPU bytes are all of them).
+    let nano_bytes: Option<u64> = compared
         .iter()
         .zip(&nano)
-        .map(|((c, _), n)| budget(*c).map_or_else(|| n.float_bytes(), |e| n.fpn_bytes(e)))
+        .map(|((c, _), n)| budget(*c).map_or_else(|| Some(n.float_bytes()), |e| n.fpn_bytes(e)))
         .sum();
+    let nano_grids: u64 = nano.iter().map(|n| n.grids).sum();
+    let whole = compared.len() == asset.header.channel_count();
     let nano_format = match compared
         .iter()
         .map(|(c, _)| budget(*c).is_some())
@@ -453,14 +457,17 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         (true, false) => "FpN",
         _ => "float",
     };
-    doc["nanovdb"] = json!({
-        "format": nano_format,
-        "grids": nano.iter().map(|n| n.grids).sum::<u64>(),
-        "gpu_bytes": nano_bytes,
-        "node_bytes": nano.iter().map(|n| n.fixed_bytes).sum::<u64>(),
-        "bits_per_active_voxel": bpv(nano_bytes),
-        "ratio": gpu as f64 / nano_bytes.max(1) as f64,
+    let nano_doc = nano_bytes.filter(|_| nano_grids > 0).map(|bytes| {
+        json!({
+            "format": nano_format,
+            "grids": nano_grids,
+            "gpu_bytes": bytes,
+            "node_bytes": nano.iter().map(|n| n.fixed_bytes).sum::<u64>(),
+            "bits_per_active_voxel": bpv(bytes),
+            "ratio": whole.then(|| gpu as f64 / bytes.max(1) as f64),
+        })
     });
+    doc["nanovdb"] = json!(nano_doc);
     doc["frames"] = json!(per_frame);
     doc["grid"] = json!(grid);
     doc["mismatched_frames"] = json!(forced);
@@ -499,18 +506,19 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 }),
             total.inactive_errors
         );
-        println!(
-            "  GPU {gpu} bytes, {:.3} bit/active voxel; NanoVDB {nano_format} at the same {} \
-             {nano_bytes} bytes ({:.3} bit/active voxel): this asset is {:.3}x",
-            bpv(gpu),
-            if nano_format == "float" {
-                "exactness"
-            } else {
-                "bound"
-            },
-            bpv(nano_bytes),
-            gpu as f64 / nano_bytes.max(1) as f64
-        );
+        println!("  GPU {gpu} bytes, {:.3} bit/active voxel", bpv(gpu));
+        if let Some(n) = &nano_doc {
+            let bytes = n["gpu_bytes"].as_u64().unwrap_or(0);
+            println!(
+                "  NanoVDB {nano_format} of the same frames at the same {}: {bytes} bytes, {:.3} bit/active voxel{}",
+                if nano_format == "float" { "exactness" } else { "bound" },
+                bpv(bytes),
+                n["ratio"].as_f64().map_or_else(
+                    || format!(" (channels {} only)", compared.iter().map(|(_, n)| n.as_str()).collect::<Vec<_>>().join(", ")),
+                    |r| format!("; this asset is {r:.3}x")
+                )
+            );
+        }
         println!(
             "  file {file_bytes} bytes, {:.3} bit/active voxel",
             bpv(file_bytes)

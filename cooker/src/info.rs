@@ -224,7 +224,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     match h.options.max_error {
         Some(e) => println!(
-            "  error budget: every voxel within {e:e} of its source, as any conformant GPU reads it"
+            "  error budget: every voxel within {e:e} of its source, as a GPU within the BC precision rules reads it"
         ),
         None if nch > 1 => {}
         None if asset.brick_count() as u64

@@ -724,7 +724,8 @@ fn mixed_asset() -> Asset {
 
 /// The BC4 blob with every block's palette made exact (`payload::bc4_palette_exact`, as the
 /// cooker's encoder writes them): the second endpoint moved in to the nearest gap that is a
-/// multiple of 7 (`red_0 > red_1`; a gap under 7 becomes 0) or 5, gaps from 0 to 255.
+/// multiple of 7 (`red_0 > red_1`; a gap under 7 becomes 0) or 5, gaps from 0 to 255. (lavapipe
+/// read them within 1 code when this was written; the test asserts each block's own bound.)
 fn exact_bc4_asset() -> Asset {
     let mut noise = XorShift(0x5eed_b4e7);
     vdbcook_asset::builder::AssetBuilder::new([2, 2, 2])

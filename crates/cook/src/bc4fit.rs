@@ -373,20 +373,42 @@ mod tests {
     }
 
     #[test]
-    fn fitted_palettes_are_exact_and_decode_to_the_levels_chosen() {
+    fn fitted_palettes_are_exact_and_every_texel_decodes_to_its_nearest_entry() {
+        // The independent decoder (bcdec) reads each texel as the palette entry nearest its
+        // value: the indices are packed where the decoder looks, in both palette modes.
         let mut rng = XorShift(0xbc5);
+        let (mut eight, mut six) = (0, 0);
         for _ in 0..2000 {
             let codes = random_block(&mut rng);
             let block = fit_block(&codes);
+            let (r0, r1) = (block[0] as i32, block[1] as i32);
             assert!(bc4_palette_exact(block[0], block[1]), "{block:?}");
-            // The independent decoder reads every texel within the fit's own error.
+            let palette = if r0 > r1 {
+                eight += 1;
+                Palette::Eight {
+                    base: r1,
+                    step: (r0 - r1) / 7,
+                }
+            } else {
+                six += 1;
+                Palette::Six {
+                    base: r0,
+                    step: (r1 - r0) / 5,
+                }
+            };
             let decoded = decode_bc4_block(&block);
-            let slack = vdbcook_asset::payload::bc4_block_read_codes(&block);
-            let err = block_read_error(&codes, &block);
             for (c, d) in codes.iter().zip(decoded) {
-                assert!((c - d as f32).abs() + slack <= err + 1e-4);
+                let want = palette.nearest(*c).1;
+                assert!(
+                    (d as f32 - want).abs() == 0.0 || (c - d as f32).abs() == (c - want).abs(),
+                    "{codes:?} -> {block:?}: texel {c} decodes to {d}, nearest entry {want}"
+                );
             }
         }
+        assert!(
+            eight > 100 && six > 100,
+            "both modes exercised: {eight} / {six}"
+        );
     }
 
     #[test]

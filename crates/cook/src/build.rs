@@ -62,10 +62,11 @@ fn slot_of(c: [i32; 3]) -> u16 {
 /// Builds one frame. `Err` carries a message (NaN/Inf without a replacement).
 /// Consumes the grid: its value array becomes the frame's brick storage (inactive voxels are set
 /// to the background in place), so no voxel is copied.
-pub fn build_frame(grid: FloatGrid, nf: NonFinite) -> Result<BuiltFrame, String> {
+/// `nano_fpn`: measure the leaves for the NanoVDB FpN comparison (a lossy cook's report).
+pub fn build_frame(grid: FloatGrid, nf: NonFinite, nano_fpn: bool) -> Result<BuiltFrame, String> {
     let bg = grid.background;
     let mut nano = NanoGrids::default();
-    nano.add_grid(&grid);
+    nano.add_grid(&grid, nano_fpn);
     // One pass for the source statistics and the non-finite check (cheaper than `grid.stats()`).
     let mut active_voxels = 0u64;
     let mut range = [f32::INFINITY, f32::NEG_INFINITY];

@@ -3,9 +3,10 @@
 //! representation in the candidate list whose decoded voxels are all within E of the source —
 //! a (lossy) tile value, then BC7, BC4, unorm8, f16, f32 — starting at `--format` when one is
 //! given ("this format where it meets E, fall back where it does not"). Every check decodes
-//! with the same CPU decoders `eval` and the runtime's reference use, and adds what a conformant
-//! GPU's native read may differ from that decode (`payload::native_read_slack`: BC4 8.5 codes of
-//! the brick's range, BC7 1), so E holds on any GPU, not only on the CPU. A lossy cook without
+//! with the same CPU decoders `eval` and the runtime's reference use, and adds, per voxel, what a
+//! GPU's native read may differ from that decode (`payload::read_codes_per_voxel`: for BC4 the
+//! bound of the voxel's block, for BC7 1 code of the brick's range), so E holds on the GPU, not
+//! only on the CPU. A lossy cook without
 //! `--max-error` gets a default budget (`default_budget`) that only guards: bricks over it fall
 //! back along the same list, and no brick becomes a lossy tile, so no lossy cook is unguarded
 //! and none is coarser than its format.
@@ -400,11 +401,12 @@ pub fn encode_budgets(
                 // native slack.
                 let mut codes = [0f32; BRICK_VOXELS];
                 payload::read_codes_per_voxel(f, &bytes[k * per..(k + 1) * per], &mut codes);
-                let code = payload::codes_to_value(1.0, quant_of(f, b)) as f64;
+                // In f32 as `Encoded::voxel_slack` computes it, so the report's bound is this one.
+                let code = payload::codes_to_value(1.0, quant_of(f, b));
                 out.iter()
                     .zip(brick(b))
                     .zip(codes)
-                    .map(|((a, s), c)| (*a as f64 - *s as f64).abs() + c as f64 * code)
+                    .map(|((a, s), c)| (*a as f64 - *s as f64).abs() + (c * code) as f64)
                     .fold(
                         0.0f64,
                         |m, x| if x.is_nan() { f64::INFINITY } else { m.max(x) },
@@ -881,6 +883,7 @@ mod tests {
                         replace_with: None,
                         hint: true,
                     },
+                    false,
                 )
                 .unwrap(),
             )]);

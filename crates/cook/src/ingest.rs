@@ -81,7 +81,8 @@ pub struct ReadOptions {
     /// Errors may suggest `--allow-missing-grid`.
     pub hint_missing: bool,
     pub non_finite: NonFinite,
-    /// Record every brick use (for the error figures of a lossy cook).
+    /// Record every brick use (for the error figures of a lossy cook), and measure the source
+    /// leaves for the NanoVDB FpN comparison.
     pub track_uses: bool,
 }
 
@@ -167,7 +168,7 @@ fn prepare(f: &Frame, sources: &[ChannelSource], o: ReadOptions) -> Prepared {
                 }
             };
             let (transform, background) = (loaded.grid.transform.clone(), loaded.grid.background);
-            let built = build_frame(loaded.grid, o.non_finite)
+            let built = build_frame(loaded.grid, o.non_finite, o.track_uses)
                 .map_err(|m| input(&f.path, ErrorKind::Corrupt, format!("grid '{label}': {m}")));
             build_s += t.elapsed().as_secs_f64();
             out.push(Some(Channel {

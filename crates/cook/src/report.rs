@@ -357,23 +357,24 @@ pub fn build(b: BuildInputs) -> CookReport {
         })
         .collect();
     let nanovdb = {
-        let (mut bytes, mut grids, mut fpn, mut float) = (0u64, 0u64, false, false);
+        let (mut bytes, mut grids, mut fpn, mut float) = (Some(0u64), 0u64, false, false);
         let mut node_bytes = 0u64;
         for (s, budget) in b.channels.iter().zip(b.budgets) {
             grids += s.nanovdb.grids;
             node_bytes += s.nanovdb.fixed_bytes;
-            bytes += match budget {
+            let channel = match budget {
                 Some(e) => {
                     fpn = true;
                     s.nanovdb.fpn_bytes(*e)
                 }
                 None => {
                     float = true;
-                    s.nanovdb.float_bytes()
+                    Some(s.nanovdb.float_bytes())
                 }
             };
+            bytes = bytes.zip(channel).map(|(a, c)| a + c);
         }
-        (grids > 0).then(|| NanoComparison {
+        bytes.filter(|_| grids > 0).map(|bytes| NanoComparison {
             format: match (fpn, float) {
                 (true, true) => "FpN+float",
                 (true, false) => "FpN",
