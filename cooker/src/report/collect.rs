@@ -252,6 +252,7 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
             representations: d.representations.clone(),
             gpu_upload_bytes: up_bytes,
             gpu_layout: layout,
+            nanovdb_bits_per_active_voxel: d.nanovdb.as_ref().map(|n| n.bits_per_active_voxel),
         });
         images.push(img);
     }

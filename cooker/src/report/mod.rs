@@ -168,6 +168,9 @@ pub struct Row {
     /// What the runtime put on the GPU for this asset (bytes and layout), when measured.
     pub gpu_upload_bytes: Option<u64>,
     pub gpu_layout: Option<String>,
+    /// The same frames as NanoVDB grids at this row's bound (the cook's `nanovdb`): GPU bits per
+    /// active voxel.
+    pub nanovdb_bits_per_active_voxel: Option<f64>,
 }
 
 /// A peer's measurements, in the rows' units.
@@ -415,13 +418,14 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 /// The rows as a Markdown table.
 fn table(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| config | GPU bit/vox | file bit/vox | voxel RMSE | PSNR dB | max abs | image RMSE | cook s | CPU trace ms | GPU trace ms |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| config | GPU bit/vox | NanoVDB bit/vox, same bound | file bit/vox | voxel RMSE | PSNR dB | max abs | image RMSE | cook s | CPU trace ms | GPU trace ms |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {} | {} | {} | {} | {:.3} | {:.1} | {} |\n",
+            "| {} | {:.3} | {} | {:.3} | {} | {} | {} | {} | {:.3} | {:.1} | {} |\n",
             r.label,
             r.bits_per_active_voxel_gpu,
+            fmt_opt(r.nanovdb_bits_per_active_voxel, 3),
             r.bits_per_active_voxel,
             sci(r.rmse),
             fmt_opt(r.psnr_db, 1),
