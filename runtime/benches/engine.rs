@@ -15,6 +15,7 @@
 
 use std::path::PathBuf;
 use std::time::Instant;
+use vdbcook_runtime::wgpu;
 
 use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
 use vdbcook_runtime::{

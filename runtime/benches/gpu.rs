@@ -15,6 +15,7 @@
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use vdbcook_runtime::wgpu;
 
 use vdbcook_runtime::{
     Asset, Camera, GpuTimer, GpuVolume, Integrator, Layout, Lighting, March, Mode, MsModel,

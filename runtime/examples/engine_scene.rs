@@ -157,6 +157,8 @@ pub fn render_scene(
 
 /// [`render_scene`] with the drawer marching at `resolution` (`MarchResolution::Half` or
 /// `Quarter`: fewer rays, upsampled, the box's edges still marched per pixel).
+// The vertex layout's `.into()` is the identity on wgpu 29 (feature `wgpu29`).
+#[allow(clippy::useless_conversion)]
 pub fn render_scene_at(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
@@ -339,13 +341,15 @@ pub fn render_scene_at(
             module: &module,
             entry_point: Some("scene_vs"),
             compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
+            buffers: &[wgpu::VertexBufferLayout {
                 array_stride: std::mem::size_of::<Vertex>() as u64,
                 step_mode: wgpu::VertexStepMode::Vertex,
                 attributes: &wgpu::vertex_attr_array![
                     0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32
                 ],
-            })],
+            }
+            // `Option<VertexBufferLayout>` in wgpu 30, the layout itself in wgpu 29.
+            .into()],
         },
         primitive: wgpu::PrimitiveState::default(),
         // Reversed Z: cleared to 0 (infinitely far), nearer surfaces have larger depths.
@@ -495,7 +499,8 @@ pub fn render_scene_at(
     }
     device.poll(wgpu::PollType::wait_indefinitely())?;
     for buffer in [&scene_buffer, &composite_buffer] {
-        let data = buffer.slice(..).get_mapped_range()?;
+        let data =
+            vdbcook_runtime::gpu_compat::mapped_range(&buffer.slice(..)).ok_or("mapped range")?;
         let mut pixels = Vec::with_capacity((width * height * 4) as usize);
         for y in 0..height as usize {
             pixels.extend_from_slice(&data[y * row as usize..][..4 * width as usize]);

@@ -6,7 +6,7 @@
 
 use std::process::ExitCode;
 
-use vdbcook_runtime::{Asset, Camera, GpuVolume, Renderer, Settings};
+use vdbcook_runtime::{wgpu, Asset, Camera, GpuVolume, Renderer, Settings};
 
 fn main() -> ExitCode {
     match run() {
@@ -114,7 +114,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         "rendered {w}x{h} in {:.1} ms",
         start.elapsed().as_secs_f64() * 1e3
     );
-    let data = readback.slice(..).get_mapped_range()?;
+    let data =
+        vdbcook_runtime::gpu_compat::mapped_range(&readback.slice(..)).ok_or("mapped range")?;
     let mut pixels = Vec::with_capacity((w * h * 4) as usize);
     for y in 0..h as usize {
         pixels.extend_from_slice(&data[y * row as usize..][..4 * w as usize]);

@@ -46,9 +46,17 @@
 // `!(a > b)` refuses NaN along with the ordered case (as in the CPU tracer); keep that form.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+// The wgpu line: `wgpu30` (default, the dependency named `wgpu`) or `wgpu29` (renamed here).
+#[cfg(all(feature = "wgpu29", not(feature = "wgpu30")))]
+pub extern crate wgpu29 as wgpu;
+#[cfg(not(any(feature = "wgpu29", feature = "wgpu30")))]
+compile_error!("vdbcook-runtime needs feature `wgpu30` (default) or `wgpu29`");
+
 mod camera;
 mod draw;
 mod error;
+#[doc(hidden)]
+pub mod gpu_compat;
 #[cfg(test)]
 mod layout_check;
 mod light;
@@ -64,6 +72,9 @@ pub use draw::{
     ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
+/// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
+/// to be sure of matching versions.
+pub use glam;
 pub use light::LightBuilds;
 pub use render::{BufferTarget, Readback, Renderer, TextureTarget};
 pub use timer::GpuTimer;
@@ -77,10 +88,9 @@ pub use vdbcook_scene::{
     fire_convention, Display, Emission, Filter, FireConvention, Integrator, Lighting, March,
     Medium, MsModel, Output, RenderSettings,
 };
+#[cfg(feature = "wgpu30")]
+pub use wgpu;
 pub use wgsl::{shadow_wgsl, volume_wgsl, world_to_index};
-/// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these
-/// to be sure of matching versions.
-pub use {glam, wgpu};
 
 /// Bindings of an uploaded volume (group 0), tree access, sampling and the DDA.
 pub const VOLUME_WGSL: &str = include_str!("../../shaders/volume.wgsl");

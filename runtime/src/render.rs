@@ -111,7 +111,7 @@ impl BufferTarget {
             .poll(wgpu::PollType::wait_indefinitely())
             .expect("device poll");
         let floats: Vec<f32> = {
-            let data = slice.get_mapped_range().expect("mapped range");
+            let data = crate::gpu_compat::mapped_range(&slice).expect("mapped range");
             bytemuck::cast_slice(&data).to_vec()
         };
         self.readback.unmap();

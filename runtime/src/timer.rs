@@ -116,8 +116,8 @@ impl GpuTimer {
     pub fn try_read_ms(&self) -> Option<f64> {
         match self.state.load(Ordering::Acquire) {
             MAPPED => {
-                let ticks: Option<[u64; 2]> =
-                    self.read.slice(..).get_mapped_range().ok().map(|data| {
+                let ticks: Option<[u64; 2]> = crate::gpu_compat::mapped_range(&self.read.slice(..))
+                    .map(|data| {
                         [0, 1].map(|i| {
                             u64::from_le_bytes(data[8 * i..8 * i + 8].try_into().expect("8 bytes"))
                         })

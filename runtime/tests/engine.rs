@@ -160,7 +160,7 @@ impl Gpu {
             .poll(wgpu::PollType::wait_indefinitely())
             .expect("poll");
         let out = {
-            let data = slice.get_mapped_range().expect("mapped");
+            let data = vdbcook_runtime::gpu_compat::mapped_range(&slice).expect("mapped");
             data.chunks_exact(2)
                 .map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32())
                 .collect()
@@ -1429,7 +1429,9 @@ fn srgb_8_bit_targets_blend_in_linear_space() {
     gpu.device
         .poll(wgpu::PollType::wait_indefinitely())
         .expect("poll");
-    let bytes = buf.slice(..).get_mapped_range().expect("mapped").to_vec();
+    let bytes = vdbcook_runtime::gpu_compat::mapped_range(&buf.slice(..))
+        .expect("mapped")
+        .to_vec();
     let cpu = cpu_lt(
         &view.rays().unwrap(),
         &[cpu_instance(&asset, &inst[0], &medium)],

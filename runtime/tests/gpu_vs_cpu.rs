@@ -521,7 +521,9 @@ fn texture_target_holds_the_same_image() {
     gpu.device
         .poll(wgpu::PollType::wait_indefinitely())
         .unwrap();
-    let data = rb.slice(..).get_mapped_range().unwrap().to_vec();
+    let data = vdbcook_runtime::gpu_compat::mapped_range(&rb.slice(..))
+        .unwrap()
+        .to_vec();
     let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap().to_rgba8();
     let mut bad = 0;
     for y in 0..H as usize {
@@ -851,7 +853,9 @@ fn read_voxels(@builtin(global_invocation_id) id: vec3<u32>) {
     read.slice(..)
         .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
     d.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let v: Vec<f32> = bytemuck::cast_slice(&read.slice(..).get_mapped_range().unwrap()).to_vec();
+    let v: Vec<f32> =
+        bytemuck::cast_slice(&vdbcook_runtime::gpu_compat::mapped_range(&read.slice(..)).unwrap())
+            .to_vec();
     v[..bricks * 512].to_vec()
 }
 

@@ -141,6 +141,22 @@ pub fn eval_points(
     device
         .poll(wgpu::PollType::wait_indefinitely())
         .expect("device poll");
-    let data = read.slice(..).get_mapped_range().expect("mapped range");
+    let data = Mapped::into_view(read.slice(..).get_mapped_range()).expect("mapped range");
     bytemuck::cast_slice(&data).to_vec()
+}
+
+/// wgpu 29's `get_mapped_range()` returns the view, wgpu 30's a `Result` (as the runtime's
+/// `gpu_compat::MappedRange`).
+trait Mapped {
+    fn into_view(self) -> Option<wgpu::BufferView>;
+}
+impl Mapped for wgpu::BufferView {
+    fn into_view(self) -> Option<wgpu::BufferView> {
+        Some(self)
+    }
+}
+impl<E> Mapped for Result<wgpu::BufferView, E> {
+    fn into_view(self) -> Option<wgpu::BufferView> {
+        self.ok()
+    }
 }

@@ -9,7 +9,9 @@
 //!   honouring `VDBCOOK_REQUIRE_GPU`.
 
 mod assets;
-#[cfg(feature = "gpu")]
+#[cfg(all(feature = "gpu29", not(feature = "gpu")))]
+extern crate wgpu29 as wgpu;
+#[cfg(any(feature = "gpu", feature = "gpu29"))]
 pub mod gpu;
 mod paths;
 mod rng;

@@ -4,6 +4,7 @@
 //! and the conversions between the CPU reference tracer's camera/settings and the runtime's.
 #![allow(dead_code)]
 
+pub use vdbcook_runtime::wgpu;
 pub use vdbcook_testkit::*;
 
 use vdbcook_asset::*;
