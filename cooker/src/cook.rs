@@ -48,8 +48,9 @@ pub struct Args {
     #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
     pub format: Option<String>,
     /// Every voxel of every frame decodes within E of its source value, as any GPU reads it
-    /// whose BC decoding meets the APIs' precision rules (docs/payloads.md): each brick takes the cheapest representation that meets E (tile, bc7, bc4,
-    /// unorm8, f16, f32), starting at --format when one is given. Without it a lossy cook gets
+    /// whose BC decoding meets D3D's precision rule (docs/payloads.md): each brick takes the
+    /// cheapest representation that meets E (tile, bc7, bc4, unorm8, f16, f32), starting at
+    /// --format when one is given. Without it a lossy cook gets
     /// 10% of the value range as an artefact guard. With --grids, one budget per channel:
     /// `density=0.01,temperature=5` (a bare E applies to the channels not named).
     #[arg(

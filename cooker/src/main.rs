@@ -37,8 +37,8 @@ pattern (smoke.####.vdb, smoke.%04d.vdb) or a glob ('smoke.*.vdb').\n\nExamples:
     /// Cook a VDB sequence into one flip-book asset.
     #[command(
         after_help = "Every lossy cook keeps every voxel within an error budget as any GPU reads it \
-whose BC decoding meets the APIs' precision rules (docs/payloads.md): --max-error E, or by default 10% of the value range (a guard against artefacts), or \
-the smallest bound that fits --max-bytes.\n\nExamples:\n  vdbcook cook 'cache/smoke.####.vdb' -o smoke.vdbc\n  \
+whose BC decoding meets D3D's precision rule (docs/payloads.md): --max-error E, or by default \
+10% of the value range (a guard against artefacts), or the smallest bound that fits --max-bytes.\n\nExamples:\n  vdbcook cook 'cache/smoke.####.vdb' -o smoke.vdbc\n  \
 vdbcook cook cache/ -o smoke.vdbc --format f16 --json\n  vdbcook cook cache/ -o smoke.vdbc --max-error 0.01\n  \
 vdbcook cook cache/ -o smoke.vdbc --max-bytes 4MiB --frames 10..90\n  vdbcook cook fire.vdb -o fire.vdbc --grid temperature\n  \
 vdbcook cook --manifest volumes.toml --json    (batch, with a cache: docs/cli.md)"

@@ -1,6 +1,6 @@
 //! Checks that the Rust mirrors of the WGSL uniform structs (`VolumeInfo`, `GroupInfo`,
-//! `Params`, `DrawView`, `DrawInstance`) have the layout the shaders see: naga (wgpu's own
-//! shader compiler) parses the WGSL and lays the struct out by WGSL's rules; every WGSL member
+//! `Params`, `DrawView`, `DrawInstance`) have the layout the shaders see: naga (wgpu 30's
+//! shader compiler; the struct rules are WGSL's, the same in naga 29) parses the WGSL and lays the struct out by WGSL's rules; every WGSL member
 //! must sit inside the Rust field of its name (`x0`, `x1`, … inside an array field `x`), at the
 //! same offset for a plain field, every Rust field must start where a member starts, and the
 //! sizes must be equal. A field added, dropped, reordered or resized on one side only fails

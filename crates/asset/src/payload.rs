@@ -59,7 +59,7 @@ pub fn check_representable(format: PayloadFormat, values: &[f32]) -> Option<f32>
     }
 }
 
-/// How far a conformant GPU's *native* read of a texel in `format` may be from this crate's CPU
+/// How far a GPU's *native* read of a texel in `format` may be from this crate's CPU
 /// decode, at most, in 8-bit codes of the brick's quantization range (`(hi − lo)/255` each): the
 /// worst block of the format. The cooker checks every brick against its own blocks
 /// ([`read_codes_per_voxel`]); the runtime's tests take their tolerance from the same model.
@@ -100,7 +100,8 @@ pub fn bc4_palette_exact(red_0: u8, red_1: u8) -> bool {
     }
 }
 
-/// How far a conformant GPU's read of any texel of this BC4 block may be from the CPU decode, in
+/// How far a GPU's read of any texel of this BC4 block may be from the CPU decode (any GPU
+/// "within the BC precision rules", as the docs and the CLI say: one that meets D3D's rule), in
 /// codes: D3D's rule (`BC4_GAP_SHARE` of the endpoint gap plus `BC4_FLOAT_CODES`), one code of an
 /// integer decoder's rounding, and half a code of the CPU's own rounding unless the palette is
 /// exact ([`bc4_palette_exact`]). 1.0039 codes for an exact palette with equal endpoints, 9.15 at
@@ -124,7 +125,7 @@ pub const BC4_NATIVE_CODES: f32 =
 /// BC7's [`native_read_codes`].
 pub const BC7_NATIVE_CODES: f32 = 1.0;
 
-/// For every voxel of one brick's bytes (voxel order), how far a conformant GPU's native read may
+/// For every voxel of one brick's bytes (voxel order), how far a GPU's native read may
 /// be from [`decode_brick`], in codes of the brick's range: per block for BC4
 /// ([`bc4_block_read_codes`]), [`native_read_codes`] for the other formats.
 pub fn read_codes_per_voxel(format: PayloadFormat, bytes: &[u8], out: &mut [f32; BRICK_VOXELS]) {
@@ -142,7 +143,7 @@ pub fn read_codes_per_voxel(format: PayloadFormat, bytes: &[u8], out: &mut [f32;
     }
 }
 
-/// The most a conformant GPU's native read of any voxel of this brick may be from
+/// The most a GPU's native read of any voxel of this brick may be from
 /// [`decode_brick`], in value units of a brick quantized over `quant`.
 pub fn brick_read_slack(format: PayloadFormat, bytes: &[u8], quant: [f32; 2]) -> f32 {
     let codes = match format {

@@ -1,7 +1,7 @@
 //! Assemble stage: the pool, pointed at what the encoder made of each brick, becomes the asset —
 //! per-frame roots over the sequence's extent, node layout and value ranges per channel, the
 //! header — which is validated and serialized; the error of every brick use is summed per frame
-//! and channel on the way (what a conformant GPU may add included). Also the byte accounting
+//! and channel on the way (what a GPU may add included). Also the byte accounting
 //! `cook`, `info` and `eval` share (`section_sizes`, `topology_and_atlas`).
 
 use std::collections::BTreeSet;
@@ -48,7 +48,7 @@ pub struct Inputs<'a> {
 pub struct FrameErr {
     pub sum_sq: f64,
     pub max_abs: f64,
-    /// Bound on any conformant GPU's read: per voxel, its error plus its native-read slack.
+    /// Bound on any GPU's read: per voxel, its error plus its native-read slack.
     pub gpu_bound: f64,
 }
 

@@ -1,5 +1,5 @@
 //! The BC4 encoder: fits each 4×4 block to the brick's values directly (in float codes, no 8-bit
-//! quantization first) so that the worst texel *as any conformant GPU reads it* is as close as it
+//! quantization first) so that the worst texel *as any GPU reads it* is as close as it
 //! can be. That is what `--max-error` checks, so it is what the encoder minimises: per block, the
 //! largest distance from a texel to its palette entry plus the block's read slack
 //! (`payload::bc4_block_read_codes`: one code of integer rounding and 3% of the endpoint gap, and
@@ -289,7 +289,7 @@ impl Candidate {
     }
 }
 
-/// A block's worst texel as any conformant GPU may read it, in codes: the distance from each
+/// A block's worst texel as any GPU may read it, in codes: the distance from each
 /// texel's value to the CPU decode plus the block's read slack.
 pub fn block_read_error(codes: &[f32; 16], block: &[u8; 8]) -> f32 {
     let decoded = vdbcook_asset::bc::decode_bc4_block(block);

@@ -54,7 +54,7 @@ pub struct Encoded {
     pub decoded: Vec<f32>,
     /// Tile values created from bricks (to append to the pool's tiles).
     pub new_tiles: Vec<f32>,
-    /// Per *input* brick: the most a conformant GPU's native read of any of its voxels may be
+    /// Per *input* brick: the most a GPU's native read of any of its voxels may be
     /// from `decoded` ([`payload::brick_read_slack`]; 0 for tiles and exact formats); per voxel,
     /// [`Encoded::voxel_slack`].
     pub slack: Vec<f32>,
@@ -78,7 +78,7 @@ pub fn default_budget(range: [f32; 2]) -> f32 {
 }
 
 impl Encoded {
-    /// For every voxel of input brick `b` (voxel order), how far a conformant GPU's native read
+    /// For every voxel of input brick `b` (voxel order), how far a GPU's native read
     /// of its representation may be from `decoded`, in value units
     /// ([`payload::read_codes_per_voxel`]; 0 for tiles and exact formats).
     pub fn voxel_slack(&self, b: usize, out: &mut [f32; BRICK_VOXELS]) {
@@ -397,7 +397,7 @@ pub fn encode_budgets(
                     quant_of(f, b),
                     out.try_into().expect("512"),
                 );
-                // What any conformant GPU may read: the CPU decode's error plus each voxel's
+                // What any GPU may read: the CPU decode's error plus each voxel's
                 // native slack.
                 let mut codes = [0f32; BRICK_VOXELS];
                 payload::read_codes_per_voxel(f, &bytes[k * per..(k + 1) * per], &mut codes);
@@ -661,7 +661,7 @@ mod tests {
 
     #[test]
     fn bc4_must_fit_as_any_gpu_reads_it_not_only_as_the_cpu_decodes_it() {
-        // A smooth ramp over 0.2: BC4's CPU decode is close, but a conformant GPU may read each
+        // A smooth ramp over 0.2: BC4's CPU decode is close, but a GPU may read each
         // block's texels up to its read slack off it (`payload::bc4_block_read_codes`: at least
         // one code of the brick's range, 0.0008). A budget the CPU decode meets but the GPU's may
         // not must move the brick out of BC4; the bound with the slack keeps it.

@@ -154,6 +154,8 @@ fn fpn_bits(errors: &[f32; 4], tolerance: f32) -> u64 {
 /// `code = u32(encode·(v − min) + 0.5)`, `approx = code·decode + min`, in f32. A leaf whose range is not positive (constant,
 /// or nothing but NaN) is stored at 1 bit without a check; otherwise a NaN value fails every
 /// width (16 bits).
+// `max(0).min(256)`, not `clamp`: `clamp` keeps a NaN, `f32::max` turns it into 0.
+#[allow(clippy::manual_clamp)]
 fn leaf_errors(values: &[f32]) -> [f32; 4] {
     let (min, max) = values.iter().fold((f32::MAX, -f32::MAX), |(lo, hi), &v| {
         (if v < lo { v } else { lo }, if v > hi { v } else { hi })
@@ -169,13 +171,21 @@ fn leaf_errors(values: &[f32]) -> [f32; 4] {
     FPN_BITS.map(|bits| {
         let mask = ((1u32 << bits) - 1) as f32;
         let (encode, decode) = (mask / range, range / mask);
+        if !encode.is_finite() {
+            // A range so small that `mask / range` overflows: NanoVDB's float-to-integer
+            // conversion (gcc, x86-64) then gives code 0 for every value, so approx = min.
+            return values.iter().fold(0.0f32, |m, &v| m.max(v - min));
+        }
         // Eight independent maxima (lanes the compiler can keep in vector registers), then one.
         let mut lanes = [0.0f32; 8];
         for chunk in values.chunks_exact(8) {
             for (worst, &v) in lanes.iter_mut().zip(chunk) {
-                let x = encode * (v - min) + 0.5;
-                // SAFETY: v is finite and in [min, max], so x is in [0.5, mask + 0.5 + ε] with
-                // mask ≤ 255: finite and representable as i32 (what `u32(x)` truncates to).
+                // v is finite and in [min, max] and encode finite, so x is in
+                // [0.5, mask + 0.5 + ε]; the bounds (which also map a NaN to 0) only make the
+                // truncation below sound for any input. It truncates as NanoVDB's `uint32_t(x)`.
+                let x = (encode * (v - min) + 0.5).max(0.0).min(256.0);
+                // SAFETY: x is in [0, 256] (`f32::max` returns 0 for a NaN x), so it is finite
+                // and fits an i32.
                 let code = unsafe { x.to_int_unchecked::<i32>() };
                 let e = (v - (code as f32 * decode + min)).abs();
                 *worst = if e > *worst { e } else { *worst };
@@ -213,5 +223,16 @@ mod tests {
         assert_eq!(fpn_bits(&leaf_errors(&[f32::NAN; 512]), 0.0), 1);
         c[8] = 0.5;
         assert_eq!(fpn_bits(&leaf_errors(&c), 1.0), 16);
+    }
+
+    #[test]
+    fn a_range_too_small_to_invert_quantizes_to_the_minimum() {
+        // 255 / 1e-38 overflows f32: every value is read back as the minimum.
+        let mut v = vec![0.0f32; 512];
+        v[3] = 1e-38;
+        let e = leaf_errors(&v);
+        assert_eq!(e[0], 0.0, "1 bit still resolves it: {e:?}");
+        assert_eq!(e[3], 1e-38, "{e:?}");
+        assert_eq!(fpn_bits(&e, 0.0), 1);
     }
 }

@@ -32,7 +32,7 @@ pub enum Budget {
     /// 10% of each channel's value range ([`crate::encode::default_budget`]).
     #[default]
     Default,
-    /// Every voxel of channel `c` decodes within its bound on any conformant GPU: the bound
+    /// Every voxel of channel `c` decodes within its bound on any GPU: the bound
     /// `per` names for it, else `all` (else the default guard).
     MaxError {
         all: Option<f32>,

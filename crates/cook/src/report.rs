@@ -172,7 +172,7 @@ pub struct ErrorFigures {
     pub psnr_db: Option<f64>,
     pub max_abs: f64,
     pub exact: bool,
-    /// Bound on what any conformant GPU reads (≤ `max_error`).
+    /// Bound on what any GPU reads (≤ `max_error`).
     pub max_abs_any_gpu: f64,
 }
 
@@ -372,6 +372,11 @@ pub fn build(b: BuildInputs) -> CookReport {
                     Some(s.nanovdb.float_bytes())
                 }
             };
+            // Every lossy cook measures its leaves for FpN (`ReadOptions::track_uses`).
+            debug_assert!(
+                channel.is_some(),
+                "FpN leaves not measured for a budgeted channel"
+            );
             bytes = bytes.zip(channel).map(|(a, c)| a + c);
         }
         bytes.filter(|_| grids > 0).map(|bytes| NanoComparison {
