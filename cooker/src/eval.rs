@@ -12,6 +12,7 @@ use vdbcook_vdb::sequence;
 use vdbcook_vdb::{ErrorKind, FloatGrid, TileLevel, VdbError};
 
 use vdbcook_cook::nanovdb::NanoGrids;
+use vdbcook_cook::report::NanoComparison;
 
 use crate::errors::CliError;
 
@@ -441,32 +442,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     doc["bytes"] = json!({"file": file_bytes, "gpu": gpu});
     // NanoVDB at the asset's budget per compared channel (float grids for a lossless one); the
     // ratio only when every channel was compared (the asset's GPU bytes are all of them).
-    let nano_bytes: Option<u64> = compared
-        .iter()
-        .zip(&nano)
-        .map(|((c, _), n)| budget(*c).map_or_else(|| Some(n.float_bytes()), |e| n.fpn_bytes(e)))
-        .sum();
-    let nano_grids: u64 = nano.iter().map(|n| n.grids).sum();
     let whole = compared.len() == asset.header.channel_count();
-    let nano_format = match compared
-        .iter()
-        .map(|(c, _)| budget(*c).is_some())
-        .fold((false, false), |(f, x), b| (f || b, x || !b))
-    {
-        (true, true) => "FpN+float",
-        (true, false) => "FpN",
-        _ => "float",
-    };
-    let nano_doc = nano_bytes.filter(|_| nano_grids > 0).map(|bytes| {
-        json!({
-            "format": nano_format,
-            "grids": nano_grids,
-            "gpu_bytes": bytes,
-            "node_bytes": nano.iter().map(|n| n.fixed_bytes).sum::<u64>(),
-            "bits_per_active_voxel": bpv(bytes),
-            "ratio": whole.then(|| gpu as f64 / bytes.max(1) as f64),
-        })
-    });
+    let nano_doc = NanoComparison::of(
+        compared
+            .iter()
+            .zip(&nano)
+            .map(|((c, _), n)| (n, budget(*c))),
+        total.active,
+        whole.then_some(gpu),
+    );
     doc["nanovdb"] = json!(nano_doc);
     doc["frames"] = json!(per_frame);
     doc["grid"] = json!(grid);
@@ -508,13 +492,21 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         );
         println!("  GPU {gpu} bytes, {:.3} bit/active voxel", bpv(gpu));
         if let Some(n) = &nano_doc {
-            let bytes = n["gpu_bytes"].as_u64().unwrap_or(0);
             println!(
-                "  NanoVDB {nano_format} of the same frames at the same {}: {bytes} bytes, {:.3} bit/active voxel{}",
-                if nano_format == "float" { "exactness" } else { "bound" },
-                bpv(bytes),
-                n["ratio"].as_f64().map_or_else(
-                    || format!(" (channels {} only)", compared.iter().map(|(_, n)| n.as_str()).collect::<Vec<_>>().join(", ")),
+                "  NanoVDB {} of the same frames at the same {}: {} bytes, {:.3} bit/active voxel{}",
+                n.format,
+                if n.format == "float" { "exactness" } else { "bound" },
+                n.gpu_bytes,
+                n.bits_per_active_voxel,
+                n.ratio.map_or_else(
+                    || format!(
+                        " (channels {} only)",
+                        compared
+                            .iter()
+                            .map(|(_, n)| n.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
                     |r| format!("; this asset is {r:.3}x")
                 )
             );

@@ -170,14 +170,8 @@ impl Asset {
     }
     /// Format of brick `b` and its index inside that format's atlas.
     pub fn brick_format(&self, b: u32) -> (PayloadFormat, usize) {
-        let mut b = b as u64;
-        for (i, &n) in self.header.brick_counts.iter().enumerate() {
-            if b < n {
-                return (PayloadFormat::ORDER[i], b as usize);
-            }
-            b -= n;
-        }
-        panic!("brick index beyond the pool (validated assets never get here)")
+        locate_brick(&self.header.brick_counts, b as u64)
+            .expect("brick index beyond the pool (validated assets never get here)")
     }
     /// The stored bytes of brick `b`.
     pub fn brick_bytes(&self, b: u32) -> (PayloadFormat, &[u8]) {
@@ -193,4 +187,17 @@ impl Asset {
     pub fn l2_mask(&self, n: usize) -> &[u64] {
         &self.l2_masks[n * L2_WORDS..(n + 1) * L2_WORDS]
     }
+}
+
+/// Brick `b` of a pool grouped by format (`counts[i]` bricks of [`PayloadFormat::ORDER`]`[i]`,
+/// in that order): its format and its index inside that format's atlas; `None` past the end.
+pub fn locate_brick(counts: &[u64; 5], b: u64) -> Option<(PayloadFormat, usize)> {
+    let mut b = b;
+    for (f, &n) in PayloadFormat::ORDER.iter().zip(counts) {
+        if b < n {
+            return Some((*f, b as usize));
+        }
+        b -= n;
+    }
+    None
 }

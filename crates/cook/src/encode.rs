@@ -54,10 +54,6 @@ pub struct Encoded {
     pub decoded: Vec<f32>,
     /// Tile values created from bricks (to append to the pool's tiles).
     pub new_tiles: Vec<f32>,
-    /// Per *input* brick: the most a GPU's native read of any of its voxels may be
-    /// from `decoded` ([`payload::brick_read_slack`]; 0 for tiles and exact formats); per voxel,
-    /// [`Encoded::voxel_slack`].
-    pub slack: Vec<f32>,
     pub representation: Representation,
 }
 
@@ -78,28 +74,42 @@ pub fn default_budget(range: [f32; 2]) -> f32 {
 }
 
 impl Encoded {
+    /// Input brick `b`'s stored representation: its format, bytes and quantization range
+    /// (`None`: it became a tile).
+    fn stored(&self, b: usize) -> Option<(PayloadFormat, &[u8], [f32; 2])> {
+        let r = self.remap[b];
+        if r & TILE_BIT != 0 {
+            return None;
+        }
+        let (f, i) = vdbcook_asset::locate_brick(&self.brick_counts, r as u64)
+            .expect("remap points into the pool");
+        let per = f.bytes_per_brick();
+        Some((
+            f,
+            &self.payloads[f.rank()][i * per..(i + 1) * per],
+            self.brick_quant[r as usize],
+        ))
+    }
+
     /// For every voxel of input brick `b` (voxel order), how far a GPU's native read
     /// of its representation may be from `decoded`, in value units
     /// ([`payload::read_codes_per_voxel`]; 0 for tiles and exact formats).
     pub fn voxel_slack(&self, b: usize, out: &mut [f32; BRICK_VOXELS]) {
-        let r = self.remap[b];
-        if r & TILE_BIT != 0 {
+        let Some((f, bytes, quant)) = self.stored(b) else {
             out.fill(0.0);
             return;
-        }
-        let (mut i, mut f) = (r as u64, PayloadFormat::ORDER[0]);
-        for format in PayloadFormat::ORDER {
-            f = format;
-            if i < self.brick_counts[format.rank()] {
-                break;
-            }
-            i -= self.brick_counts[format.rank()];
-        }
-        let per = f.bytes_per_brick();
-        let i = i as usize;
-        payload::read_codes_per_voxel(f, &self.payloads[f.rank()][i * per..(i + 1) * per], out);
-        let code = payload::codes_to_value(1.0, self.brick_quant[r as usize]);
+        };
+        payload::read_codes_per_voxel(f, bytes, out);
+        let code = payload::codes_to_value(1.0, quant);
         out.iter_mut().for_each(|c| *c *= code);
+    }
+
+    /// The most a GPU's native read of any voxel of input brick `b` may be from `decoded`
+    /// ([`payload::brick_read_slack`]; 0 for tiles and exact formats).
+    pub fn brick_slack(&self, b: usize) -> f32 {
+        self.stored(b).map_or(0.0, |(f, bytes, quant)| {
+            payload::brick_read_slack(f, bytes, quant)
+        })
     }
 
     /// Decoded values of the input bricks (`input` itself when the encoding was lossless).
@@ -311,10 +321,6 @@ pub fn encode_budgets(
                 f.name()
             ));
         }
-        let per = f.bytes_per_brick();
-        let slack = (0..n)
-            .map(|b| payload::brick_read_slack(f, &bytes[b * per..(b + 1) * per], quant_of(f, b)))
-            .collect();
         payloads[f.rank()] = bytes;
         let mut representation = Representation::default();
         representation.per_format[f.rank()] = n as u64;
@@ -326,7 +332,6 @@ pub fn encode_budgets(
             brick_ranges,
             decoded,
             new_tiles: Vec::new(),
-            slack,
             representation,
         });
     }
@@ -440,7 +445,6 @@ pub fn encode_budgets(
     let mut brick_quant = Vec::new();
     let mut brick_ranges = Vec::new();
     let mut new_tiles = Vec::new();
-    let mut slack = vec![0f32; n];
     let mut representation = Representation::default();
     let mut next = 0u32;
     for f in PayloadFormat::ORDER {
@@ -453,11 +457,6 @@ pub fn encode_budgets(
                     payloads[f.rank()].extend_from_slice(&batches[batch][k * per..(k + 1) * per]);
                     brick_counts[f.rank()] += 1;
                     brick_quant.push(quant_of(f, b));
-                    slack[b] = payload::brick_read_slack(
-                        f,
-                        &batches[batch][k * per..(k + 1) * per],
-                        quant_of(f, b),
-                    );
                     brick_ranges.push(range_of(&decoded[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]));
                 }
             }
@@ -479,7 +478,6 @@ pub fn encode_budgets(
         brick_ranges,
         decoded,
         new_tiles,
-        slack,
         representation,
     })
 }
@@ -678,7 +676,7 @@ mod tests {
             slack.iter().all(|&k| k >= 0.2 / 255.0),
             "every voxel keeps a code of slack"
         );
-        assert!(slack.iter().all(|&k| k <= plain.slack[0]));
+        assert!(slack.iter().all(|&k| k <= plain.brick_slack(0)));
         assert!(cpu > 0.0 && any_gpu > cpu, "cpu {cpu}, any gpu {any_gpu}");
         let g = encode(
             &ramp,
@@ -690,7 +688,7 @@ mod tests {
             0,
             "the CPU decode ({cpu}) meets its own error, a GPU's read ({any_gpu}) may not: not BC4"
         );
-        assert!(errors(&ramp, &g)[0] + g.slack[0] <= cpu);
+        assert!(errors(&ramp, &g)[0] + g.brick_slack(0) <= cpu);
         let roomy = any_gpu * (1.0 + 1e-6);
         let k = encode(
             &ramp,
@@ -721,7 +719,8 @@ mod tests {
         );
         let g = encode(&pool, &opts(PayloadFormat::Bc7, Some(e), RangeMode::Brick)).unwrap();
         let ge = errors(&pool, &g);
-        for (b, (err, slack)) in ge.iter().zip(&g.slack).enumerate() {
+        for (b, err) in ge.iter().enumerate() {
+            let slack = g.brick_slack(b);
             assert!(err + slack <= e, "brick {b}: {err} + {slack}");
         }
         // The smooth bricks stay BC7.
@@ -743,11 +742,15 @@ mod tests {
         let v = brick(|x, y, z| 1000.0 + 6.1035156e-5 * ((x + y + z) % 9) as f32);
         let plain = encode(&v, &opts(PayloadFormat::Bc4, None, RangeMode::Brick)).unwrap();
         let [lo, hi] = range_of(&v);
-        assert!(hi > lo && plain.slack[0] >= (hi - lo) / 255.0);
+        assert!(hi > lo && plain.brick_slack(0) >= (hi - lo) / 255.0);
         let e = 1e-6f32;
         let g = encode(&v, &opts(PayloadFormat::Bc4, Some(e), RangeMode::Brick)).unwrap();
         assert_eq!(g.brick_counts[PayloadFormat::Bc4.rank()], 0);
-        assert!(errors(&v, &g)[0] + g.slack[0] <= e, "{}", errors(&v, &g)[0]);
+        assert!(
+            errors(&v, &g)[0] + g.brick_slack(0) <= e,
+            "{}",
+            errors(&v, &g)[0]
+        );
     }
 
     #[test]
@@ -782,7 +785,7 @@ mod tests {
             pool[b * BRICK_VOXELS..(b + 1) * BRICK_VOXELS]
                 .iter()
                 .zip(&cen[c * BRICK_VOXELS..(c + 1) * BRICK_VOXELS])
-                .map(|(s, d)| (s - d).abs() + ce.slack[c])
+                .map(|(s, d)| (s - d).abs() + ce.brick_slack(c))
                 .fold(0.0, f32::max)
         };
         let worst = (0..24)

@@ -11,6 +11,7 @@ use vdbcook_asset::{PayloadFormat, RangeMode};
 
 use crate::assemble::{section_sizes, topology_and_atlas, Figures};
 use crate::ingest::ChannelState;
+use crate::nanovdb::NanoGrids;
 
 /// `cook --json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -82,8 +83,61 @@ pub struct NanoComparison {
     /// whatever it holds: small volumes pay mostly for these); the rest are leaves.
     pub node_bytes: u64,
     pub bits_per_active_voxel: f64,
-    /// The asset's GPU bytes (`bytes.topology + bytes.atlas`) over NanoVDB's.
-    pub ratio: f64,
+    /// The asset's GPU bytes (`bytes.topology + bytes.atlas`) over NanoVDB's (`None` where
+    /// they do not compare: `eval --grid` on one channel of several).
+    pub ratio: Option<f64>,
+}
+
+impl NanoComparison {
+    /// The comparison of `channels` (each channel's source grids and its budget, `None`:
+    /// lossless), over `active_voxels`, against the asset's GPU bytes when given; `None` without
+    /// a grid.
+    pub fn of<'a>(
+        channels: impl IntoIterator<Item = (&'a NanoGrids, Option<f32>)>,
+        active_voxels: u64,
+        asset_gpu_bytes: Option<u64>,
+    ) -> Option<NanoComparison> {
+        let (mut bytes, mut grids, mut node_bytes) = (Some(0u64), 0u64, 0u64);
+        let (mut fpn, mut float) = (false, false);
+        for (n, budget) in channels {
+            grids += n.grids;
+            node_bytes += n.fixed_bytes;
+            let channel = match budget {
+                Some(e) => {
+                    fpn = true;
+                    n.fpn_bytes(e)
+                }
+                None => {
+                    float = true;
+                    Some(n.float_bytes())
+                }
+            };
+            // Every lossy cook measures its leaves for FpN (`ReadOptions::track_uses`), eval
+            // every budgeted channel.
+            debug_assert!(
+                channel.is_some(),
+                "FpN leaves not measured for a budgeted channel"
+            );
+            bytes = bytes.zip(channel).map(|(a, c)| a + c);
+        }
+        bytes.filter(|_| grids > 0).map(|bytes| NanoComparison {
+            format: match (fpn, float) {
+                (true, true) => "FpN+float",
+                (true, false) => "FpN",
+                _ => "float",
+            }
+            .to_string(),
+            grids,
+            gpu_bytes: bytes,
+            node_bytes,
+            bits_per_active_voxel: if active_voxels > 0 {
+                bytes as f64 * 8.0 / active_voxels as f64
+            } else {
+                0.0
+            },
+            ratio: asset_gpu_bytes.map(|g| g as f64 / bytes.max(1) as f64),
+        })
+    }
 }
 
 /// What `--lod` stored (`CookReport::lod`).
@@ -356,43 +410,14 @@ pub fn build(b: BuildInputs) -> CookReport {
             }
         })
         .collect();
-    let nanovdb = {
-        let (mut bytes, mut grids, mut fpn, mut float) = (Some(0u64), 0u64, false, false);
-        let mut node_bytes = 0u64;
-        for (s, budget) in b.channels.iter().zip(b.budgets) {
-            grids += s.nanovdb.grids;
-            node_bytes += s.nanovdb.fixed_bytes;
-            let channel = match budget {
-                Some(e) => {
-                    fpn = true;
-                    s.nanovdb.fpn_bytes(*e)
-                }
-                None => {
-                    float = true;
-                    Some(s.nanovdb.float_bytes())
-                }
-            };
-            // Every lossy cook measures its leaves for FpN (`ReadOptions::track_uses`).
-            debug_assert!(
-                channel.is_some(),
-                "FpN leaves not measured for a budgeted channel"
-            );
-            bytes = bytes.zip(channel).map(|(a, c)| a + c);
-        }
-        bytes.filter(|_| grids > 0).map(|bytes| NanoComparison {
-            format: match (fpn, float) {
-                (true, true) => "FpN+float",
-                (true, false) => "FpN",
-                _ => "float",
-            }
-            .to_string(),
-            grids,
-            gpu_bytes: bytes,
-            node_bytes,
-            bits_per_active_voxel: bpv(bytes),
-            ratio: (topology + atlas) as f64 / bytes.max(1) as f64,
-        })
-    };
+    let nanovdb = NanoComparison::of(
+        b.channels
+            .iter()
+            .map(|c| &c.nanovdb)
+            .zip(b.budgets.iter().copied()),
+        active,
+        Some(topology + atlas),
+    );
     let [r0, r1, r2, r3, r4] = asset.header.brick_counts;
     let shared = match b.budgets {
         [b0, rest @ ..] if rest.iter().all(|x| x == b0) => *b0,
