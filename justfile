@@ -2,12 +2,13 @@
 
 # Run the whole test suite (the README's test command).
 test:
-    cargo test --workspace
+    cargo test --workspace --exclude vdbcook-bevy && cargo test -p vdbcook-runtime -p vdbcook-bevy --no-default-features --features vdbcook-runtime/wgpu29
 
 # Formatting and lints, as CI runs them.
 lint:
     cargo fmt --all -- --check
-    cargo clippy --workspace --all-targets -- -D warnings
+    cargo clippy --workspace --exclude vdbcook-bevy --all-targets -- -D warnings
+    cargo clippy -p vdbcook-runtime -p vdbcook-bevy --no-default-features --features vdbcook-runtime/wgpu29 --all-targets -- -D warnings
 
 # Reader throughput on a generated 256³ blosc fog, side by side with vdb-rs; then cook vs read
 # on the 200-frame stormscape sequence (needs ../shared/samples).

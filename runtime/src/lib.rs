@@ -83,7 +83,7 @@ pub use upload::{
     BufferLayout, GpuVolume, Layout, PayloadLayout, TextureGroup, UploadOptions, MAX_ASSETS,
     OPTIONAL_FEATURES,
 };
-pub use vdbcook_asset::Asset;
+pub use vdbcook_asset::{Asset, AssetError};
 pub use vdbcook_scene::{
     fire_convention, Display, Emission, Filter, FireConvention, Integrator, Lighting, March,
     Medium, MsModel, Output, RenderSettings,
