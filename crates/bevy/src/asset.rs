@@ -42,7 +42,8 @@ impl VdbAsset {
     /// or `None` for an empty flip-book: to frame a camera or place a volume.
     pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
         let up = self.upright();
-        let m = &self.0.header.index_to_world;
+        // Cell space (voxel i is the cell [i, i + 1)) to world, as the drawer maps it.
+        let cells = vdbcook_scene::Affine::cells(&self.0.header.index_to_world).ok()?;
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         for f in 0..self.frame_count() {
             let Some((a, b)) = vdbcook_scene::stored_bbox(&self.0, f) else {
@@ -50,11 +51,9 @@ impl VdbAsset {
             };
             for corner in 0..8 {
                 let p = [0, 1, 2].map(|i| if corner >> i & 1 == 0 { a[i] } else { b[i] });
-                let w = Vec3::from_array(std::array::from_fn(|r| {
-                    (m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]) as f32
-                }));
-                lo = lo.min(up * w);
-                hi = hi.max(up * w);
+                let w = up * Vec3::from_array(cells.world_of(p).map(|v| v as f32));
+                lo = lo.min(w);
+                hi = hi.max(w);
             }
         }
         lo.is_finite().then_some((lo, hi))

@@ -1,6 +1,6 @@
 //! Drawing the extracted instances on each volume camera: `prepare_volume_draws` (in Bevy's
 //! prepare step, once the view's targets, depth, jitter and the uploaded assets exist) groups
-//! the instances by asset and emission, keeps one runtime `VolumeDrawer` per group and camera
+//! the instances by asset and glow, keeps one runtime `VolumeDrawer` per asset and camera
 //! (its light volumes and `(L, T)` texture are per view), and prepares each group's draw;
 //! `volume_pass` (a system of Bevy's `Core3d` schedule, after the main pass, before
 //! post-processing) records them far group first onto the camera's main texture. The march,
@@ -9,14 +9,14 @@
 use std::collections::HashMap;
 
 use bevy::asset::AssetId;
-use bevy::camera::Exposure;
+use bevy::camera::{CompositingSpace, Exposure, MainPassResolutionOverride};
 use bevy::diagnostic::FrameCount;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, Msaa, ViewDepthTexture, ViewTarget};
 use vdbcook_runtime::{
-    glam as rt, wgpu, DrawTarget, Instance, PreparedDraw, Shading, VolumeDrawer, DRAW_COLOR_FORMATS,
+    wgpu, DrawTarget, Emission, Instance, PreparedDraw, Shading, VolumeDrawer, DRAW_COLOR_FORMATS,
 };
 
 use crate::asset::VdbAsset;
@@ -27,15 +27,15 @@ use crate::render::{
 };
 use bevy::render::render_asset::RenderAssets;
 
-/// Which drawer draws a group: one per camera, asset upload, colour format and emission.
+/// Which drawer draws a group: one per camera, asset upload and colour format (instances of one
+/// asset with different glows are separate draws of one drawer: its light volumes do not
+/// depend on the glow, and an animated glow must not make new drawers).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 struct DrawerKey {
     view: Entity,
     asset: AssetId<VdbAsset>,
     generation: u64,
     format: wgpu::TextureFormat,
-    /// The group's emission, spelled out (`Emission` holds floats and is not `Hash`).
-    emission: String,
 }
 
 struct KeptDrawer {
@@ -57,6 +57,10 @@ pub struct VolumeDrawers {
 
 impl VolumeDrawers {
     fn warn_once(&mut self, message: String) {
+        // Bounded: messages can carry sizes (a window resized many times).
+        if self.logged.len() > 256 {
+            self.logged.clear();
+        }
         if self.logged.insert(message.clone()) {
             log::warn!("vdbcook: {message}");
         }
@@ -84,6 +88,7 @@ pub fn prepare_volume_draws(
         &ViewDepthTexture,
         &Msaa,
         Option<&TemporalJitter>,
+        Has<MainPassResolutionOverride>,
         &ExtractedVolumeCamera,
     )>,
     volumes: Res<ExtractedVolumes>,
@@ -101,9 +106,19 @@ pub fn prepare_volume_draws(
     out.1.clear();
     let device = device.wgpu_device();
     let queue: &wgpu::Queue = &queue;
-    for (entity, view, camera, target, depth, msaa, jitter, vc) in &views {
+    for (entity, view, camera, target, depth, msaa, jitter, resized, vc) in &views {
         let format = target.main_texture_format();
-        let refusal = if msaa.samples() != 1 {
+        let refusal = if resized {
+            Some("a MainPassResolutionOverride (upscaling: not supported yet)".to_string())
+        } else if !matches!(
+            target.compositing_space,
+            None | Some(CompositingSpace::Linear)
+        ) {
+            Some(format!(
+                "compositing space {:?} (the drawer blends linear radiance)",
+                target.compositing_space
+            ))
+        } else if msaa.samples() != 1 {
             Some(format!(
                 "{} MSAA samples (volume cameras need Msaa::Off)",
                 msaa.samples()
@@ -142,14 +157,15 @@ pub fn prepare_volume_draws(
             .lit
             .then(|| convert::lighting(&base.lighting, &scene, camera.exposure));
 
-        // Groups: one per (asset, emission), in order of first appearance.
-        let mut groups: Vec<(DrawerKey, Shading, Vec<Instance>, f32)> = Vec::new();
+        // Groups (one draw each): one per asset and glow, in order of first appearance, with
+        // the distance of their farthest instance's content.
+        let mut groups: Vec<(DrawerKey, Option<Emission>, Shading, Vec<Instance>, f32)> =
+            Vec::new();
         let eye = rt_view.view.inverse().w_axis.truncate();
         for v in &volumes.0 {
             let Some(gv) = gpu.get(v.asset) else { continue };
             let Ok(_) = &gv.volume else { continue };
-            // The group's glow before the camera's exposure (the drawer's key: a changing
-            // exposure must not make new drawers), in cd/m².
+            // The group's glow in cd/m² (before the camera's exposure).
             let emission = match &v.emission {
                 VolumeEmission::Auto => gv.auto_emission.map(|mut e| {
                     // As bright at Bevy's default exposure (EV100 9.7) as the cooker's renders
@@ -169,9 +185,9 @@ pub fn prepare_volume_draws(
                 asset: v.asset,
                 generation: gv.generation,
                 format,
-                emission: format!("{emission:?}"),
             };
-            let distance = (rt::Vec3::from(v.world_from_volume.translation) - eye).length();
+            let content = gv.content_centre(v.time);
+            let distance = (v.world_from_volume.transform_point3(content) - eye).length();
             let instance = Instance {
                 world_from_volume: v.world_from_volume,
                 time: v.time,
@@ -179,10 +195,10 @@ pub fn prepare_volume_draws(
                 tint: v.tint,
                 asset: 0,
             };
-            match groups.iter_mut().find(|g| g.0 == key) {
+            match groups.iter_mut().find(|g| g.0 == key && g.1 == emission) {
                 Some(g) => {
-                    g.2.push(instance);
-                    g.3 = g.3.max(distance);
+                    g.3.push(instance);
+                    g.4 = g.4.max(distance);
                 }
                 None => {
                     let mut medium = base.medium.clone();
@@ -195,15 +211,15 @@ pub fn prepare_volume_draws(
                         lighting: lighting.clone(),
                         integrator: base.integrator.clone(),
                     };
-                    groups.push((key, shading, vec![instance], distance));
+                    groups.push((key, emission, shading, vec![instance], distance));
                 }
             }
         }
-        // Far group first: groups of different assets composite in record order.
-        groups.sort_by(|a, b| b.3.total_cmp(&a.3));
+        // Far group first: groups composite in record order.
+        groups.sort_by(|a, b| b.4.total_cmp(&a.4));
 
         let mut draws = Vec::new();
-        for (key, shading, instances, _) in groups {
+        for (key, _, shading, instances, _) in groups {
             let Some(Ok(volume)) = gpu.get(key.asset).map(|g| &g.volume) else {
                 continue;
             };

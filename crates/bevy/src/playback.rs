@@ -8,7 +8,8 @@ use crate::asset::VdbAsset;
 use crate::component::{FrameBlend, PlayMode, VdbPlayback, VdbVolume};
 
 /// Advances `p` by `dt` seconds through a flip-book of `frames` frames. Ping-pong turns around
-/// by negating `speed`. A paused or empty playback only has its time brought into range.
+/// by negating `speed`. A paused or still playback only has its time brought into range; an
+/// empty flip-book is left alone.
 pub fn advance(p: &mut VdbPlayback, dt: f32, frames: usize) {
     if frames == 0 {
         return;
@@ -20,6 +21,10 @@ pub fn advance(p: &mut VdbPlayback, dt: f32, frames: usize) {
         dt * p.fps * p.speed
     };
     let t = if p.time.is_finite() { p.time } else { 0.0 } + step;
+    if step == 0.0 {
+        p.time = t.clamp(0.0, last);
+        return;
+    }
     p.time = match p.mode {
         // Frame `last` shows until the loop comes round to 0 (one frame's time, as every other).
         PlayMode::Loop => t.rem_euclid(frames as f32),
@@ -27,20 +32,19 @@ pub fn advance(p: &mut VdbPlayback, dt: f32, frames: usize) {
         PlayMode::PingPong if last == 0.0 => 0.0,
         PlayMode::PingPong => {
             // Unfold the bounce: position u on a line of period 2·last, forward on [0, last],
-            // backward on [last, 2·last]; the sign of `speed` says which half the time is in.
+            // backward on [last, 2·last]; the sign of the step says which half the time is in,
+            // and the bounce turns it by turning `speed` (the step's sign is that of fps·speed).
             let time = if p.time.is_finite() { p.time } else { 0.0 }.clamp(0.0, last);
-            let u = if p.speed < 0.0 {
-                2.0 * last - time
-            } else {
-                time
-            } + step.abs();
+            let u = if step < 0.0 { 2.0 * last - time } else { time } + step.abs();
             let m = u.rem_euclid(2.0 * last);
-            if m > last {
-                p.speed = -p.speed.abs();
-                2.0 * last - m
-            } else {
-                p.speed = p.speed.abs();
+            let forward = m <= last;
+            if forward != (step > 0.0) {
+                p.speed = -p.speed;
+            }
+            if forward {
                 m
+            } else {
+                2.0 * last - m
             }
         }
     };
@@ -135,6 +139,23 @@ mod tests {
         let mut one = play(PlayMode::PingPong);
         advance(&mut one, 1.0, 1);
         assert_eq!(one.time, 0.0);
+        // Paused at an end, heading down: nothing turns.
+        let mut still = VdbPlayback {
+            paused: true,
+            speed: -1.0,
+            ..play(PlayMode::PingPong)
+        };
+        advance(&mut still, 1.0, 10);
+        assert_eq!((still.time, still.speed), (0.0, -1.0));
+        // A negative fps with a positive speed plays backwards and bounces off 0.
+        let mut back = VdbPlayback {
+            fps: -24.0,
+            time: 2.0,
+            ..play(PlayMode::PingPong)
+        };
+        advance(&mut back, 3.0 / 24.0, 10);
+        assert!((back.time - 1.0).abs() < 1e-4, "{}", back.time);
+        assert!(back.speed < 0.0, "turned: now heading up with fps < 0");
     }
 
     #[test]

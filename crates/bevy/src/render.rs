@@ -153,6 +153,18 @@ pub struct GpuVdbVolume {
     pub volume: Result<Arc<GpuVolume>, String>,
     pub auto_emission: Option<Emission>,
     pub generation: u64,
+    /// Per frame, the centre of what it stores in the asset's world (the draws' far-to-near
+    /// order between assets).
+    pub centres: Vec<rt::Vec3>,
+}
+
+impl GpuVdbVolume {
+    /// The content centre of the frame shown at `time` (the asset's world; its origin where
+    /// the frame is empty or unknown).
+    pub fn content_centre(&self, time: f32) -> rt::Vec3 {
+        let f = (time.max(0.0) as usize).min(self.centres.len().saturating_sub(1));
+        self.centres.get(f).copied().unwrap_or(rt::Vec3::ZERO)
+    }
 }
 
 impl RenderAsset for GpuVdbVolume {
@@ -177,10 +189,23 @@ impl RenderAsset for GpuVdbVolume {
                 log::error!("vdbcook: the volume could not be uploaded, it will not be drawn: {e}");
                 e.to_string()
             });
+        let cells = vdbcook_scene::Affine::cells(&asset.0.header.index_to_world).ok();
+        let centres = match (&volume, cells) {
+            (Ok(v), Some(cells)) => (0..v.frame_count())
+                .map(|f| {
+                    v.frame_bbox(f).map_or(rt::Vec3::ZERO, |(lo, hi)| {
+                        let c = cells.world_of([0, 1, 2].map(|i| 0.5 * (lo[i] + hi[i])));
+                        rt::Vec3::from_array(c.map(|x| x as f32))
+                    })
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         Ok(GpuVdbVolume {
             volume,
             auto_emission: fire_convention(&asset.0, None).map(|f| f.emission),
             generation: GENERATION.fetch_add(1, Ordering::Relaxed),
+            centres,
         })
     }
 }

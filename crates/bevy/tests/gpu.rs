@@ -178,7 +178,6 @@ fn playback_advances_with_time() {
         target.clone(),
         SceneOptions {
             size: SIZE,
-            frame: 0.0,
             tonemapping: Tonemapping::None,
             ..Default::default()
         },
@@ -187,16 +186,27 @@ fn playback_advances_with_time() {
         app.update();
     }
     let first = pixels(&app.capture(&target));
+    let time = |app: &mut Headless| app.world().get::<VdbPlayback>(scene.volume).unwrap().time;
     let mut playback = app.world().get_mut::<VdbPlayback>(scene.volume).unwrap();
     playback.paused = false;
-    playback.mode = vdbcook_bevy::PlayMode::Once;
     playback.time = 0.0;
-    for _ in 0..3 {
+    // Loop over the two frames: one update is one frame.
+    app.update();
+    let one = time(&mut app);
+    assert!((one - 1.0).abs() < 1e-4, "after one update: {one}");
+    app.update();
+    let two = time(&mut app);
+    assert!(
+        two.abs() < 1e-4 || (two - 2.0).abs() < 1e-4,
+        "after two: {two}"
+    );
+    // Frame 1, held there: the picture differs from frame 0's.
+    let mut playback = app.world().get_mut::<VdbPlayback>(scene.volume).unwrap();
+    playback.paused = true;
+    playback.time = 1.0;
+    for _ in 0..2 {
         app.update();
     }
-    let t = app.world().get::<VdbPlayback>(scene.volume).unwrap().time;
-    // Once: three frames of time on a two-frame flip-book stop on the last.
-    assert_eq!(t, 1.0, "time {t}");
     let last = pixels(&app.capture(&target));
     let changed = (0..first.len())
         .filter(|&i| differs(&first[i], &last[i]))
@@ -459,7 +469,11 @@ fn plugin_matches_the_runtime_drawer() {
     if !adapter("plugin_matches_the_runtime_drawer") {
         return;
     }
-    let asset = Arc::new(cloud());
+    // A Z-up source (as Blender writes) on a turned and moved entity: the plugin stands it up
+    // and places it; the reference instance is built here from the same numbers.
+    let mut zup = cloud();
+    zup.header.source.up = "z".into();
+    let asset = Arc::new(zup);
     let mut app = Headless::new(|app| {
         app.sub_app_mut(RenderApp)
             .init_resource::<Before>()
@@ -488,6 +502,10 @@ fn plugin_matches_the_runtime_drawer() {
         target.clone(),
         options,
     );
+    let (turn, shift) = (0.4f32, Vec3::new(0.05, 0.1, -0.08));
+    app.world()
+        .entity_mut(scene.volume)
+        .insert(Transform::from_translation(shift).with_rotation(Quat::from_rotation_y(turn)));
     // The reference, from the scene's numbers: Bevy's default exposure (EV100 9.7), the sun
     // (white) and the ambient light (sRGB (0.6, 0.7, 0.9) → linear) at the scene's lux and cd/m².
     let exposure = 2f32.powf(-9.7) / 1.2;
@@ -524,6 +542,9 @@ fn plugin_matches_the_runtime_drawer() {
             ..Default::default()
         },
         instances: vec![Instance {
+            world_from_volume: rt::Affine3A::from_translation(v(shift))
+                * rt::Affine3A::from_rotation_y(turn)
+                * rt::Affine3A::from_rotation_x(-std::f32::consts::FRAC_PI_2),
             time: options.frame,
             ..Default::default()
         }],
