@@ -12,6 +12,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bevy::app::AppLabel;
+use bevy::camera::Hdr;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
@@ -62,26 +63,43 @@ fn differs(a: &[u8; 4], b: &[u8; 4]) -> bool {
     a[..3] != b[..3]
 }
 
+/// An app (`configure`d before it starts) rendering `asset` in the example's scene at
+/// [`SIZE`], untonemapped, at `frame`: the app, its image target and what was spawned.
+fn scene_app(
+    asset: VdbAsset,
+    frame: f32,
+    configure: impl FnOnce(&mut App),
+) -> (Headless, Handle<Image>, screenshot::SceneEntities) {
+    let mut app = Headless::new(configure);
+    let target = app.target(SIZE);
+    let options = SceneOptions {
+        size: SIZE,
+        frame,
+        tonemapping: Tonemapping::None,
+        ..Default::default()
+    };
+    let scene = spawn_scene(app.world(), asset, target.clone(), options);
+    (app, target, scene)
+}
+
 /// The volume is drawn, not flat, and hidden exactly where the cube in front covers it; the
-/// cube and the ground where no volume is are the same pixels with and without the volume.
+/// cube and the ground where no volume is are the same pixels with and without the volume. On
+/// an HDR camera (`Rgba16Float` main texture) and on an LDR one (the image's `Rgba8UnormSrgb`).
 #[test]
 fn volume_is_drawn_behind_the_cube() {
     if !adapter("volume_is_drawn_behind_the_cube") {
         return;
     }
-    let mut app = Headless::new(|_| {});
-    let target = app.target(SIZE);
-    let scene = spawn_scene(
-        app.world(),
-        VdbAsset::new(cloud()),
-        target.clone(),
-        SceneOptions {
-            size: SIZE,
-            frame: 0.0,
-            tonemapping: Tonemapping::None,
-            ..Default::default()
-        },
-    );
+    for hdr in [true, false] {
+        drawn_behind_the_cube(hdr);
+    }
+}
+
+fn drawn_behind_the_cube(hdr: bool) {
+    let (mut app, target, scene) = scene_app(VdbAsset::new(cloud()), 0.0, |_| {});
+    if !hdr {
+        app.world().entity_mut(scene.camera).remove::<Hdr>();
+    }
     let shot = |app: &mut Headless, volume: bool, cube: bool| {
         let vis = |on| {
             if on {
@@ -124,10 +142,13 @@ fn volume_is_drawn_behind_the_cube() {
     let volume_n = volume.iter().filter(|&&v| v).count();
     // The scene is what it claims: the volume covers a good part of the frame and the cube
     // stands in front of part of it.
-    assert!(volume_n > n / 10, "volume covers {volume_n}/{n} pixels");
+    assert!(
+        volume_n > n / 10,
+        "hdr {hdr}: volume covers {volume_n}/{n} pixels"
+    );
     assert!(
         covered > 50,
-        "the cube covers {covered} pixels of the volume ({cube_n} in all)"
+        "hdr {hdr}: the cube covers {covered} pixels of the volume ({cube_n} in all)"
     );
     // Occlusion: where the cube is, the volume adds nothing, bit for bit.
     let through = (0..n)
@@ -135,7 +156,7 @@ fn volume_is_drawn_behind_the_cube() {
         .count();
     assert_eq!(
         through, 0,
-        "{through} cube pixels changed by the volume behind it"
+        "hdr {hdr}: {through} cube pixels changed by the volume behind it"
     );
     // Elsewhere the volume shows over the ground with the cube present too.
     let shown = (0..n)
@@ -143,7 +164,7 @@ fn volume_is_drawn_behind_the_cube() {
         .count();
     assert!(
         shown > volume_n / 2,
-        "{shown} of {volume_n} volume pixels shown"
+        "hdr {hdr}: {shown} of {volume_n} volume pixels shown"
     );
     // Not flat: the lit volume's luminance varies across it.
     let lum: Vec<f64> = (0..n)
@@ -154,7 +175,7 @@ fn volume_is_drawn_behind_the_cube() {
     let sd = (lum.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / lum.len() as f64).sqrt();
     assert!(
         sd > 8.0,
-        "volume luminance sd {sd:.1} (8-bit levels) over {} pixels",
+        "hdr {hdr}: volume luminance sd {sd:.1} (8-bit levels) over {} pixels",
         lum.len()
     );
 }
@@ -166,22 +187,11 @@ fn playback_advances_with_time() {
     if !adapter("playback_advances_with_time") {
         return;
     }
-    let mut app = Headless::new(|app| {
+    let (mut app, target, scene) = scene_app(VdbAsset::new(cloud()), 0.0, |app| {
         app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
             1.0 / 24.0,
         )));
     });
-    let target = app.target(SIZE);
-    let scene = spawn_scene(
-        app.world(),
-        VdbAsset::new(cloud()),
-        target.clone(),
-        SceneOptions {
-            size: SIZE,
-            tonemapping: Tonemapping::None,
-            ..Default::default()
-        },
-    );
     for _ in 0..3 {
         app.update();
     }
@@ -224,21 +234,10 @@ fn many_instances_of_two_assets() {
     if !adapter("many_instances_of_two_assets") {
         return;
     }
-    let mut app = Headless::new(|_| {});
-    let target = app.target(SIZE);
     let first = VdbAsset::new(cloud());
     let (lo, hi) = first.world_bounds().unwrap();
     let extent = hi - lo;
-    let scene = spawn_scene(
-        app.world(),
-        first,
-        target.clone(),
-        SceneOptions {
-            size: SIZE,
-            tonemapping: Tonemapping::None,
-            ..Default::default()
-        },
-    );
+    let (mut app, target, scene) = scene_app(first, 0.0, |_| {});
     let world = app.world();
     let cloud_handle = world.get::<VdbVolume>(scene.volume).unwrap().asset.clone();
     // A second asset: one small dense puff.
@@ -474,7 +473,8 @@ fn plugin_matches_the_runtime_drawer() {
     let mut zup = cloud();
     zup.header.source.up = "z".into();
     let asset = Arc::new(zup);
-    let mut app = Headless::new(|app| {
+    let frame = 0.5;
+    let (mut app, _target, scene) = scene_app(VdbAsset(asset.clone()), frame, |app| {
         app.sub_app_mut(RenderApp)
             .init_resource::<Before>()
             .add_systems(
@@ -489,19 +489,7 @@ fn plugin_matches_the_runtime_drawer() {
                 ),
             );
     });
-    let target = app.target(SIZE);
-    let options = SceneOptions {
-        size: SIZE,
-        frame: 0.5,
-        tonemapping: Tonemapping::None,
-        ..Default::default()
-    };
-    let scene = spawn_scene(
-        app.world(),
-        VdbAsset(asset.clone()),
-        target.clone(),
-        options,
-    );
+    let options = SceneOptions::default();
     let (turn, shift) = (0.4f32, Vec3::new(0.05, 0.1, -0.08));
     app.world()
         .entity_mut(scene.volume)
@@ -545,7 +533,7 @@ fn plugin_matches_the_runtime_drawer() {
             world_from_volume: rt::Affine3A::from_translation(v(shift))
                 * rt::Affine3A::from_rotation_y(turn)
                 * rt::Affine3A::from_rotation_x(-std::f32::consts::FRAC_PI_2),
-            time: options.frame,
+            time: frame,
             ..Default::default()
         }],
     };
