@@ -1528,6 +1528,52 @@ impl VolumeDrawer {
     /// pixel (ordered by distance, see `docs/engine.md`); draws composite in the order they are
     /// recorded.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder, draw: &PreparedDraw) {
+        self.record_to(encoder, draw, &draw.color);
+    }
+
+    /// [`VolumeDrawer::record`] onto `color` instead of the colour view the draw was prepared
+    /// with: for an engine whose colour target alternates between textures after `prepare`
+    /// (Bevy's post-processing flips two main textures per target, and a later camera on the
+    /// same target finds the other one). `color` must be a view of the same kind the draw was
+    /// prepared for — the drawer's colour format, the draw's viewport size, one sample,
+    /// `RENDER_ATTACHMENT` — else nothing is recorded and the error says why. The depth stays
+    /// the prepared one (it is read by the draw's bind group).
+    pub fn record_onto(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        draw: &PreparedDraw,
+        color: &wgpu::TextureView,
+    ) -> Result<()> {
+        let (p, c) = (draw.color.texture(), color.texture());
+        if c.format() != p.format()
+            || c.size() != p.size()
+            || c.sample_count() != 1
+            || !c.usage().contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+        {
+            return Err(RuntimeError::Target(format!(
+                "colour target {:?} {}x{} ({} samples, usage {:?}): the draw was prepared for \
+                 {:?} {}x{}, one sample, RENDER_ATTACHMENT",
+                c.format(),
+                c.width(),
+                c.height(),
+                c.sample_count(),
+                c.usage(),
+                p.format(),
+                p.width(),
+                p.height()
+            )));
+        }
+        self.record_to(encoder, draw, color);
+        Ok(())
+    }
+
+    /// What [`VolumeDrawer::record`] records, compositing onto `color`.
+    fn record_to(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        draw: &PreparedDraw,
+        color: &wgpu::TextureView,
+    ) {
         if draw.is_empty() {
             return;
         }
@@ -1558,7 +1604,7 @@ impl VolumeDrawer {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("vdbcook composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &draw.color,
+                view: color,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {

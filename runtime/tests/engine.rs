@@ -1478,6 +1478,68 @@ fn record_takes_no_device_and_creates_nothing() {
         VolumeDrawer::record;
 }
 
+/// A draw prepared for one colour texture and recorded onto another of the same kind (an
+/// engine's ping-pong targets, as Bevy's) lands on the other exactly as a draw prepared for it
+/// does, and leaves the first untouched; a texture of another size is refused.
+#[test]
+fn record_onto_another_texture_of_the_same_kind() {
+    let Some(gpu) = Gpu::new("record_onto_another_texture_of_the_same_kind") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let (_vol, mut drawer) = setup(&gpu, &asset);
+    let (fa, fb) = (gpu.frame(), gpu.frame());
+    let (view, _) = framing_view(&asset);
+    let inst = [Instance::default()];
+    let medium = Shading::default();
+    let bg = [0.2, 0.3, 0.4];
+    let direct = gpu.draw(&mut drawer, &fb, &view, &inst, &medium, bg, None);
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    gpu.clear(&mut enc, &fa, bg, None);
+    gpu.clear(&mut enc, &fb, bg, None);
+    let target = DrawTarget {
+        color: &fa.color_view,
+        depth: None,
+    };
+    let draw = drawer
+        .prepare(&gpu.device, &gpu.queue, &target, &view, &inst, &medium)
+        .expect("prepare");
+    drawer
+        .record_onto(&mut enc, &draw, &fb.color_view)
+        .expect("same kind of texture");
+    gpu.queue.submit([enc.finish()]);
+    let (onto, first) = (gpu.read(&fb), gpu.read(&fa));
+    assert_eq!(onto, direct, "recorded onto B = prepared for B");
+    // Untouched: every pixel still the clear colour (as the half-float target stores it).
+    let uniform = |v: &[f32]| v.chunks(4).all(|p| p == &v[..4]);
+    assert!(uniform(&first), "A untouched");
+    assert!((first[0] - bg[0] as f32).abs() < 1e-3);
+    assert!(!uniform(&onto), "the volume is in B");
+    let small = gpu
+        .device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("small"),
+            size: wgpu::Extent3d {
+                width: W / 2,
+                height: H,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&Default::default());
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let refused = drawer.record_onto(&mut enc, &draw, &small);
+    assert!(
+        matches!(refused, Err(vdbcook_runtime::RuntimeError::Target(_))),
+        "{refused:?}"
+    );
+}
+
 /// A lit draw whose encoder is dropped unsubmitted leaves nothing unbuilt: the next draw of the
 /// same instances (the same light volumes) draws what a fresh drawer draws. (Before the light
 /// volumes were built in the caller's encoder, and a cache hit after a dropped one read

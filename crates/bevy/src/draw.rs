@@ -67,13 +67,9 @@ impl VolumeDrawers {
     }
 }
 
-/// This frame's prepared draws per camera (render entity), far group first, with the colour
-/// view they were prepared for.
+/// This frame's prepared draws per camera (render entity), far group first.
 #[derive(Resource, Default)]
-pub struct ViewVolumeDraws(
-    HashMap<Entity, Vec<(DrawerKey, PreparedDraw)>>,
-    HashMap<Entity, wgpu::TextureView>,
-);
+pub struct ViewVolumeDraws(HashMap<Entity, Vec<(DrawerKey, PreparedDraw)>>);
 
 /// Prepares every volume camera's draws (see the module's doc). A camera the drawer cannot draw
 /// on (multisampled, a sub-rectangle viewport, a colour format the drawer does not blend onto)
@@ -103,7 +99,6 @@ pub fn prepare_volume_draws(
 ) {
     // Last frame's draws were submitted with last frame's render: they may go.
     out.0.clear();
-    out.1.clear();
     let device = device.wgpu_device();
     let queue: &wgpu::Queue = &queue;
     for (entity, view, camera, target, depth, msaa, jitter, resized, vc) in &views {
@@ -251,7 +246,6 @@ pub fn prepare_volume_draws(
         }
         if !draws.is_empty() {
             out.0.insert(entity, draws);
-            out.1.insert(entity, (**color).clone());
         }
     }
     let now = frame.0;
@@ -274,21 +268,17 @@ pub fn volume_pass(
     let Some(list) = draws.0.get(&entity) else {
         return;
     };
-    // Another camera on the same target may have flipped Bevy's ping-pong main textures since
-    // the draws were prepared: they would blend onto the wrong one.
-    if draws.1.get(&entity) != Some(&**target.main_texture_view()) {
-        if !std::mem::replace(&mut *warned, true) {
-            log::warn!(
-                "vdbcook: a camera's main texture changed after its volumes were prepared \
-                 (several cameras on one target with post-processing): volumes skipped"
-            );
-        }
-        return;
-    }
+    // Onto the main texture current now: another camera on the same target may have flipped
+    // Bevy's two main textures since the draws were prepared.
+    let color = target.main_texture_view();
     let encoder = ctx.command_encoder();
     for (key, draw) in list {
         if let Some(kept) = drawers.drawers.get(key) {
-            kept.drawer.record(encoder, draw);
+            if let Err(e) = kept.drawer.record_onto(encoder, draw, color) {
+                if !std::mem::replace(&mut *warned, true) {
+                    log::warn!("vdbcook: volumes not drawn: {e}");
+                }
+            }
         }
     }
 }
