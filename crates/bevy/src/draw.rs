@@ -44,6 +44,17 @@ struct KeptDrawer {
     used: u32,
 }
 
+/// One draw of a camera: the instances of one asset with one glow.
+struct Group {
+    key: DrawerKey,
+    emission: Option<Emission>,
+    volume: std::sync::Arc<vdbcook_runtime::GpuVolume>,
+    shading: Shading,
+    instances: Vec<Instance>,
+    /// Distance from the eye to its farthest instance's content (draws go far first).
+    distance: f32,
+}
+
 /// Frames a drawer is kept without drawing (a camera switched off, an asset despawned).
 const DROP_AFTER: u32 = 120;
 
@@ -154,12 +165,11 @@ pub fn prepare_volume_draws(
 
         // Groups (one draw each): one per asset and glow, in order of first appearance, with
         // the distance of their farthest instance's content.
-        let mut groups: Vec<(DrawerKey, Option<Emission>, Shading, Vec<Instance>, f32)> =
-            Vec::new();
+        let mut groups: Vec<Group> = Vec::new();
         let eye = rt_view.view.inverse().w_axis.truncate();
         for v in &volumes.0 {
             let Some(gv) = gpu.get(v.asset) else { continue };
-            let Ok(_) = &gv.volume else { continue };
+            let Ok(volume) = &gv.volume else { continue };
             // The group's glow in cd/m² (before the camera's exposure).
             let emission = match &v.emission {
                 VolumeEmission::Auto => gv.auto_emission.map(|mut e| {
@@ -190,10 +200,13 @@ pub fn prepare_volume_draws(
                 tint: v.tint,
                 asset: 0,
             };
-            match groups.iter_mut().find(|g| g.0 == key && g.1 == emission) {
+            match groups
+                .iter_mut()
+                .find(|g| g.key == key && g.emission == emission)
+            {
                 Some(g) => {
-                    g.3.push(instance);
-                    g.4 = g.4.max(distance);
+                    g.instances.push(instance);
+                    g.distance = g.distance.max(distance);
                 }
                 None => {
                     let mut medium = base.medium.clone();
@@ -206,22 +219,33 @@ pub fn prepare_volume_draws(
                         lighting: lighting.clone(),
                         integrator: base.integrator.clone(),
                     };
-                    groups.push((key, emission, shading, vec![instance], distance));
+                    groups.push(Group {
+                        key,
+                        emission,
+                        volume: volume.clone(),
+                        shading,
+                        instances: vec![instance],
+                        distance,
+                    });
                 }
             }
         }
         // Far group first: groups composite in record order.
-        groups.sort_by(|a, b| b.4.total_cmp(&a.4));
+        groups.sort_by(|a, b| b.distance.total_cmp(&a.distance));
 
         let mut draws = Vec::new();
-        for (key, _, shading, instances, _) in groups {
-            let Some(Ok(volume)) = gpu.get(key.asset).map(|g| &g.volume) else {
-                continue;
-            };
+        for Group {
+            key,
+            volume,
+            shading,
+            instances,
+            ..
+        } in groups
+        {
             let kept = match drawers.drawers.entry(key.clone()) {
                 std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
                 std::collections::hash_map::Entry::Vacant(slot) => {
-                    match VolumeDrawer::new(device, volume, format) {
+                    match VolumeDrawer::new(device, &volume, format) {
                         Ok(drawer) => slot.insert(KeptDrawer { drawer, used: 0 }),
                         Err(e) => {
                             let m =

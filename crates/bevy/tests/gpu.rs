@@ -63,6 +63,11 @@ fn differs(a: &[u8; 4], b: &[u8; 4]) -> bool {
     a[..3] != b[..3]
 }
 
+/// Pixels whose colour differs between two pictures.
+fn changed(a: &[[u8; 4]], b: &[[u8; 4]]) -> usize {
+    a.iter().zip(b).filter(|(a, b)| differs(a, b)).count()
+}
+
 /// An app (`configure`d before it starts) rendering `asset` in the example's scene at
 /// [`SIZE`], untonemapped, at `frame`: the app, its image target and what was spawned.
 fn scene_app(
@@ -218,9 +223,7 @@ fn playback_advances_with_time() {
         app.update();
     }
     let last = pixels(&app.capture(&target));
-    let changed = (0..first.len())
-        .filter(|&i| differs(&first[i], &last[i]))
-        .count();
+    let changed = changed(&first, &last);
     assert!(
         changed > 200,
         "{changed} pixels changed between frame 0 and frame 1"
@@ -287,9 +290,7 @@ fn many_instances_of_two_assets() {
         }
         let without = pixels(&app.capture(&target));
         app.world().entity_mut(e).insert(Visibility::Inherited);
-        let changed = (0..all.len())
-            .filter(|&i| differs(&all[i], &without[i]))
-            .count();
+        let changed = changed(&all, &without);
         assert!(
             changed > 20,
             "instance {k}: hiding it changed {changed} pixels"
