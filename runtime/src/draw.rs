@@ -1027,27 +1027,7 @@ impl VolumeDrawer {
     }
 
     fn check_targets(&self, target: &DrawTarget, (w, h): (u32, u32)) -> Result<()> {
-        let c = target.color.texture();
-        if c.format() != self.color_format {
-            return Err(RuntimeError::Target(format!(
-                "colour target format {:?}, the drawer was built for {:?}",
-                c.format(),
-                self.color_format
-            )));
-        }
-        if (c.width(), c.height()) != (w, h)
-            || c.sample_count() != 1
-            || !c.usage().contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
-        {
-            return Err(RuntimeError::Target(format!(
-                "colour target {}x{} ({} samples, usage {:?}): needs the viewport size {w}x{h}, \
-                 one sample and RENDER_ATTACHMENT",
-                c.width(),
-                c.height(),
-                c.sample_count(),
-                c.usage()
-            )));
-        }
+        self.check_color(target.color, (w, h))?;
         if let Some(d) = target.depth {
             let d = d.texture();
             if !DRAW_DEPTH_FORMATS.contains(&d.format()) {
@@ -1070,6 +1050,33 @@ impl VolumeDrawer {
                     d.usage()
                 )));
             }
+        }
+        Ok(())
+    }
+
+    /// A colour view the drawer can composite onto at viewport size `w`×`h`: its format, that
+    /// size, one sample, `RENDER_ATTACHMENT`.
+    fn check_color(&self, color: &wgpu::TextureView, (w, h): (u32, u32)) -> Result<()> {
+        let c = color.texture();
+        if c.format() != self.color_format {
+            return Err(RuntimeError::Target(format!(
+                "colour target format {:?}, the drawer was built for {:?}",
+                c.format(),
+                self.color_format
+            )));
+        }
+        if (c.width(), c.height()) != (w, h)
+            || c.sample_count() != 1
+            || !c.usage().contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+        {
+            return Err(RuntimeError::Target(format!(
+                "colour target {}x{} ({} samples, usage {:?}): needs the viewport size {w}x{h}, \
+                 one sample and RENDER_ATTACHMENT",
+                c.width(),
+                c.height(),
+                c.sample_count(),
+                c.usage()
+            )));
         }
         Ok(())
     }
@@ -1544,25 +1551,8 @@ impl VolumeDrawer {
         draw: &PreparedDraw,
         color: &wgpu::TextureView,
     ) -> Result<()> {
-        let (p, c) = (draw.color.texture(), color.texture());
-        if c.format() != p.format()
-            || c.size() != p.size()
-            || c.sample_count() != 1
-            || !c.usage().contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
-        {
-            return Err(RuntimeError::Target(format!(
-                "colour target {:?} {}x{} ({} samples, usage {:?}): the draw was prepared for \
-                 {:?} {}x{}, one sample, RENDER_ATTACHMENT",
-                c.format(),
-                c.width(),
-                c.height(),
-                c.sample_count(),
-                c.usage(),
-                p.format(),
-                p.width(),
-                p.height()
-            )));
-        }
+        let p = draw.color.texture();
+        self.check_color(color, (p.width(), p.height()))?;
         self.record_to(encoder, draw, color);
         Ok(())
     }

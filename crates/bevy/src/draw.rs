@@ -72,8 +72,9 @@ impl VolumeDrawers {
         if self.logged.len() > 256 {
             self.logged.clear();
         }
-        if self.logged.insert(message.clone()) {
+        if !self.logged.contains(&message) {
             log::warn!("vdbcook: {message}");
+            self.logged.insert(message);
         }
     }
 }

@@ -7,6 +7,15 @@ use bevy::prelude::*;
 use crate::asset::VdbAsset;
 use crate::component::{FrameBlend, PlayMode, VdbPlayback, VdbVolume};
 
+/// `p`'s time, 0 where it is not finite.
+fn finite_time(p: &VdbPlayback) -> f32 {
+    if p.time.is_finite() {
+        p.time
+    } else {
+        0.0
+    }
+}
+
 /// Advances `p` by `dt` seconds through a flip-book of `frames` frames. Ping-pong turns around
 /// by negating `speed`. A paused or still playback only has its time brought into range; an
 /// empty flip-book is left alone.
@@ -20,7 +29,7 @@ pub fn advance(p: &mut VdbPlayback, dt: f32, frames: usize) {
     } else {
         dt * p.fps * p.speed
     };
-    let t = if p.time.is_finite() { p.time } else { 0.0 } + step;
+    let t = finite_time(p) + step;
     if step == 0.0 {
         p.time = t.clamp(0.0, last);
         return;
@@ -34,7 +43,7 @@ pub fn advance(p: &mut VdbPlayback, dt: f32, frames: usize) {
             // Unfold the bounce: position u on a line of period 2·last, forward on [0, last],
             // backward on [last, 2·last]; the sign of the step says which half the time is in,
             // and the bounce turns it by turning `speed` (the step's sign is that of fps·speed).
-            let time = if p.time.is_finite() { p.time } else { 0.0 }.clamp(0.0, last);
+            let time = finite_time(p).clamp(0.0, last);
             let u = if step < 0.0 { 2.0 * last - time } else { time } + step.abs();
             let m = u.rem_euclid(2.0 * last);
             let forward = m <= last;
@@ -58,7 +67,7 @@ pub fn drawn_time(p: &VdbPlayback, frames: usize) -> f32 {
         return 0.0;
     }
     let last = (frames - 1) as f32;
-    let t = if p.time.is_finite() { p.time } else { 0.0 }.clamp(0.0, last);
+    let t = finite_time(p).clamp(0.0, last);
     match p.blend {
         FrameBlend::Crossfade => t,
         FrameBlend::Hold => t.floor(),
@@ -80,9 +89,7 @@ pub fn advance_playback(
         // Touch the component only when it changes (change detection stays meaningful).
         let mut next = playback.clone();
         advance(&mut next, dt, frames);
-        if next != *playback {
-            *playback = next;
-        }
+        playback.set_if_neq(next);
     }
 }
 

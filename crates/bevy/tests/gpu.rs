@@ -298,8 +298,8 @@ fn many_instances_of_two_assets() {
     }
 }
 
-/// What the render world hands back to the test: Bevy's main texture after the volume pass,
-/// and the runtime's drawer recorded by the test onto a copy of the main texture before it.
+/// What the runtime's drawer draws for the reference, built by the test (not by the plugin):
+/// recorded in the render world onto a copy of the main texture taken before the volume pass.
 #[derive(Resource, Clone)]
 struct Reference {
     asset: Arc<vdbcook_bevy::vdbcook_runtime::Asset>,
@@ -322,7 +322,7 @@ fn copy_to_buffer(
     texture: &wgpu::Texture,
     buffer: &wgpu::Buffer,
 ) {
-    let (w, h) = (texture.width(), texture.height());
+    let w = texture.width();
     encoder.copy_texture_to_buffer(
         texture.as_image_copy(),
         wgpu::TexelCopyBufferInfo {
@@ -335,7 +335,6 @@ fn copy_to_buffer(
         },
         texture.size(),
     );
-    let _ = h;
 }
 
 fn capture_before(
@@ -428,6 +427,7 @@ fn capture_after(
     *kept = Some(draw);
 }
 
+/// The half floats of `buffer` as their bits.
 fn read_half(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Vec<u16> {
     let slice = buffer.slice(..);
     slice.map_async(wgpu::MapMode::Read, |r| r.expect("map"));
@@ -437,27 +437,13 @@ fn read_half(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Vec<u16> {
             timeout: None,
         })
         .unwrap();
-    let v: Vec<u16> = bytemuck_cast(&slice.get_mapped_range());
-    buffer.unmap();
-    v
-}
-
-fn bytemuck_cast(bytes: &[u8]) -> Vec<u16> {
-    bytes
+    let v: Vec<u16> = slice
+        .get_mapped_range()
         .chunks_exact(2)
         .map(|b| u16::from_le_bytes([b[0], b[1]]))
-        .collect()
-}
-
-fn half(h: u16) -> f32 {
-    let s = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
-    let e = ((h >> 10) & 0x1f) as i32;
-    let m = (h & 0x3ff) as f32;
-    s * match e {
-        0 => m * 2f32.powi(-24),
-        31 => f32::INFINITY,
-        _ => (1.0 + m / 1024.0) * 2f32.powi(e - 15),
-    }
+        .collect();
+    buffer.unmap();
+    v
 }
 
 /// Bevy's frame equals the runtime drawer's on the same view, with the view, light and
@@ -558,6 +544,7 @@ fn plugin_matches_the_runtime_drawer() {
     let mut worst = 0f32;
     for i in 0..n {
         for c in 0..3 {
+            let half = |bits| half::f16::from_bits(bits).to_f32();
             let (a, b) = (half(bevy[4 * i + c]), half(ours[4 * i + c]));
             worst = worst.max((a - b).abs() / b.abs().max(2f32.powi(-14)));
         }

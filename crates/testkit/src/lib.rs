@@ -3,8 +3,9 @@
 //!
 //! - [`XorShift`]: the seeded xorshift64* every test draws its random content from;
 //! - [`repo_root`] / [`fixtures`]: where the repository and its `fixtures/` are;
-//! - hand-built assets ([`build`], [`build_mixed`], [`random_frame`], transforms) on top of
-//!   [`vdbcook_asset::builder`], plus what only tests want: seeded BC4/BC7 noise bricks;
+//! - hand-built assets ([`build`], [`build_mixed`], [`random_frame`], [`blob_frame`],
+//!   transforms) on top of [`vdbcook_asset::builder`], plus what only tests want: seeded
+//!   BC4/BC7 noise bricks;
 //! - with the `gpu` feature, [`gpu::open_device`]: a wgpu device on whatever adapter exists,
 //!   honouring `VDBCOOK_REQUIRE_GPU`.
 

@@ -1,7 +1,7 @@
 //! Shared by the runtime's GPU tests: a device on whatever adapter exists (a missing adapter
-//! skips with a printed reason, or fails when `VDBCOOK_REQUIRE_GPU=1`, as CI sets), hand-built
-//! assets in every payload format whose voxels are known by construction (no cooker involved),
-//! and the conversions between the CPU reference tracer's camera/settings and the runtime's.
+//! skips with a printed reason, or fails when `VDBCOOK_REQUIRE_GPU=1`, as CI sets), and the test
+//! kit re-exported (`vdbcook_testkit`: hand-built assets whose voxels are known by construction,
+//! no cooker involved, seeded random content, the repository's paths).
 #![allow(dead_code, unused_imports)]
 
 pub use vdbcook_runtime::wgpu;
