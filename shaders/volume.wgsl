@@ -28,9 +28,13 @@
 //              Bc4RUnorm / Bc7RgbaUnorm (native), or R8Unorm / Rgba8Unorm holding the 8-bit codes.
 //              A voxel is lo + (hi − lo)·texel over the brick's quantization range [lo, hi].
 //
-// Bricks are grouped by format (BC7, BC4, unorm8, then f16 and f32): `groups[g]` says where
-// the bricks from `groups[g].first` to the next group's first are read (kind 0: buffers at local
-// index b − first + base; 1: the group's 3D texture; 2: its 2D array).
+// Bricks are grouped by format (BC7, BC4, unorm8, then f16 and f32, then packed1..packed7):
+// `groups[g]` says where the bricks from `groups[g].first` to the next group's first are read
+// (kind 0: buffers at local index b − first + base; 1: the group's 3D texture; 2: its 2D array;
+// 3: packed, `tiles_x` bits a voxel, the brick's 16·bits words from payload word
+// base + (b − first)·16·bits on, after the buffered bricks' words: voxel n = 64x + 8y + z at
+// bits [bits·n, bits·n + bits) of them, code q standing for the 8-bit code
+// round(255·q / (2^bits − 1)), read as an unorm8 texel).
 
 struct VdbGroup {
     first: u32,
@@ -80,8 +84,8 @@ struct VolumeInfo {
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
-    // BC7, BC4, unorm8, floats (f16 and f32).
-    groups: array<VdbGroup, 4>,
+    // BC7, BC4, unorm8, floats (f16 and f32), packed1..packed7.
+    groups: array<VdbGroup, 11>,
     assets: array<VdbAsset, 16>,
 }
 
@@ -232,13 +236,50 @@ fn vdb_brick_group(b: u32) -> u32 {
     if (b >= vdb_info.groups[3].first) {
         g = 3u;
     }
+    if ((VDB_PATHS & 128u) != 0u) {
+        // Constant indices (a count of the groups that start at or before `b`): no dynamic
+        // indexing of the uniform array.
+        g += u32(b >= vdb_info.groups[4].first) + u32(b >= vdb_info.groups[5].first)
+            + u32(b >= vdb_info.groups[6].first) + u32(b >= vdb_info.groups[7].first)
+            + u32(b >= vdb_info.groups[8].first) + u32(b >= vdb_info.groups[9].first)
+            + u32(b >= vdb_info.groups[10].first);
+    }
     return g;
+}
+
+// Payload word `w` counted across the four buffers (each `bricks_per_binding` buffered bricks'
+// words long).
+fn vdb_payload_word_at(w: u32) -> u32 {
+    let per = vdb_info.bricks_per_binding * select(512u, 256u, vdb_info.payload_layout == 1u);
+    let binding = vdb_binding_of(w, per);
+    return vdb_payload_word(binding, w - binding * per);
+}
+
+// Which of the four payload bindings holds element `i` (`per` to a binding): compares, not a
+// division (software rasterizers divide lane by lane; `3·per` stays below 2^32 since a binding
+// holds at most 2^30 words or 2^22 bricks).
+fn vdb_binding_of(i: u32, per: u32) -> u32 {
+    return u32(i >= per) + u32(i >= 2u * per) + u32(i >= 3u * per);
+}
+
+// Voxel `m` of brick `b` of packed group `grp` as its unorm8 texel (`payload::packed_code`).
+fn vdb_packed_texel(grp: VdbGroup, b: u32, m: vec3<u32>) -> f32 {
+    let bits = grp.tiles_x;
+    let at = (64u * m.x + 8u * m.y + m.z) * bits;
+    let w = grp.base + (b - grp.first) * 16u * bits + (at >> 5u);
+    let s = at & 31u;
+    // Both words, no branch: the second's bits land above the first's (none when s is 0).
+    let q = ((vdb_payload_word_at(w) >> s) | ((vdb_payload_word_at(w + 1u) << 1u) << (31u - s)))
+        & ((1u << bits) - 1u);
+    // round(255·q / (2^bits − 1)) with `tiles_y` holding 255 / (2^bits − 1) as f32 bits: the
+    // product is never within 1/254 of a half, so the rounding is exact.
+    return unpack4x8unorm(u32(floor(f32(q) * bitcast<f32>(grp.tiles_y) + 0.5))).x;
 }
 
 // Voxel `m` (0..8 per axis) of the `local`-th buffered brick.
 fn vdb_buffer_voxel(local: u32, m: vec3<u32>) -> f32 {
     let per = vdb_info.bricks_per_binding;
-    let binding = local / per;
+    let binding = vdb_binding_of(local, per);
     let i = (local - binding * per) * 512u + 64u * m.x + 8u * m.y + m.z;
     if (vdb_info.payload_layout == 0u) {
         return bitcast<f32>(vdb_payload_word(binding, i));
@@ -249,11 +290,11 @@ fn vdb_buffer_voxel(local: u32, m: vec3<u32>) -> f32 {
 
 // Which brick read paths a pipeline keeps (a bit mask; `GpuVolume::pipeline_constants` gives
 // the volume's value, the default keeps them all): 1 buffers, 2 BC7 3D, 4 BC7 2D array, 8 BC4
-// 3D, 16 BC4 2D array, 32 unorm8 3D, 64 unorm8 2D array. The paths a volume does not use are then
+// 3D, 16 BC4 2D array, 32 unorm8 3D, 64 unorm8 2D array, 128 packed words. The paths a volume does not use are then
 // dead code the driver removes; with buffers alone the read is the plain buffer read (a volume
 // whose bricks are all buffered has local index = brick index), which keeps software
 // rasterizers (lavapipe runs every side of a divergent branch) from paying for texture paths.
-override VDB_PATHS: u32 = 127u;
+override VDB_PATHS: u32 = 255u;
 
 // Voxel `v` (0..8 per axis, taken mod 8) of brick `b`: one buffer word or one texel (nearest
 // voxel, no filtering), dequantized with the brick's range.
@@ -267,6 +308,10 @@ fn vdb_brick_voxel(b: u32, v: vec3<i32>) -> f32 {
     let local = b - grp.first + grp.base;
     if ((VDB_PATHS & 1u) != 0u && grp.kind == 0u) {
         return vdb_buffer_voxel(local, m);
+    }
+    if ((VDB_PATHS & 128u) != 0u && grp.kind == 3u) {
+        let q = vdb_brick_quant(b);
+        return q.x + (q.y - q.x) * vdb_packed_texel(grp, b, m);
     }
     let tile = vec3<u32>(local % grp.tiles_x, (local / grp.tiles_x) % grp.tiles_y,
                          local / (grp.tiles_x * grp.tiles_y));

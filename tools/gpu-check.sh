@@ -45,6 +45,11 @@ if [ -n "${ASSETS:-}" ]; then
 else
 if [ -f "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb" ]; then
     cook wdas "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb"
+    # What packed bricks cost to read against the formats they replace (issue 33): the same
+    # 2% bound with and without them, at full resolution only.
+    cook wdas-e2 "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb" --max-error 0.02
+    cook wdas-e2-nopacked "$SAMPLES/wdas-cloud/wdas_cloud_sixteenth.vdb" --max-error 0.02 \
+        --no-packed
 fi
 if [ -d "$SAMPLES/stormscape-cloud-seq" ]; then
     cook stormscape "$SAMPLES/stormscape-cloud-seq"
@@ -54,7 +59,11 @@ fi
 RESOLUTIONS=${RESOLUTIONS:-full,half,quarter}
 runs=()
 for name in "${assets[@]}"; do
-    for res in ${RESOLUTIONS//,/ }; do
+    case $name in
+    *-e2*) resolutions=full ;;
+    *) resolutions=$RESOLUTIONS ;;
+    esac
+    for res in ${resolutions//,/ }; do
         "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" --march-resolution "$res" \
             --instances "$COUNTS" --frames 60 --runs 10 --json >"$OUT/$name-$res.json" || exit 1
         runs+=("$name-$res")

@@ -43,13 +43,22 @@ pub struct Args {
     /// folder of files named by key: a build farm can share it.
     #[arg(long, value_name = "DIR", requires = "manifest")]
     pub cache_dir: Option<PathBuf>,
-    /// Brick payload: f32 (bit exact), f16, unorm8 (8 bit), bc4 (4 bit) or bc7 (2 bit per voxel).
-    /// Default f32; with --max-error and no --format, the smallest that meets the error.
-    #[arg(long, value_parser = ["f32", "f16", "unorm8", "bc4", "bc7"])]
+    /// Brick payload: f32 (bit exact), f16, unorm8 (8 bit), bc4 (4 bit), bc7 (2 bit per voxel)
+    /// or packed1..packed7 (1..7 bit per voxel, read exactly on any GPU). Default f32; with
+    /// --max-error and no --format, per brick the smallest that meets the error.
+    #[arg(long, value_parser = [
+        "f32", "f16", "unorm8", "bc4", "bc7", "packed1", "packed2", "packed3", "packed4",
+        "packed5", "packed6", "packed7",
+    ])]
     pub format: Option<String>,
+    /// Under an error budget, do not store bricks packed at their own bit depth (packed1..7):
+    /// only BC7, BC4, unorm8, f16, f32, as runtimes before asset format 7 read.
+    #[arg(long)]
+    pub no_packed: bool,
     /// Every voxel of every frame decodes within E of its source value, as any GPU reads it
     /// whose BC decoding meets D3D's precision rule (docs/payloads.md): each brick takes the
-    /// cheapest representation that meets E (tile, bc7, bc4, unorm8, f16, f32), starting at
+    /// cheapest representation that meets E (tile, packed1, bc7, packed2, packed3, bc4, packed4..7,
+    /// unorm8, f16, f32), starting at
     /// --format when one is given. Without it a lossy cook gets
     /// 10% of the value range as an artefact guard. With --grids, one budget per channel:
     /// `density=0.01,temperature=5` (a bare E applies to the channels not named).
@@ -178,6 +187,7 @@ impl Args {
             } else {
                 RangeMode::Brick
             },
+            packed: !self.no_packed,
             bc7_quality: Bc7Quality::parse(&self.bc7_quality).ok_or_else(|| {
                 CliError::Usage(format!(
                     "unknown --bc7-quality '{}' (ultra-fast, very-fast, fast, basic, slow)",

@@ -104,6 +104,7 @@ struct Entry {
     frames: Option<String>,
     range: Option<String>,
     bc7_quality: Option<String>,
+    no_packed: Option<bool>,
     lod: Option<LodLevels>,
     lod_from: Option<u32>,
     allow_gaps: Option<bool>,
@@ -268,6 +269,7 @@ fn entry_options(e: &Entry, base: &Path) -> Result<(Vec<String>, PathBuf, CookOp
         max_bytes,
         range: e.range.clone().unwrap_or_else(|| "brick".into()),
         bc7_quality: e.bc7_quality.clone().unwrap_or_else(|| "fast".into()),
+        no_packed: e.no_packed.unwrap_or(false),
         grid: e.grid.clone(),
         grids: match &e.grids {
             None => Vec::new(),

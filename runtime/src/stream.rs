@@ -70,20 +70,22 @@ pub struct StreamingVolume {
     buffers: BufferLayout,
     layout: Layout,
     /// Slots per format (in `PayloadFormat::ORDER`) and the first slot number of each.
-    caps: [u32; 5],
-    firsts: [u32; 5],
+    caps: [u32; FORMATS],
+    firsts: [u32; FORMATS],
     groups: [GroupInfo; GROUPS],
     /// Bytes one slot of each format takes in the pool.
-    slot_bytes: [u64; 5],
+    slot_bytes: [u64; FORMATS],
     payload_buffers: Vec<wgpu::Buffer>,
     buffer_bytes: u64,
+    /// Of `buffer_bytes`, the packed bricks' words.
+    packed_bytes: u64,
     textures: [Option<wgpu::Texture>; 3],
     views: [Option<wgpu::TextureView>; 3],
     dummy3: wgpu::TextureView,
     dummy_array: wgpu::TextureView,
     bind_group_layout: wgpu::BindGroupLayout,
     /// Free slots (within the format) per format.
-    free: [BTreeSet<u32>; 5],
+    free: [BTreeSet<u32>; FORMATS],
     /// Resident (asset, brick) → slot number.
     slot_of: HashMap<(u32, u32), u32>,
     /// Slot number → resident (asset, brick) (`FREE`: free).
@@ -200,6 +202,7 @@ fn nominal_slot_bytes(layout: Layout, format: PayloadFormat, buffered_f16: bool)
     match (textured, format, layout.native_bc()) {
         (true, PayloadFormat::Bc7, true) => 128,
         (true, PayloadFormat::Bc4, true) => 256,
+        (true, f, _) if f.packed_bits().is_some() => 4 * packed_words(f),
         (true, _, _) => 512,
         (false, _, _) if buffered_f16 => 1024,
         _ => 2048,
@@ -222,28 +225,28 @@ impl StreamingVolume {
         let counts = asset.header.brick_counts;
         let frames = asset.frame_count();
         // Per format, the most bricks one frame uses.
-        let mut frame_need = [0u32; 5];
+        let mut frame_need = [0u32; FORMATS];
         for f in 0..frames {
-            let mut n = [0u32; 5];
+            let mut n = [0u32; FORMATS];
             for b in window_use(&asset, f, f).bricks {
                 n[asset.brick_format(b).0.rank()] += 1;
             }
-            for i in 0..5 {
+            for i in 0..FORMATS {
                 frame_need[i] = frame_need[i].max(n[i]);
             }
         }
         // Per format, the most bricks a window of this length uses, and the topology reserve:
         // the largest topology of such a window.
         let len = last - first + 1;
-        let mut window_need = [0u32; 5];
+        let mut window_need = [0u32; FORMATS];
         let mut reserve_words = 0;
         for s in 0..=frames - len {
             let u = window_use(&asset, s, s + len - 1);
-            let mut n = [0u32; 5];
+            let mut n = [0u32; FORMATS];
             for &b in &u.bricks {
                 n[asset.brick_format(b).0.rank()] += 1;
             }
-            for i in 0..5 {
+            for i in 0..FORMATS {
                 window_need[i] = window_need[i].max(n[i]);
             }
             reserve_words = reserve_words.max(topology_words(&asset, len, &u));
@@ -300,49 +303,65 @@ impl StreamingVolume {
     fn build(
         device: &wgpu::Device,
         assets: &[&Asset],
-        caps: [u32; 5],
+        caps: [u32; FORMATS],
         plan: &FullPlan,
         budget: u64,
     ) -> Result<StreamingVolume> {
-        let mut firsts = [0u32; 5];
-        for i in 1..5 {
+        let mut firsts = [0u32; FORMATS];
+        for i in 1..FORMATS {
             firsts[i] = firsts[i - 1] + caps[i - 1];
         }
+        // Group slots: BC7, BC4, unorm8 (textures or buffers), the floats (buffers), the packed
+        // widths (their own words after the buffered bricks, or buffers under `Layout::Buffers`).
         let mut groups = [GroupInfo::default(); GROUPS];
+        let keep_packed = plan.layout != Layout::Buffers;
         let mut buffered_before = 0u32;
-        for slot in 0..GROUPS {
-            groups[slot].first = firsts[slot];
-            let n = if slot < 3 {
-                caps[slot]
-            } else {
-                caps[3] + caps[4]
-            };
-            match plan.textures[slot.min(2)].filter(|_| slot < 3) {
+        for (g, grp) in groups.iter_mut().enumerate() {
+            let f0 = group_first_format(g);
+            grp.first = firsts[f0];
+            let n = if g == 3 { caps[3] + caps[4] } else { caps[f0] };
+            match plan.textures.get(g).copied().flatten() {
                 Some(p) => {
-                    groups[slot].kind = if p.dim3 { KIND_3D } else { KIND_ARRAY };
-                    groups[slot].tiles_x = p.tiles[0];
-                    groups[slot].tiles_y = p.tiles[1];
+                    grp.kind = if p.dim3 { KIND_3D } else { KIND_ARRAY };
+                    grp.tiles_x = p.tiles[0];
+                    grp.tiles_y = p.tiles[1];
                 }
+                None if g >= 4 && keep_packed => {}
                 None => {
-                    groups[slot].kind = KIND_BUFFER;
-                    groups[slot].base = buffered_before;
+                    grp.kind = KIND_BUFFER;
+                    grp.base = buffered_before;
                     buffered_before += n;
                 }
             }
         }
+        let brick_words = plan.buffers.brick_words();
+        let mut packed_total = 0u64;
+        for (g, grp) in groups
+            .iter_mut()
+            .enumerate()
+            .skip(4)
+            .filter(|_| keep_packed)
+        {
+            let f = PayloadFormat::ORDER[group_first_format(g)];
+            grp.kind = KIND_PACKED;
+            grp.base = u32::try_from(buffered_before as u64 * brick_words + packed_total)
+                .map_err(|_| RuntimeError::Limits("packed bricks beyond 2^32 words".into()))?;
+            let bits = f.packed_bits().expect("packed");
+            grp.tiles_x = bits;
+            grp.tiles_y = (255.0f32 / ((1u32 << bits) - 1) as f32).to_bits();
+            packed_total += caps[f.rank()] as u64 * packed_words(f);
+        }
 
-        // The pool: buffers of `per` bricks each, empty textures.
-        let per = plan.buffers.bricks_per_buffer() as u64;
-        let brick_words: u64 = match plan.buffers {
-            BufferLayout::F16 { .. } => 256,
-            _ => 512,
-        };
+        // The pool: buffers of `per` bricks' words each (the buffered bricks, then the packed
+        // words), empty textures.
+        let per_words = plan.buffers.words_per_buffer();
+        let words = buffered_before as u64 * brick_words + packed_total;
         let mut buffer_bytes = 0;
         let payload_buffers: Vec<wgpu::Buffer> = (0..PAYLOAD_BINDINGS as u64)
             .map(|i| {
-                let bricks = (buffered_before as u64).saturating_sub(i * per).min(per);
-                let size = (bricks * brick_words * 4).max(4);
-                if bricks > 0 {
+                let n = words.saturating_sub(i * per_words).min(per_words);
+                let size = (n * 4).max(4);
+                if n > 0 {
                     buffer_bytes += size;
                 }
                 device.create_buffer(&wgpu::BufferDescriptor {
@@ -377,9 +396,12 @@ impl StreamingVolume {
                     return u * u * p.slices as u64 * p.unit_bytes as u64;
                 }
             }
-            brick_words * 4
+            match PayloadFormat::ORDER[i] {
+                f if keep_packed && f.packed_bits().is_some() => 4 * packed_words(f),
+                _ => brick_words * 4,
+            }
         });
-        let total_slots = firsts[4] + caps[4];
+        let total_slots = firsts[FORMATS - 1] + caps[FORMATS - 1];
         let s = StreamingVolume {
             budget,
             pool_bytes,
@@ -392,6 +414,7 @@ impl StreamingVolume {
             slot_bytes,
             payload_buffers,
             buffer_bytes,
+            packed_bytes: packed_total * 4,
             textures,
             views,
             dummy3: dummy_view(device, true),
@@ -433,7 +456,7 @@ impl StreamingVolume {
             )));
         }
         let max_binding = check_limits(device)?;
-        let mut counts = [0u64; 5];
+        let mut counts = [0u64; FORMATS];
         for a in assets {
             for (c, n) in counts.iter_mut().zip(a.header.brick_counts) {
                 *c += n;
@@ -540,7 +563,7 @@ impl StreamingVolume {
         Ok(frame - a)
     }
     /// Slots per format, in [`PayloadFormat::ORDER`].
-    pub fn slots(&self) -> [u32; 5] {
+    pub fn slots(&self) -> [u32; FORMATS] {
         self.caps
     }
     /// Bytes one slot of `format` takes in the pool (as the layout stores the brick).
@@ -579,7 +602,7 @@ impl StreamingVolume {
             }
         };
         // Checks first: slots per format, topology bytes.
-        let mut need = [0u32; 5];
+        let mut need = [0u32; FORMATS];
         for (&(asset, ..), u) in windows.iter().zip(&uses) {
             for &b in &u.bricks {
                 need[asset.brick_format(b).0.rank()] += 1;
@@ -763,6 +786,7 @@ impl StreamingVolume {
                 layout: self.layout,
                 buffers: self.buffers,
                 buffer_bytes: self.buffer_bytes,
+                packed_bytes: self.packed_bytes,
                 textures: self
                     .plan_textures
                     .iter()
@@ -946,10 +970,29 @@ impl StreamingVolume {
         values: &[f32; BRICK_VOXELS],
         units: &mut Vec<u8>,
     ) -> u64 {
-        let f = format.rank();
-        let g = f.min(3);
+        let g = group_of(format);
         let grp = self.groups[g];
         let local = slot - grp.first + grp.base;
+        if grp.kind == KIND_PACKED {
+            // The brick's own words at `base + (slot − first)·16·bits`, split where they cross
+            // from one payload buffer into the next.
+            let n = packed_words(format);
+            let at = grp.base as u64 + (slot - grp.first) as u64 * n;
+            let per = self.buffers.words_per_buffer();
+            let mut done = 0;
+            while done < n {
+                let w = at + done;
+                let (buffer, offset) = (w / per, w % per);
+                let take = (n - done).min(per - offset);
+                queue.write_buffer(
+                    &self.payload_buffers[buffer as usize],
+                    offset * 4,
+                    &bytes[(done * 4) as usize..((done + take) * 4) as usize],
+                );
+                done += take;
+            }
+            return n * 4;
+        }
         if grp.kind == KIND_BUFFER {
             let half = matches!(self.buffers, BufferLayout::F16 { .. });
             let mut words = Vec::with_capacity(BRICK_VOXELS);
@@ -1021,7 +1064,7 @@ enum PoolError {
 }
 
 struct PoolPlan {
-    caps: [u32; 5],
+    caps: [u32; FORMATS],
     plan: FullPlan,
 }
 
@@ -1029,23 +1072,23 @@ struct PoolPlan {
 #[allow(clippy::too_many_arguments)]
 fn plan_pool(
     device: &wgpu::Device,
-    counts: &[u64; 5],
-    [frame_need, window_need]: [[u32; 5]; 2],
+    counts: &[u64; FORMATS],
+    [frame_need, window_need]: [[u32; FORMATS]; 2],
     window_len: usize,
     layout: Layout,
     max_binding: u64,
     budget: u64,
     reserve: u64,
 ) -> std::result::Result<PoolPlan, PoolError> {
-    let buffered_f16 = (0..5).all(|i| {
+    let buffered_f16 = (0..FORMATS).all(|i| {
         let f = PayloadFormat::ORDER[i];
         let textured = layout != Layout::Buffers && f.is_quantized();
         counts[i] == 0 || textured || f == PayloadFormat::F16
     });
-    let cost: [u64; 5] = std::array::from_fn(|i| {
+    let cost: [u64; FORMATS] = std::array::from_fn(|i| {
         nominal_slot_bytes(layout, PayloadFormat::ORDER[i], buffered_f16) + SLOT_RANGE_BYTES
     });
-    let frame_bytes: u64 = (0..5).map(|i| frame_need[i] as u64 * cost[i]).sum();
+    let frame_bytes: u64 = (0..FORMATS).map(|i| frame_need[i] as u64 * cost[i]).sum();
     if budget < frame_bytes + reserve {
         return Err(PoolError::Budget(format!(
             "budget {budget} bytes is smaller than one frame: {frame_bytes} bytes of brick slots \
@@ -1054,7 +1097,7 @@ fn plan_pool(
             layout.name()
         )));
     }
-    let window_bytes: u64 = (0..5).map(|i| window_need[i] as u64 * cost[i]).sum();
+    let window_bytes: u64 = (0..FORMATS).map(|i| window_need[i] as u64 * cost[i]).sum();
     if budget < window_bytes + reserve {
         return Err(PoolError::Budget(format!(
             "budget {budget} bytes is smaller than a window of {window_len} frames: {window_bytes} \
@@ -1066,8 +1109,10 @@ fn plan_pool(
     // From here on `frame_need` is what every window of the initial length needs.
     let frame_need = window_need;
     let spare = (budget - window_bytes - reserve) as u128;
-    let total: u128 = (0..5).map(|i| counts[i] as u128 * cost[i] as u128).sum();
-    let mut caps: [u32; 5] = std::array::from_fn(|i| {
+    let total: u128 = (0..FORMATS)
+        .map(|i| counts[i] as u128 * cost[i] as u128)
+        .sum();
+    let mut caps: [u32; FORMATS] = std::array::from_fn(|i| {
         let extra = (spare * counts[i] as u128).checked_div(total).unwrap_or(0);
         (frame_need[i] as u128 + extra).min(counts[i] as u128) as u32
     });
@@ -1076,28 +1121,27 @@ fn plan_pool(
         let c = caps.map(|c| c as u64);
         let plan = plan_layout(device, &c, layout, max_binding).map_err(PoolError::Layout)?;
         let textured: u64 = plan.textures.iter().flatten().map(|p| p.bytes()).sum();
-        let buffered: u64 = plan
-            .textures
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.is_none())
-            .map(|(i, _)| c[i])
-            .sum::<u64>()
-            + c[3]
-            + c[4];
-        let brick = match plan.buffers {
-            BufferLayout::F16 { .. } => 1024,
-            _ => 2048,
-        };
-        let bytes = textured + buffered * brick + SLOT_RANGE_BYTES * c.iter().sum::<u64>();
+        let keep_packed = layout != Layout::Buffers;
+        let (mut buffered, mut packed) = (0u64, 0u64);
+        for (i, f) in PayloadFormat::ORDER.iter().enumerate() {
+            if i < 3 && plan.textures[i].is_some() {
+                continue;
+            }
+            match f.packed_bits() {
+                Some(_) if keep_packed => packed += c[i] * 4 * packed_words(*f),
+                _ => buffered += c[i],
+            }
+        }
+        let brick = plan.buffers.brick_words() * 4;
+        let bytes = textured + buffered * brick + packed + SLOT_RANGE_BYTES * c.iter().sum::<u64>();
         if bytes + reserve <= budget {
             return Ok(PoolPlan { caps, plan });
         }
         let over = bytes + reserve - budget;
         // The format with the most slots beyond one frame's need gives some up.
-        let i = (0..5)
+        let i = (0..FORMATS)
             .max_by_key(|&i| caps[i].saturating_sub(frame_need[i]))
-            .expect("five formats");
+            .expect("formats");
         if caps[i] <= frame_need[i] {
             break;
         }

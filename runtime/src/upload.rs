@@ -25,7 +25,7 @@
 //! `brick_quant` `[lo, hi]`, the CPU's `payload::dequantize`.
 
 use bytemuck::{Pod, Zeroable};
-use vdbcook_asset::{bc, Asset, LeafRef, PayloadFormat, BRICK_VOXELS, L2_WORDS};
+use vdbcook_asset::{bc, Asset, LeafRef, PayloadFormat, BRICK_VOXELS, FORMATS, L2_WORDS};
 use vdbcook_scene::LevelChain;
 use wgpu::util::DeviceExt;
 
@@ -116,7 +116,8 @@ pub struct UploadOptions {
     pub force: Option<Layout>,
 }
 
-/// How the bricks held in storage buffers are stored.
+/// How the bricks held in storage buffers are stored. Packed bricks, where the layout is not
+/// [`Layout::Buffers`], follow the buffered bricks in the same buffers as their own words.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BufferLayout {
     /// No brick is in a buffer (the bindings hold 4-byte dummies).
@@ -140,6 +141,17 @@ impl BufferLayout {
         match self {
             BufferLayout::F16 { .. } => 1,
             _ => 0,
+        }
+    }
+    /// Payload words per buffer, in the float bricks' stride (`bricks_per_buffer` bricks).
+    pub fn words_per_buffer(self) -> u64 {
+        self.bricks_per_buffer() as u64 * self.brick_words()
+    }
+    /// Words one buffered brick takes (512 f32 or 256 f16 pairs).
+    pub fn brick_words(self) -> u64 {
+        match self {
+            BufferLayout::F16 { .. } => 256,
+            _ => 512,
         }
     }
     /// Bricks each payload buffer holds.
@@ -178,21 +190,46 @@ pub struct PayloadLayout {
     pub layout: Layout,
     /// The bricks in storage buffers (float bricks; every brick with [`Layout::Buffers`]).
     pub buffers: BufferLayout,
-    /// Bytes of the payload buffers.
+    /// Bytes of the payload buffers (buffered and packed bricks).
     pub buffer_bytes: u64,
+    /// Of those, the bytes of packed bricks (read as their own words, not decoded).
+    pub packed_bytes: u64,
     /// One per quantized format with bricks in a texture.
     pub textures: Vec<TextureGroup>,
 }
 
-/// Group slots of `VolumeInfo` (BC7, BC4, unorm8, floats), in brick order.
-const GROUPS: usize = 4;
+/// Group slots of `VolumeInfo` (BC7, BC4, unorm8, floats, packed1..packed7), in brick order.
+const GROUPS: usize = 11;
 const KIND_BUFFER: u32 = 0;
 const KIND_3D: u32 = 1;
 const KIND_ARRAY: u32 = 2;
+const KIND_PACKED: u32 = 3;
+
+/// The group slot of `VolumeInfo` that holds bricks of `format` (f16 and f32 share one).
+pub(crate) fn group_of(format: PayloadFormat) -> usize {
+    match format.rank() {
+        r @ 0..=2 => r,
+        3 | 4 => 3,
+        r => r - 1,
+    }
+}
+/// The first format (in [`PayloadFormat::ORDER`]) of group slot `g`.
+fn group_first_format(g: usize) -> usize {
+    if g <= 3 {
+        g
+    } else {
+        g + 1
+    }
+}
+/// The words one packed brick of `format` takes (16 per bit), 0 for other formats.
+pub(crate) fn packed_words(format: PayloadFormat) -> u64 {
+    format.packed_bits().map_or(0, |b| 16 * b as u64)
+}
 
 /// `VdbGroup` of `volume.wgsl`: bricks `[first, next group's first)` are read at local index
 /// `b − first + base`, from the payload buffers (`kind` 0) or the group's texture (1: 3D, 2:
-/// 2D array) with `tiles` tiles per row / rows per slice.
+/// 2D array) with `tiles` tiles per row / rows per slice; packed bricks (`kind` 3) at payload
+/// word `base + (b − first)·16·bits`, `tiles_x` holding `bits`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, Default)]
 pub(crate) struct GroupInfo {
@@ -553,19 +590,23 @@ fn push_brick_words(
     }
 }
 
-/// Bricks in the buffers and how they are stored, or why they do not fit.
+/// Bricks in the buffers and how they are stored, or why they do not fit: `buffered` bricks
+/// (decoded, or f16/f32) and then `packed` words of packed bricks.
 fn plan_buffers(
     buffered: u64,
     all_f16: bool,
+    packed: u64,
     max_binding: u64,
 ) -> std::result::Result<BufferLayout, String> {
-    if buffered == 0 {
+    if buffered == 0 && packed == 0 {
         return Ok(BufferLayout::None);
     }
     let fits = |bytes_per_brick: u64| {
         let per = (max_binding / bytes_per_brick).min(1 << 22);
-        (per > 0 && buffered <= per * PAYLOAD_BINDINGS as u64)
-            .then(|| ((buffered.div_ceil(per) as usize).max(1), per as u32))
+        let words = buffered * bytes_per_brick / 4 + packed;
+        let per_buffer = per * bytes_per_brick / 4;
+        (per > 0 && words <= per_buffer * PAYLOAD_BINDINGS as u64)
+            .then(|| ((words.div_ceil(per_buffer) as usize).max(1), per as u32))
     };
     let layout = if all_f16 {
         fits(1024).map(|(buffers, per)| BufferLayout::F16 {
@@ -589,8 +630,8 @@ fn plan_buffers(
     };
     layout.ok_or_else(|| {
         format!(
-            "{buffered} buffered bricks do not fit {PAYLOAD_BINDINGS} storage bindings of \
-             {max_binding} bytes"
+            "{buffered} buffered bricks and {packed} words of packed bricks do not fit \
+             {PAYLOAD_BINDINGS} storage bindings of {max_binding} bytes"
         )
     })
 }
@@ -603,10 +644,11 @@ struct FullPlan {
 }
 
 /// `counts`: bricks per format, in [`PayloadFormat::ORDER`] (an asset's `brick_counts`, or the
-/// slots of a streamed pool).
+/// slots of a streamed pool). Packed bricks keep their words unless the layout is
+/// [`Layout::Buffers`] (then they are decoded as every brick is).
 fn plan_layout(
     device: &wgpu::Device,
-    counts: &[u64; 5],
+    counts: &[u64; FORMATS],
     layout: Layout,
     max_binding: u64,
 ) -> std::result::Result<FullPlan, String> {
@@ -622,9 +664,22 @@ fn plan_layout(
         }
     }
     let textured: u64 = textures.iter().flatten().map(|p| p.bricks as u64).sum();
-    let buffered = counts.iter().sum::<u64>() - textured;
+    let packed: u64 = if layout == Layout::Buffers {
+        0
+    } else {
+        PayloadFormat::PACKED
+            .iter()
+            .map(|f| counts[f.rank()] * packed_words(*f))
+            .sum()
+    };
+    let packed_bricks: u64 = if packed > 0 {
+        PayloadFormat::PACKED.iter().map(|f| counts[f.rank()]).sum()
+    } else {
+        0
+    };
+    let buffered = counts.iter().sum::<u64>() - textured - packed_bricks;
     let all_f16 = buffered > 0 && counts[PayloadFormat::F16.rank()] == buffered;
-    let buffers = plan_buffers(buffered, all_f16, max_binding)?;
+    let buffers = plan_buffers(buffered, all_f16, packed, max_binding)?;
     Ok(FullPlan {
         layout,
         textures,
@@ -679,6 +734,9 @@ impl GpuVolume {
         if l.buffers != BufferLayout::None {
             paths |= 1;
         }
+        if l.packed_bytes > 0 {
+            paths |= 128;
+        }
         for t in &l.textures {
             let slot = match t.source {
                 PayloadFormat::Bc7 => 0,
@@ -693,7 +751,11 @@ impl GpuVolume {
     pub fn describe(&self) -> String {
         let l = &self.layout;
         let mut parts = vec![if l.textures.is_empty() && l.layout != Layout::Buffers {
-            "no quantized bricks".to_string()
+            if l.packed_bytes > 0 {
+                "no texture bricks".to_string()
+            } else {
+                "no quantized bricks".to_string()
+            }
         } else {
             format!("layout {}", l.layout.name())
         }];
@@ -709,17 +771,29 @@ impl GpuVolume {
                 t.bytes
             ));
         }
-        match l.buffers {
-            BufferLayout::None => {}
-            BufferLayout::F32 { buffers, .. } => parts.push(format!(
-                "buffered bricks as f32 in {buffers} storage buffer(s) ({} bytes)",
+        // Buffers are sized to their words: what is not packed is buffered bricks.
+        let buffered = l.buffer_bytes > l.packed_bytes;
+        let what = match l.buffers {
+            BufferLayout::F32 { .. } if buffered => "buffered bricks as f32",
+            BufferLayout::F16 { exact: true, .. } if buffered => "buffered bricks as f16",
+            BufferLayout::F16 { .. } if buffered => "buffered bricks as f16 (rounded)",
+            _ => "",
+        };
+        let what = match (what, l.packed_bytes) {
+            (w, 0) => w.to_string(),
+            ("", p) => format!("packed bricks ({p} bytes)"),
+            (w, p) => format!("{w} and packed bricks ({p} bytes)"),
+        };
+        if l.buffers != BufferLayout::None {
+            parts.push(format!(
+                "{what} in {} storage buffer(s) ({} bytes)",
+                match l.buffers {
+                    BufferLayout::F32 { buffers, .. } | BufferLayout::F16 { buffers, .. } =>
+                        buffers,
+                    BufferLayout::None => 0,
+                },
                 l.buffer_bytes
-            )),
-            BufferLayout::F16 { buffers, exact, .. } => parts.push(format!(
-                "buffered bricks as f16{} in {buffers} storage buffer(s) ({} bytes)",
-                if exact { "" } else { " (rounded)" },
-                l.buffer_bytes
-            )),
+            ));
         }
         parts.push(format!("{} bytes on the GPU in all", self.gpu_bytes));
         parts.join(", ")

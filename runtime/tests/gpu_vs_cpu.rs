@@ -708,7 +708,8 @@ fn dense_media_match() {
 // blocks: lavapipe BC4 ≤ 2 codes and at most 0.87 of each block's bound, an NVIDIA H100 ≤ 3.2
 // codes (before the bound was per block); BC7 exact on both (`docs/payloads.md`).
 
-/// An asset with bricks in all five formats (cycled per brick), the blob frames.
+/// An asset with bricks in every format (cycled per brick: the packed widths 3, 5, 6 and 7
+/// have voxels whose bits cross a word boundary), the blob frames.
 fn mixed_asset() -> Asset {
     build_mixed(
         [2, 2, 2],
@@ -720,7 +721,7 @@ fn mixed_asset() -> Asset {
         ],
         PayloadFormat::Bc7,
         0x5eed_00ff,
-        |i| PayloadFormat::ORDER[i % 5],
+        |i| PayloadFormat::ORDER[i % PayloadFormat::ORDER.len()],
     )
 }
 
@@ -753,14 +754,15 @@ fn exact_bc4_asset() -> Asset {
         .unwrap()
 }
 
-/// The assets every layout is checked on: one per quantized format, BC4 with exact palettes,
-/// and the mixed one.
+/// The assets every layout is checked on: one per quantized format (packed: one width), BC4
+/// with exact palettes, and the mixed one.
 fn layout_assets() -> Vec<(&'static str, Asset)> {
     vec![
         ("bc7", blob_asset(PayloadFormat::Bc7)),
         ("bc4", blob_asset(PayloadFormat::Bc4)),
         ("bc4-exact", exact_bc4_asset()),
         ("unorm8", blob_asset(PayloadFormat::Unorm8)),
+        ("packed5", blob_asset(PayloadFormat::Packed5)),
         ("mixed", mixed_asset()),
     ]
 }
@@ -949,6 +951,13 @@ fn every_voxel_reads_back_as_the_cpu_decodes_in_every_layout() {
                     layout.name()
                 );
             }
+            // Packed bricks keep their own words unless every brick is decoded into buffers.
+            let packed: u64 = PayloadFormat::PACKED
+                .iter()
+                .map(|f| asset.header.brick_counts[f.rank()] * f.bytes_per_brick() as u64)
+                .sum();
+            let want_packed = if layout == Layout::Buffers { 0 } else { packed };
+            assert_eq!(l.packed_bytes, want_packed, "{name} {}", layout.name());
             let quantized: u64 = asset.header.brick_counts[..3].iter().sum();
             assert_eq!(
                 l.textures.is_empty(),

@@ -72,8 +72,8 @@ fn dedup(mut a: Asset) -> Asset {
         });
         new_index.push(n);
     }
-    let mut payloads: [Vec<u8>; 5] = Default::default();
-    let mut counts = [0u64; 5];
+    let mut payloads: [Vec<u8>; vdbcook_asset::FORMATS] = Default::default();
+    let mut counts = [0u64; vdbcook_asset::FORMATS];
     for &b in &kept {
         let (f, bytes) = a.brick_bytes(b);
         payloads[f.rank()].extend_from_slice(bytes);
@@ -152,8 +152,9 @@ fn settings(frame: usize) -> RenderSettings {
 
 /// Bytes the whole pool would take in a streamed pool under `layout` (slot bytes plus 16 bytes
 /// of ranges per brick): native BC keeps a BC4 brick in 256 bytes and a BC7 brick (z in its
-/// four channels) in 128, the decoded textures hold a quantized brick in 1 byte per voxel, and buffers hold f32 (the test assets
-/// always have f32 bricks, so the buffered pool is f32).
+/// four channels) in 128, the decoded textures hold a quantized brick in 1 byte per voxel,
+/// packed bricks keep their 64 bytes per bit (but under `Layout::Buffers`), and buffers hold f32
+/// (the test assets always have f32 bricks, so the buffered pool is f32).
 fn pool_bytes(asset: &Asset, layout: Layout) -> u64 {
     let native = matches!(layout, Layout::Bc3d | Layout::Bc2dArray);
     (0..asset.brick_count() as u32)
@@ -161,6 +162,7 @@ fn pool_bytes(asset: &Asset, layout: Layout) -> u64 {
             let f = asset.brick_format(b).0;
             16 + match f {
                 _ if layout == Layout::Buffers || !f.is_quantized() => 2048,
+                _ if f.packed_bits().is_some() => f.bytes_per_brick() as u64,
                 PayloadFormat::Bc4 if native => 256,
                 PayloadFormat::Bc7 if native => 128,
                 _ => 512,
@@ -175,14 +177,20 @@ fn streamed_frames_render_like_the_full_upload_in_every_layout() {
     else {
         return;
     };
-    let asset = Arc::new(shared_asset(&[
+    // Packed widths 3 and 6: some voxels' bits cross a word.
+    let formats = [
         PayloadFormat::F32,
         PayloadFormat::F16,
         PayloadFormat::Unorm8,
         PayloadFormat::Bc4,
         PayloadFormat::Bc7,
-    ]));
-    assert!(asset.header.brick_counts.iter().all(|&c| c > 0));
+        PayloadFormat::Packed3,
+        PayloadFormat::Packed6,
+    ];
+    let asset = Arc::new(shared_asset(&formats));
+    assert!(formats
+        .iter()
+        .all(|f| asset.header.brick_counts[f.rank()] > 0));
     let cam = vdbcook_trace::Camera::framing(&asset, 0, W as f64 / H as f64).unwrap();
     // Every layout this device can hold: the native BC ones need its BC features.
     let f = device.features();

@@ -2,10 +2,12 @@
 """GPU bytes against max error, per payload family, beside NanoVDB FpN (issue 33, item 4).
 
 For each input (a VDB file or sequence) and each bound E = f × the grid's value range, cooks
-with `vdbcook cook INPUT --max-error E --json`, once per payload family (`--format bc7`, `bc4`,
-`unorm8`, `f16`: that format wherever it meets E, falling back brick by brick where it does not,
-so each line is what choosing that family costs; `bc7`, the first of the fallback list, is also
-what a cook without `--format` gives: the cheapest representation per brick), and reads `bits_per_active_voxel_gpu` and the cook's own NanoVDB
+with `vdbcook cook INPUT --max-error E --json`, once per payload family: `cheapest` (no
+`--format`: per brick the cheapest representation that meets E, packed widths included),
+`no-packed` (`--no-packed`: the cheapest of BC7, BC4, unorm8, f16, f32, what cooks gave before
+asset format 7), `bc4` (`--format bc4 --no-packed`), `unorm8` and `f16` (`--format F`: that
+format wherever it meets E, falling back brick by brick where it does not, so each line is what
+choosing that family costs), and reads `bits_per_active_voxel_gpu` and the cook's own NanoVDB
 comparison (`nanovdb`: NanoVDB FpN at the same bound, `nanovdb_convert --fpN -a E`). Writes
 OUT/results.json, OUT/results.md (the tables) and one SVG chart per input
 (OUT/gpu_bits_<name>.svg: GPU bits per active voxel against E, both on log scales).
@@ -28,10 +30,15 @@ import platform
 import subprocess
 import sys
 
-FAMILIES = ["bc7", "bc4", "unorm8", "f16"]
+FAMILIES = ["cheapest", "no-packed", "bc4", "unorm8", "f16"]
+FLAGS = {"cheapest": [], "no-packed": ["--no-packed"], "bc4": ["--format", "bc4", "--no-packed"],
+         "unorm8": ["--format", "unorm8"], "f16": ["--format", "f16"]}
+LABELS = {"cheapest": "cheapest (packed included)", "no-packed": "cheapest, --no-packed",
+          "bc4": "--format bc4 --no-packed", "unorm8": "--format unorm8", "f16": "--format f16",
+          "NanoVDB FpN": "NanoVDB FpN"}
 FRACTIONS = [0.002, 0.005, 0.01, 0.02, 0.05, 0.1]
-COLOURS = {"bc7": "#1f77b4", "bc4": "#d62728", "unorm8": "#2ca02c", "f16": "#9467bd",
-           "NanoVDB FpN": "#ff7f0e"}
+COLOURS = {"cheapest": "#000000", "no-packed": "#1f77b4", "bc4": "#d62728", "unorm8": "#2ca02c",
+           "f16": "#9467bd", "NanoVDB FpN": "#ff7f0e"}
 
 
 def run_json(cmd):
@@ -61,8 +68,7 @@ def cook(vdbcook, path, grid, extra, family, e, out):
     cmd = [vdbcook, "cook", path, "-o", out, "--max-error", f"{e:.6g}", "--json"] + extra
     if grid:
         cmd += ["--grid", grid]
-    if family != "auto":
-        cmd += ["--format", family]
+    cmd += FLAGS[family]
     d = run_json(cmd)
     os.remove(out)
     reps = d["representations"]
@@ -84,10 +90,10 @@ def nice_ticks(lo, hi):
 
 def chart(name, rows, title):
     from xml.sax.saxutils import escape
-    W, H, L, R, T, B = 760, 480, 70, 600, 50, 420
+    W, H, L, R, T, B = 840, 480, 70, 600, 50, 420
     xs = [r["fraction"] for r in rows]
     series = {f: [(r["fraction"], r["gpu_bits"]) for r in rows if r["family"] == f] for f in FAMILIES}
-    series["NanoVDB FpN"] = sorted({(r["fraction"], r["nanovdb_bits"]) for r in rows if r["family"] == "bc7"})
+    series["NanoVDB FpN"] = sorted({(r["fraction"], r["nanovdb_bits"]) for r in rows if r["family"] == "cheapest"})
     ys = [y for s in series.values() for _, y in s]
     x0, x1 = math.log10(min(xs) / 1.2), math.log10(max(xs) * 1.2)
     ylo = 10 ** math.floor(math.log10(min(ys) * 0.9))
@@ -126,7 +132,7 @@ def chart(name, rows, title):
             o.append(f'<circle cx="{X(x):.1f}" cy="{Y(y):.1f}" r="3" fill="{c}"/>')
         ly = T + 14 + 18 * i
         o.append(f'<line x1="{R + 12}" y1="{ly - 4}" x2="{R + 36}" y2="{ly - 4}" stroke="{c}" stroke-width="2"{dash}/>')
-        label = {"bc7": "--format bc7 (= cheapest)", "NanoVDB FpN": "NanoVDB FpN"}.get(f, f"--format {f}")
+        label = LABELS[f]
         o.append(f'<text x="{R + 42}" y="{ly}" font-size="11">{escape(label)}</text>')
     o.append("</svg>")
     return "\n".join(o)
@@ -172,14 +178,15 @@ def main():
                f"{' ' + ' '.join(inp['flags']) if inp['flags'] else ''}; range "
                f"{inp['value_range'][0]:.4g} .. {inp['value_range'][1]:.4g}, "
                f"{inp['rows'][0]['frames']} frame(s), {inp['rows'][0]['active_voxels']:,} active voxels)", "",
-               "| E / range | " + " | ".join(FAMILIES) + " | NanoVDB FpN | bc7 / NanoVDB | bc7 max error (any GPU) / E |",
-               "|---:|" + "---:|" * (len(FAMILIES) + 3)]
+               "| E / range | " + " | ".join(FAMILIES) + " | NanoVDB FpN | cheapest / NanoVDB | cheapest max error (any GPU) / E | cheapest RMSE / E (no-packed) |",
+               "|---:|" + "---:|" * (len(FAMILIES) + 4)]
         for f in fractions:
             rs = {r["family"]: r for r in inp["rows"] if r["fraction"] == f}
-            c = rs["bc7"]
+            c, o = rs["cheapest"], rs["no-packed"]
             md.append(f"| {f:g} | " + " | ".join(f"{rs[x]['gpu_bits']:.2f}" for x in FAMILIES)
                       + f" | {c['nanovdb_bits']:.2f} | {c['gpu_bytes'] / c['nanovdb_bytes']:.3f}"
-                      f" | {c['max_abs_any_gpu'] / c['max_error']:.3f} |")
+                      f" | {c['max_abs_any_gpu'] / c['max_error']:.3f}"
+                      f" | {c['rmse'] / c['max_error']:.3f} ({o['rmse'] / o['max_error']:.3f}) |")
         md.append("")
     with open(os.path.join(a.out, "results.md"), "w") as fh:
         fh.write("\n".join(md))

@@ -163,7 +163,7 @@ pub struct Row {
     pub image_max_abs: f64,
     /// Cook stages in seconds (read, build, dedup, cluster, encode).
     pub cook_stages: Value,
-    /// Bricks stored per representation (tile, bc7, bc4, unorm8, f16, f32).
+    /// Bricks stored per representation (tile, bc7, bc4, unorm8, f16, f32, packed1..7).
     pub representations: crate::cook_report::Representations,
     /// What the runtime put on the GPU for this asset (bytes and layout), when measured.
     pub gpu_upload_bytes: Option<u64>,

@@ -62,13 +62,16 @@ impl EncodedBrick {
                 payload::encode_float(format, values, &mut bytes);
                 [0.0, 0.0]
             }
-            PayloadFormat::Unorm8 => {
+            PayloadFormat::Bc4 | PayloadFormat::Bc7 => return None,
+            f => {
                 let lo = values.iter().cloned().fold(f32::INFINITY, f32::min);
                 let hi = values.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
-                bytes.extend_from_slice(&payload::encode_unorm8(values, lo, hi));
+                match f.packed_bits() {
+                    Some(bits) => bytes.extend(payload::encode_packed(values, bits, lo, hi)),
+                    None => bytes.extend_from_slice(&payload::encode_unorm8(values, lo, hi)),
+                }
                 [lo, hi]
             }
-            PayloadFormat::Bc4 | PayloadFormat::Bc7 => return None,
         };
         Some(EncodedBrick {
             format,
@@ -213,7 +216,7 @@ impl AssetBuilder {
                 source_map: "AffineMap".into(),
                 voxel_size: [1.0; 3],
                 background,
-                brick_counts: [0; 5],
+                brick_counts: [0; crate::FORMATS],
                 sections: vec![],
                 content_hash: 0,
                 channels: Vec::new(),

@@ -3,12 +3,15 @@
 use serde::{Deserialize, Serialize};
 
 pub const MAGIC: [u8; 8] = *b"VDBCOOK\x1a";
-/// The newest version this build writes and reads: what the source was ([`Header::source`]:
-/// its writer, its grid class, its up axis). Assets whose source says nothing of these are
-/// still written as the oldest version that holds them ([`FORMAT_VERSION_LOD_FROM`],
+/// The newest version this build writes and reads: bricks packed at their own bit depth
+/// ([`PayloadFormat::Packed1`]..[`PayloadFormat::Packed7`]; 12 brick counts and a
+/// `payload_packed` section). Assets without packed bricks are still written as the oldest
+/// version that holds them ([`FORMAT_VERSION_SOURCE`], [`FORMAT_VERSION_LOD_FROM`],
 /// [`FORMAT_VERSION_LOD`], [`FORMAT_VERSION_CHANNELS`] or [`FORMAT_VERSION_SINGLE`]), byte for
 /// byte what earlier builds wrote.
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
+/// What the source was ([`Header::source`]: its writer, its grid class, its up axis).
+pub const FORMAT_VERSION_SOURCE: u32 = 6;
 /// A level-of-detail chain that starts below level 1 ([`Header::lod_first`] > 1, `cook
 /// --lod-from`).
 pub const FORMAT_VERSION_LOD_FROM: u32 = 5;
@@ -57,18 +60,77 @@ pub enum PayloadFormat {
     /// BC7 (RGBA, 2 bit/voxel) over the brick's range: texel (x, y) of slice `s` holds voxels
     /// z = 4s..4s+3 in R, G, B, A; 2 slices × 2×2 blocks of 16 bytes.
     Bc7,
+    /// `b`-bit codes (`Packed1` .. `Packed7`: b = 1..7) over the brick's range, 64·b bytes:
+    /// voxel `n = 64·x + 8·y + z` at bits `[b·n, b·n + b)` of the brick's bytes read as
+    /// little-endian u32 words. Code `q` stands for the 8-bit code `round(255·q / (2^b − 1))`
+    /// ([`crate::payload::packed_code`]), dequantized as unorm8 is: every level is an unorm8
+    /// level, so any GPU reads it exactly (format version 7).
+    Packed1,
+    Packed2,
+    Packed3,
+    Packed4,
+    Packed5,
+    Packed6,
+    Packed7,
 }
 
+/// Payload formats an asset may hold ([`PayloadFormat::ORDER`]'s length).
+pub const FORMATS: usize = 12;
+/// Formats of versions 2 to 6 (the first five of [`PayloadFormat::ORDER`]).
+pub const FORMATS_V6: usize = 5;
+
 impl PayloadFormat {
-    /// Atlas order, cheapest first (also the fallback order of `--max-error`).
-    pub const ORDER: [PayloadFormat; 5] = [
+    /// Atlas order: brick indices run through the formats' groups in this order. The five
+    /// formats of versions 2–6 first (BC7, BC4, unorm8, f16, f32, as those versions group them),
+    /// then the packed widths.
+    pub const ORDER: [PayloadFormat; FORMATS] = [
         PayloadFormat::Bc7,
         PayloadFormat::Bc4,
         PayloadFormat::Unorm8,
         PayloadFormat::F16,
         PayloadFormat::F32,
+        PayloadFormat::Packed1,
+        PayloadFormat::Packed2,
+        PayloadFormat::Packed3,
+        PayloadFormat::Packed4,
+        PayloadFormat::Packed5,
+        PayloadFormat::Packed6,
+        PayloadFormat::Packed7,
+    ];
+    /// Cheapest first: the fallback order of `--max-error` (at equal bytes BC7 before packed2
+    /// and BC4 before packed4, the formats older runtimes read).
+    pub const BY_COST: [PayloadFormat; FORMATS] = [
+        PayloadFormat::Packed1,
+        PayloadFormat::Bc7,
+        PayloadFormat::Packed2,
+        PayloadFormat::Packed3,
+        PayloadFormat::Bc4,
+        PayloadFormat::Packed4,
+        PayloadFormat::Packed5,
+        PayloadFormat::Packed6,
+        PayloadFormat::Packed7,
+        PayloadFormat::Unorm8,
+        PayloadFormat::F16,
+        PayloadFormat::F32,
+    ];
+    /// The packed widths, 1 to 7 bits.
+    pub const PACKED: [PayloadFormat; 7] = [
+        PayloadFormat::Packed1,
+        PayloadFormat::Packed2,
+        PayloadFormat::Packed3,
+        PayloadFormat::Packed4,
+        PayloadFormat::Packed5,
+        PayloadFormat::Packed6,
+        PayloadFormat::Packed7,
     ];
 
+    /// Bits per voxel of a packed format (`None` for the others).
+    pub fn packed_bits(self) -> Option<u32> {
+        Self::PACKED
+            .iter()
+            .position(|&f| f == self)
+            .map(|i| i as u32 + 1)
+    }
     /// Bytes one 8³ brick takes in this format.
     pub fn bytes_per_brick(self) -> usize {
         match self {
@@ -77,6 +139,7 @@ impl PayloadFormat {
             PayloadFormat::Unorm8 => 512,
             PayloadFormat::Bc4 => 256,
             PayloadFormat::Bc7 => 128,
+            f => 64 * f.packed_bits().expect("packed") as usize,
         }
     }
     /// Position in [`PayloadFormat::ORDER`].
@@ -88,10 +151,7 @@ impl PayloadFormat {
     }
     /// Stored through a per-brick `[lo, hi]` quantization range.
     pub fn is_quantized(self) -> bool {
-        matches!(
-            self,
-            PayloadFormat::Unorm8 | PayloadFormat::Bc4 | PayloadFormat::Bc7
-        )
+        !matches!(self, PayloadFormat::F16 | PayloadFormat::F32)
     }
     pub fn name(self) -> &'static str {
         match self {
@@ -100,6 +160,13 @@ impl PayloadFormat {
             PayloadFormat::Unorm8 => "unorm8",
             PayloadFormat::Bc4 => "bc4",
             PayloadFormat::Bc7 => "bc7",
+            PayloadFormat::Packed1 => "packed1",
+            PayloadFormat::Packed2 => "packed2",
+            PayloadFormat::Packed3 => "packed3",
+            PayloadFormat::Packed4 => "packed4",
+            PayloadFormat::Packed5 => "packed5",
+            PayloadFormat::Packed6 => "packed6",
+            PayloadFormat::Packed7 => "packed7",
         }
     }
     pub fn parse(s: &str) -> Option<Self> {
@@ -162,10 +229,15 @@ pub enum SectionKind {
     PayloadUnorm8,
     PayloadF16,
     PayloadF32,
+    /// Every packed brick (format version 7): the packed groups' atlases one after another, in
+    /// [`PayloadFormat::ORDER`].
+    PayloadPacked,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 15] = [
+    /// The sections of a version-7 asset, in file order; versions 2–6 have all but the last
+    /// ([`SectionKind::of_version`]).
+    pub const ALL: [SectionKind; 16] = [
         SectionKind::Roots,
         SectionKind::FrameRanges,
         SectionKind::L2Masks,
@@ -181,7 +253,16 @@ impl SectionKind {
         SectionKind::PayloadUnorm8,
         SectionKind::PayloadF16,
         SectionKind::PayloadF32,
+        SectionKind::PayloadPacked,
     ];
+    /// The sections an asset of format version `version` holds, in file order.
+    pub fn of_version(version: u32) -> &'static [SectionKind] {
+        if version >= FORMAT_VERSION {
+            &Self::ALL
+        } else {
+            &Self::ALL[..15]
+        }
+    }
     /// The payload section of a format.
     pub fn payload(f: PayloadFormat) -> SectionKind {
         match f {
@@ -190,6 +271,7 @@ impl SectionKind {
             PayloadFormat::Unorm8 => SectionKind::PayloadUnorm8,
             PayloadFormat::F16 => SectionKind::PayloadF16,
             PayloadFormat::F32 => SectionKind::PayloadF32,
+            _ => SectionKind::PayloadPacked,
         }
     }
     pub fn name(self) -> &'static str {
@@ -209,6 +291,7 @@ impl SectionKind {
             SectionKind::PayloadUnorm8 => "payload_unorm8",
             SectionKind::PayloadF16 => "payload_f16",
             SectionKind::PayloadF32 => "payload_f32",
+            SectionKind::PayloadPacked => "payload_packed",
         }
     }
 }
@@ -245,7 +328,8 @@ pub struct Header {
     /// Value of every voxel the asset does not store.
     pub background: f32,
     /// Bricks per format, in [`PayloadFormat::ORDER`]; brick indices run through the groups.
-    pub brick_counts: [u64; 5],
+    /// Versions 2–6 store the first five (the packed counts are 0).
+    pub brick_counts: [u64; FORMATS],
     /// Filled in by the writer.
     pub sections: Vec<SectionInfo>,
     /// xxh3-64 of the header (this field zeroed) and all raw sections. Filled in by the writer.
@@ -267,7 +351,7 @@ pub struct Header {
     /// full resolution and `K` are not stored. At least 2 in version 5, and `K + lod_levels − 1
     /// ≤ MAX_LOD_LEVELS`.
     pub lod_first: u32,
-    /// What the source files say of themselves (format version 6; empty before).
+    /// What the source files say of themselves (format versions 6 and 7; empty before).
     pub source: SourceInfo,
 }
 
@@ -350,6 +434,32 @@ pub(crate) struct HeaderV5 {
     pub lod_first: u32,
 }
 
+/// The header as format version 6 stores it (what the source says of itself): [`HeaderV5`]'s
+/// fields, then `source`; [`Header`] with five brick counts. Frozen, as [`HeaderV2`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct HeaderV6 {
+    pub v5: HeaderV5,
+    pub source: SourceInfo,
+}
+
+impl From<&Header> for HeaderV6 {
+    fn from(h: &Header) -> HeaderV6 {
+        HeaderV6 {
+            v5: HeaderV5::from(h),
+            source: h.source.clone(),
+        }
+    }
+}
+
+impl From<HeaderV6> for Header {
+    fn from(h: HeaderV6) -> Header {
+        Header {
+            source: h.source,
+            ..Header::from(h.v5)
+        }
+    }
+}
+
 impl From<&Header> for HeaderV5 {
     fn from(h: &Header) -> HeaderV5 {
         HeaderV5 {
@@ -417,7 +527,7 @@ impl From<&Header> for HeaderV2 {
             source_map: h.source_map.clone(),
             voxel_size: h.voxel_size,
             background: h.background,
-            brick_counts: h.brick_counts,
+            brick_counts: std::array::from_fn(|i| h.brick_counts[i]),
             sections: h.sections.clone(),
             content_hash: h.content_hash,
         }
@@ -437,7 +547,7 @@ impl From<HeaderV2> for Header {
             source_map: h.source_map,
             voxel_size: h.voxel_size,
             background: h.background,
-            brick_counts: h.brick_counts,
+            brick_counts: std::array::from_fn(|i| h.brick_counts.get(i).copied().unwrap_or(0)),
             sections: h.sections,
             content_hash: h.content_hash,
             channels: Vec::new(),
@@ -455,8 +565,10 @@ impl Header {
     }
     /// The format version this header is written as.
     pub fn format_version(&self) -> u32 {
-        if self.source != SourceInfo::default() {
+        if self.brick_counts[FORMATS_V6..].iter().any(|&n| n > 0) {
             FORMAT_VERSION
+        } else if self.source != SourceInfo::default() {
+            FORMAT_VERSION_SOURCE
         } else if self.lod_levels > 0 && self.lod_first > 1 {
             FORMAT_VERSION_LOD_FROM
         } else if self.lod_levels > 0 {
@@ -513,6 +625,7 @@ impl Header {
             FORMAT_VERSION_CHANNELS => bincode::serde::encode_to_vec(HeaderV3::from(self), config),
             FORMAT_VERSION_LOD => bincode::serde::encode_to_vec(HeaderV4::from(self), config),
             FORMAT_VERSION_LOD_FROM => bincode::serde::encode_to_vec(HeaderV5::from(self), config),
+            FORMAT_VERSION_SOURCE => bincode::serde::encode_to_vec(HeaderV6::from(self), config),
             _ => bincode::serde::encode_to_vec(self, config),
         };
         r.map_err(|e| crate::AssetError(format!("cannot encode the header: {e}")))

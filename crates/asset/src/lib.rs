@@ -19,11 +19,13 @@
 //!   `tiles[t]`. Root entries use the same encoding (`TILE_BIT | t` = the whole 128³ region is
 //!   `tiles[t]`), plus `EMPTY` (the region is background).
 //! - **Bricks**: 8³ values; identical bricks across all frames are stored once. Each brick is in
-//!   one of five formats (see [`PayloadFormat`]), grouped by format in [`PayloadFormat::ORDER`]
-//!   (BC7, BC4, unorm8, f16, f32): brick `b` belongs to the group its index falls in according to
-//!   `Header::brick_counts`, and each group has its own payload section (one atlas per format).
+//!   one of twelve formats (see [`PayloadFormat`]), grouped by format in [`PayloadFormat::ORDER`]
+//!   (BC7, BC4, unorm8, f16, f32, packed1..packed7): brick `b` belongs to the group its index
+//!   falls in according to `Header::brick_counts`, and each group has its own atlas (one payload
+//!   section per format; the packed atlases share the last section, format version 7).
 //!   f32/f16 bricks keep OpenVDB's voxel order `64·x + 8·y + z`; unorm8/BC bricks are texture
-//!   tiles (slices along z of 8×8 texels) over the brick's `[lo, hi]` in `brick_quant`.
+//!   tiles (slices along z of 8×8 texels) over the brick's `[lo, hi]` in `brick_quant`; packed
+//!   bricks are a bit stream in voxel order over the same range.
 //! - **Ranges**: `[min, max]` of the *stored* values per brick, per L2 node (over its whole 128³
 //!   region, so background counts when a slot is empty) and per frame: majorants for empty-space
 //!   skipping and delta tracking.
@@ -113,7 +115,7 @@ pub struct Asset {
     /// Per brick `[lo, hi]` of its quantization range (quantized formats; `[0, 0]` otherwise).
     pub brick_quant: Vec<[f32; 2]>,
     /// One atlas per format, in [`PayloadFormat::ORDER`].
-    pub payloads: [Vec<u8>; 5],
+    pub payloads: [Vec<u8>; FORMATS],
 }
 
 impl Asset {
@@ -191,7 +193,7 @@ impl Asset {
 
 /// Brick `b` of a pool grouped by format (`counts[i]` bricks of [`PayloadFormat::ORDER`]`[i]`,
 /// in that order): its format and its index inside that format's atlas; `None` past the end.
-pub fn locate_brick(counts: &[u64; 5], b: u64) -> Option<(PayloadFormat, usize)> {
+pub fn locate_brick(counts: &[u64; FORMATS], b: u64) -> Option<(PayloadFormat, usize)> {
     let mut b = b;
     for (f, &n) in PayloadFormat::ORDER.iter().zip(counts) {
         if b < n {

@@ -81,6 +81,10 @@ impl Asset {
                 let (h, used): (HeaderV5, usize) =
                     bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
                 (h.into(), used)
+            } else if version == FORMAT_VERSION_SOURCE {
+                let (h, used): (HeaderV6, usize) =
+                    bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?;
+                (h.into(), used)
             } else {
                 bincode::serde::decode_from_slice(hbytes, config).map_err(corrupt)?
             };
@@ -127,16 +131,13 @@ impl Asset {
                 header.root_dims
             ));
         }
-        if header.sections.len() != SectionKind::ALL.len()
-            || header
-                .sections
-                .iter()
-                .zip(SectionKind::ALL)
-                .any(|(s, k)| s.kind != k)
+        let kinds = SectionKind::of_version(version);
+        if header.sections.len() != kinds.len()
+            || header.sections.iter().zip(kinds).any(|(s, k)| s.kind != *k)
         {
             return bad("section table does not list the expected sections in order");
         }
-        let mut raw = Vec::with_capacity(SectionKind::ALL.len());
+        let mut raw = Vec::with_capacity(kinds.len());
         for s in &header.sections {
             let name = s.kind.name();
             let end = s.offset.checked_add(s.compressed_len);
@@ -210,8 +211,19 @@ impl Asset {
             (8, n_bricks as u64 * 8),
             (9, n_bricks as u64 * 8),
         ];
-        for (i, f) in PayloadFormat::ORDER.iter().enumerate() {
+        for (i, f) in PayloadFormat::ORDER[..FORMATS_V6].iter().enumerate() {
             expect.push((10 + i, header.brick_counts[i] * f.bytes_per_brick() as u64));
+        }
+        let packed_bytes = |h: &Header| -> u64 {
+            PayloadFormat::ORDER[FORMATS_V6..]
+                .iter()
+                .map(|f| h.brick_counts[f.rank()].saturating_mul(f.bytes_per_brick() as u64))
+                .fold(0u64, u64::saturating_add)
+        };
+        if version >= FORMAT_VERSION {
+            expect.push((15, packed_bytes(&header)));
+        } else if packed_bytes(&header) != 0 {
+            return bad(format!("a version-{version} asset holds no packed bricks"));
         }
         for (i, want) in expect {
             if raw[i].len() as u64 != want {
@@ -222,9 +234,17 @@ impl Asset {
                 ));
             }
         }
-        let mut payloads: [Vec<u8>; 5] = Default::default();
-        for (i, p) in payloads.iter_mut().enumerate() {
+        let mut payloads: [Vec<u8>; FORMATS] = Default::default();
+        for (i, p) in payloads[..FORMATS_V6].iter_mut().enumerate() {
             *p = std::mem::take(&mut raw[10 + i]);
+        }
+        if let Some(packed) = raw.get(15) {
+            let mut at = 0;
+            for f in &PayloadFormat::ORDER[FORMATS_V6..] {
+                let n = (header.brick_counts[f.rank()] * f.bytes_per_brick() as u64) as usize;
+                payloads[f.rank()] = packed[at..at + n].to_vec();
+                at += n;
+            }
         }
         let asset = Asset {
             roots: u32s(&raw[0]),

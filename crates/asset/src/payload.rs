@@ -1,6 +1,8 @@
 //! Brick payload encodings and their CPU decoders. Float formats (f32, f16) keep OpenVDB's voxel
 //! order `64·x + 8·y + z`; quantized formats (unorm8, BC4, BC7) are laid out as texture tiles
 //! (slices along z of 8×8 texels) over a per-brick `[lo, hi]` range, value = lo + (hi − lo)·q/255.
+//! Packed formats (1–7 bits a voxel) keep the voxel order as a bit stream, each code standing for
+//! an 8-bit code ([`packed_code`]) read as unorm8 is.
 //! BC encoding needs intel_tex_2 and lives in the cooker; decoding is here (pure Rust), so the
 //! runtime, `eval` and the tests read every format.
 
@@ -74,8 +76,65 @@ pub fn native_read_codes(format: PayloadFormat) -> f32 {
     match format {
         PayloadFormat::Bc4 => BC4_NATIVE_CODES,
         PayloadFormat::Bc7 => BC7_NATIVE_CODES,
-        PayloadFormat::Unorm8 | PayloadFormat::F16 | PayloadFormat::F32 => 0.0,
+        // Packed codes are integers the shader unpacks itself, then read as unorm8: exact.
+        _ => 0.0,
     }
+}
+
+/// The 8-bit code a `bits`-bit packed code `q` stands for: `round(255·q / (2^bits − 1))`
+/// (halves up). Every packed level is an unorm8 level, so a packed voxel is dequantized exactly
+/// as an unorm8 one ([`dequantize`]) on the CPU and on any GPU; widths 1, 2, 4 (and 8) are
+/// uniform, the others within half a code of uniform.
+#[inline]
+pub fn packed_code(q: u32, bits: u32) -> u8 {
+    let levels = (1u32 << bits) - 1;
+    ((510 * q + levels) / (2 * levels)) as u8
+}
+
+/// The `bits`-bit code of voxel `n` (voxel order) in a packed brick's bytes: bits
+/// `[bits·n, bits·n + bits)` of the stream, little-endian (bit `k` is bit `k % 8` of byte `k / 8`:
+/// the little-endian u32 words the GPU reads).
+#[inline]
+pub fn packed_get(bytes: &[u8], bits: u32, n: usize) -> u32 {
+    let at = bits as usize * n;
+    let (byte, shift) = (at / 8, at % 8);
+    let mut w = bytes[byte] as u32;
+    if let Some(&next) = bytes.get(byte + 1) {
+        w |= (next as u32) << 8;
+    }
+    (w >> shift) & ((1u32 << bits) - 1)
+}
+
+/// A packed brick of `bits` bits a voxel (64·bits bytes) from float values in voxel order, over
+/// `[lo, hi]`: each voxel takes the code whose level ([`packed_code`], [`dequantize`]) is
+/// nearest its value (ties to the lower code).
+pub fn encode_packed(values: &[f32], bits: u32, lo: f32, hi: f32) -> Vec<u8> {
+    let levels = (1u32 << bits) - 1;
+    let mut out = vec![0u8; 64 * bits as usize];
+    for (n, &v) in values.iter().enumerate().take(BRICK_VOXELS) {
+        let q = if hi <= lo {
+            0
+        } else {
+            let t = ((v as f64 - lo as f64) / (hi as f64 - lo as f64) * levels as f64)
+                .clamp(0.0, levels as f64);
+            let below = t.floor() as u32;
+            let above = (below + 1).min(levels);
+            let err = |q: u32| (dequantize(packed_code(q, bits), lo, hi) as f64 - v as f64).abs();
+            if err(above) < err(below) {
+                above
+            } else {
+                below
+            }
+        };
+        let at = bits as usize * n;
+        let (byte, shift) = (at / 8, at % 8);
+        let w = q << shift;
+        out[byte] |= w as u8;
+        if w >> 8 != 0 {
+            out[byte + 1] |= (w >> 8) as u8;
+        }
+    }
+    out
 }
 
 /// D3D11.3 §19.5.2: a BC4 interpolant may be `0.03·|red_0 − red_1|/255` off the float formula.
@@ -246,6 +305,12 @@ pub fn decode_brick(
                 }
             }
         }
+        f => {
+            let bits = f.packed_bits().expect("packed");
+            for (n, o) in out.iter_mut().enumerate() {
+                *o = dequantize(packed_code(packed_get(bytes, bits, n), bits), lo, hi);
+            }
+        }
     }
 }
 
@@ -278,6 +343,11 @@ pub fn decode_voxel(
             let bi = (z / 4) * 4 + (y / 4) * 2 + x / 4;
             let texels = bc::decode_bc7_block(bytes[bi * 16..bi * 16 + 16].try_into().expect("16"));
             dequantize(texels[(y % 4) * 4 + x % 4][z % 4], lo, hi)
+        }
+        f => {
+            let bits = f.packed_bits().expect("packed");
+            let q = packed_get(bytes, bits, vox_index(x, y, z));
+            dequantize(packed_code(q, bits), lo, hi)
         }
     }
 }

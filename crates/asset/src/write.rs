@@ -25,11 +25,12 @@ fn le_pairs(v: &[[f32; 2]]) -> Vec<u8> {
 }
 
 impl Asset {
-    /// Raw (uncompressed) bytes of each section, in `SectionKind::ALL` order; the payload is
-    /// borrowed, not copied.
+    /// Raw (uncompressed) bytes of each section, in the order of
+    /// [`SectionKind::of_version`] for the header's version; the payload is borrowed, not
+    /// copied (the packed atlases are joined into one section).
     pub fn raw_sections(&self) -> Vec<(SectionKind, std::borrow::Cow<'_, [u8]>)> {
         use std::borrow::Cow;
-        SectionKind::ALL
+        SectionKind::of_version(self.header.format_version())
             .iter()
             .map(|&k| {
                 let bytes: Cow<'_, [u8]> = match k {
@@ -48,6 +49,7 @@ impl Asset {
                     SectionKind::PayloadUnorm8 => Cow::Borrowed(&self.payloads[2][..]),
                     SectionKind::PayloadF16 => Cow::Borrowed(&self.payloads[3][..]),
                     SectionKind::PayloadF32 => Cow::Borrowed(&self.payloads[4][..]),
+                    SectionKind::PayloadPacked => Cow::Owned(self.payloads[FORMATS_V6..].concat()),
                 };
                 (k, bytes)
             })

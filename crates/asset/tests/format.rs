@@ -22,11 +22,17 @@ fn sample_asset(format: PayloadFormat) -> (Asset, Vec<f32>) {
         PayloadFormat::Unorm8 => {
             bytes.extend_from_slice(&payload::encode_unorm8(&brick, 0.0, 777.0))
         }
+        f if f.packed_bits().is_some() => bytes.extend(payload::encode_packed(
+            &brick,
+            f.packed_bits().unwrap(),
+            0.0,
+            777.0,
+        )),
         f => payload::encode_float(f, &brick, &mut bytes),
     }
-    let mut payloads: [Vec<u8>; 5] = Default::default();
+    let mut payloads: [Vec<u8>; FORMATS] = Default::default();
     payloads[format.rank()] = bytes;
-    let mut brick_counts = [0u64; 5];
+    let mut brick_counts = [0u64; FORMATS];
     brick_counts[format.rank()] = 1;
     let mut mask = vec![0u64; L2_WORDS];
     mask[0] = 0b11;
@@ -188,7 +194,13 @@ fn validation_refuses_out_of_range_indices() {
 
 #[test]
 fn corrupt_and_truncated_files_are_refused_without_panic() {
-    let (a, _) = sample_asset(PayloadFormat::F16);
+    for f in [PayloadFormat::F16, PayloadFormat::Packed3] {
+        corrupt_and_truncated_refused(f);
+    }
+}
+
+fn corrupt_and_truncated_refused(format: PayloadFormat) {
+    let (a, _) = sample_asset(format);
     let (bytes, _) = a.to_bytes().unwrap();
     for cut in 0..bytes.len() {
         assert!(
@@ -485,6 +497,7 @@ fn levels_from_a_coarser_level_are_version_5_and_round_trip() {
 /// byte for byte.
 #[test]
 fn source_info_is_version_6_and_round_trips() {
+    const FORMAT_VERSION: u32 = FORMAT_VERSION_SOURCE;
     for mut a in [lod_asset(), {
         let mut b = lod_asset();
         b.header.lod_first = 3;
@@ -514,6 +527,74 @@ fn source_info_is_version_6_and_round_trips() {
         cut[12..16].copy_from_slice(&(hlen as u32 - 2).to_le_bytes());
         assert!(Asset::from_bytes(&cut).is_err());
     }
+}
+
+/// The bits of voxel codes `q` (voxel order) at `bits` each, packed by hand: bit `k` of the
+/// stream is bit `k % 8` of byte `k / 8` (the format's rule, written independently of the crate).
+fn pack_by_hand(q: &[u32], bits: u32) -> Vec<u8> {
+    let stream: Vec<bool> = q
+        .iter()
+        .flat_map(|&v| (0..bits).map(move |i| (v >> i) & 1 == 1))
+        .collect();
+    stream
+        .chunks(8)
+        .map(|c| c.iter().enumerate().map(|(i, &b)| (b as u8) << i).sum())
+        .collect()
+}
+
+#[test]
+fn packed_bricks_are_version_7_round_trip_and_read_each_voxel_within_half_a_level() {
+    for (w, f) in PayloadFormat::PACKED.into_iter().enumerate() {
+        let bits = w as u32 + 1;
+        assert_eq!(f.packed_bits(), Some(bits));
+        assert_eq!(f.bytes_per_brick(), 64 * bits as usize);
+        let (a, brick) = sample_asset(f);
+        a.validate().unwrap();
+        let (bytes, header) = a.to_bytes().unwrap();
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+            FORMAT_VERSION,
+            "{}",
+            f.name()
+        );
+        assert_eq!(a.to_bytes().unwrap().0, bytes, "deterministic");
+        let back = Asset::from_bytes(&bytes).unwrap();
+        let mut expect = a.clone();
+        expect.header = header;
+        assert_eq!(back, expect);
+        // The levels are the 8-bit codes round(255·q/(2^b − 1)); the widest gap between two
+        // of them, over [0, 777], bounds every voxel's error at half of it.
+        let levels = (1u32 << bits) - 1;
+        let code = |q: u32| ((255.0 * q as f64 / levels as f64) + 0.5).floor();
+        let gap = (0..levels)
+            .map(|q| code(q + 1) - code(q))
+            .fold(0.0, f64::max);
+        let bound = gap / 2.0 * 777.0 / 255.0 + 1e-3;
+        for (i, &want) in brick.iter().enumerate() {
+            let (x, y, z) = (i / 64, (i / 8) % 8, i % 8);
+            let got = back.value(0, [x as i64, y as i64, z as i64]);
+            assert!(
+                ((got - want) as f64).abs() <= bound,
+                "{} voxel {x},{y},{z}: {got} for {want} (bound {bound})",
+                f.name()
+            );
+        }
+        // Decoding reads the bit stream as written by hand.
+        let q: Vec<u32> = (0..512)
+            .map(|i| (i as u32 * 7 + 3) % (levels + 1))
+            .collect();
+        let hand = pack_by_hand(&q, bits);
+        let mut out = [0f32; 512];
+        payload::decode_brick(f, &hand, [0.0, 255.0], &mut out);
+        for (i, (&o, &qi)) in out.iter().zip(&q).enumerate() {
+            assert_eq!(o, code(qi) as f32, "{} voxel {i}", f.name());
+            assert_eq!(payload::packed_get(&hand, bits, i), qi);
+        }
+    }
+    // An asset without packed bricks keeps its older version.
+    let (a, _) = sample_asset(PayloadFormat::Unorm8);
+    let (bytes, _) = a.to_bytes().unwrap();
+    assert!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()) < FORMAT_VERSION);
 }
 
 #[test]

@@ -1,8 +1,10 @@
 //! Encode stage: turns the deduplicated f32 brick pool into per-format atlases. Without
 //! `--max-error` every brick takes `--format`. With `--max-error E`, each brick takes the first
 //! representation in the candidate list whose decoded voxels are all within E of the source —
-//! a (lossy) tile value, then BC7, BC4, unorm8, f16, f32 — starting at `--format` when one is
-//! given ("this format where it meets E, fall back where it does not"). Every check decodes
+//! a (lossy) tile value, then the formats cheapest first (`PayloadFormat::BY_COST`: packed1,
+//! BC7, packed2, packed3, BC4, packed4..packed7, unorm8, f16, f32; the packed widths left out
+//! with `--no-packed`) — starting at `--format` when one is given ("this format where it meets
+//! E, fall back where it does not"). Every check decodes
 //! with the same CPU decoders `eval` and the runtime's reference use, and adds, per voxel, what a
 //! GPU's native read may differ from that decode (`payload::read_codes_per_voxel`: for BC4 the
 //! bound of the voxel's block, for BC7 1 code of the brick's range), so E holds on the GPU, not
@@ -13,7 +15,7 @@
 
 use rayon::prelude::*;
 use vdbcook_asset::payload::{self, vox_index};
-use vdbcook_asset::{PayloadFormat, RangeMode, BRICK_VOXELS, TILE_BIT};
+use vdbcook_asset::{PayloadFormat, RangeMode, BRICK_VOXELS, FORMATS, TILE_BIT};
 
 use crate::bc4fit;
 use crate::bcenc::{encode_bc7, Bc7Quality};
@@ -30,21 +32,40 @@ pub struct EncodeOptions {
     pub lossy_tiles: bool,
     pub range: RangeMode,
     pub bc7_quality: Bc7Quality,
+    /// Whether `max_error` may pick the packed widths (`--no-packed` clears it: assets older
+    /// runtimes read, format version 6 or below).
+    pub packed: bool,
+}
+
+impl EncodeOptions {
+    /// The candidates `max_error` tries, cheapest first: from `--format` when given.
+    pub fn candidates(&self) -> Vec<PayloadFormat> {
+        let all: Vec<PayloadFormat> = PayloadFormat::BY_COST
+            .into_iter()
+            .filter(|f| self.packed || f.packed_bits().is_none() || *f == self.format)
+            .collect();
+        let from = if self.format_given {
+            all.iter().position(|&f| f == self.format).unwrap_or(0)
+        } else {
+            0
+        };
+        all[from..].to_vec()
+    }
 }
 
 /// How many bricks went to each representation.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct Representation {
     pub tile: u64,
-    pub per_format: [u64; 5],
+    pub per_format: [u64; FORMATS],
 }
 
 pub struct Encoded {
     /// For each input brick: its final ref (brick index in format-grouped order, or
     /// `TILE_BIT | k` — the k-th of `new_tiles` — when it became a tile).
     pub remap: Vec<u32>,
-    pub payloads: [Vec<u8>; 5],
-    pub brick_counts: [u64; 5],
+    pub payloads: [Vec<u8>; FORMATS],
+    pub brick_counts: [u64; FORMATS],
     /// Per final brick `[lo, hi]` of its quantization range (`[0, 0]` for float formats).
     pub brick_quant: Vec<[f32; 2]>,
     /// Per final brick `[min, max]` of its decoded values.
@@ -163,8 +184,16 @@ fn encode_batch(
                 .collect();
             bricks.concat()
         }
-        PayloadFormat::Bc7 => {
-            // Brick i as 2 slices of 8×8 RGBA texels (an 8×16 tile); texel (x, y) of slice s
+        f if f.packed_bits().is_some() => {
+            let bits = f.packed_bits().expect("packed");
+            let bricks: Vec<Vec<u8>> = idx
+                .par_iter()
+                .map(|&b| payload::encode_packed(brick(b), bits, quant[b][0], quant[b][1]))
+                .collect();
+            bricks.concat()
+        }
+        _ => {
+            // BC7: brick i as 2 slices of 8×8 RGBA texels (an 8×16 tile); texel (x, y) of slice s
             // holds z = 4s..4s+3 in R, G, B, A.
             let tiles = tile_bytes(idx, 4, 16, |b, t| {
                 let [lo, hi] = quant[b];
@@ -294,8 +323,8 @@ pub fn encode_budgets(
             }
         }
         let bytes = encode_batch(f, pool, &all, &quant, opts.bc7_quality);
-        let mut payloads: [Vec<u8>; 5] = Default::default();
-        let mut brick_counts = [0u64; 5];
+        let mut payloads: [Vec<u8>; FORMATS] = Default::default();
+        let mut brick_counts = [0u64; FORMATS];
         brick_counts[f.rank()] = n as u64;
         let (decoded, brick_ranges) = if f == PayloadFormat::F32 {
             (Vec::new(), ranges)
@@ -338,12 +367,7 @@ pub fn encode_budgets(
     let e_all = opts.max_error.expect("checked") as f64;
     let e_of = |b: usize| budgets.map_or(e_all, |v| v[b] as f64);
     // Candidates, cheapest first.
-    let from = if opts.format_given {
-        opts.format.rank()
-    } else {
-        0
-    };
-    let formats = &PayloadFormat::ORDER[from..];
+    let formats = &opts.candidates()[..];
     let mut decoded = vec![0f32; pool.len()];
     // Per brick: None (pending), a tile, or (format, batch, index in batch).
     #[derive(Clone, Copy)]
@@ -440,8 +464,8 @@ pub fn encode_budgets(
     }
     // Group by format (cheapest first), keeping input order inside a group.
     let mut remap = vec![0u32; n];
-    let mut payloads: [Vec<u8>; 5] = Default::default();
-    let mut brick_counts = [0u64; 5];
+    let mut payloads: [Vec<u8>; FORMATS] = Default::default();
+    let mut brick_counts = [0u64; FORMATS];
     let mut brick_quant = Vec::new();
     let mut brick_ranges = Vec::new();
     let mut new_tiles = Vec::new();
@@ -537,6 +561,8 @@ mod tests {
             lossy_tiles: true,
             range,
             bc7_quality: Bc7Quality::Fast,
+            // These tests are about the BC formats' failures; packed widths have their own.
+            packed: false,
         }
     }
 
@@ -902,5 +928,53 @@ mod tests {
                 f.name()
             );
         }
+    }
+
+    /// A brick whose 512 values take `levels` distinct values `lo + k·step`, scattered.
+    fn levelled(levels: u32, lo: f32, step: f32) -> Vec<f32> {
+        brick(|x, y, z| lo + step * ((x * 5 + y * 3 + z * 7 + x * y * z) as u32 % levels) as f32)
+    }
+
+    #[test]
+    fn packed_widths_store_each_brick_at_the_fewest_bits_that_hold_the_bound() {
+        // Two levels need one bit, 4 levels two, 16 levels (at k/15: packed4 codes 17k) four,
+        // whatever the offset; 8 levels three (their codes round(255k/7) are within half a code
+        // of k/7). Random-looking level patterns defeat BC7's and BC4's 4×4 palettes.
+        let e = 0.0025;
+        let cases = [
+            (levelled(2, 3.0, 1.0), PayloadFormat::Packed1),
+            (levelled(4, -1.0, 0.5), PayloadFormat::Packed2),
+            (levelled(8, 0.0, 1.0 / 7.0), PayloadFormat::Packed3),
+            (levelled(16, 0.0, 1.0 / 15.0), PayloadFormat::Packed4),
+        ];
+        let pool: Vec<f32> = cases.iter().flat_map(|(v, _)| v.clone()).collect();
+        let mut o = opts(PayloadFormat::Bc7, Some(e), RangeMode::Brick);
+        o.format_given = false;
+        o.packed = true;
+        let enc = encode(&pool, &o).unwrap();
+        for (b, (_, want)) in cases.iter().enumerate() {
+            let (f, _) = vdbcook_asset::locate_brick(&enc.brick_counts, enc.remap[b] as u64)
+                .expect("stored");
+            assert_eq!(f, *want, "brick {b}");
+        }
+        let worst = errors(&pool, &enc).into_iter().fold(0.0, f32::max);
+        assert!(worst <= e, "max error {worst} over {e}");
+        // Packed decodes are exact on any GPU: no read slack is added.
+        assert!((0..cases.len()).all(|b| enc.brick_slack(b) == 0.0));
+        // `--no-packed` keeps to the older formats, within the same bound.
+        o.packed = false;
+        let old = encode(&pool, &o).unwrap();
+        assert!(PayloadFormat::PACKED
+            .iter()
+            .all(|f| old.brick_counts[f.rank()] == 0));
+        let worst = errors(&pool, &old).into_iter().fold(0.0, f32::max);
+        assert!(worst <= e, "max error {worst} over {e} without packed");
+        let bytes = |x: &Encoded| x.payloads.iter().map(|p| p.len()).sum::<usize>();
+        assert!(
+            bytes(&enc) < bytes(&old),
+            "{} !< {}",
+            bytes(&enc),
+            bytes(&old)
+        );
     }
 }

@@ -105,6 +105,9 @@ pub struct CookOptions {
     /// Quantization range of unorm8/BC bricks (one grid only for `Global`).
     pub range: RangeMode,
     pub bc7_quality: Bc7Quality,
+    /// An error budget may store a brick packed at its own bit depth (1–7 bits a voxel, asset
+    /// format 7); `false` (`--no-packed`) keeps to BC7, BC4, unorm8, f16 and f32.
+    pub packed: bool,
     pub clustering: Option<Clustering>,
     pub lod: Option<Lod>,
     /// Frames to cook (`None`: all the inputs resolve to).
@@ -128,6 +131,7 @@ impl Default for CookOptions {
             budget: Budget::Default,
             range: RangeMode::Brick,
             bc7_quality: Bc7Quality::Fast,
+            packed: true,
             clustering: None,
             lod: None,
             frames: None,

@@ -333,6 +333,7 @@ fn cook_sources(
         lossy_tiles: opts.bounded(),
         range: opts.range,
         bc7_quality: opts.bc7_quality,
+        packed: opts.packed,
     };
     // The bound of each channel; per pool brick, the smallest of the channels that read it.
     let per_brick = |chan: &[Option<f32>]| -> Vec<f32> {

@@ -260,6 +260,9 @@ pub struct Representations {
     pub unorm8: u64,
     pub f16: u64,
     pub f32: u64,
+    /// Bricks packed at 1, 2, .., 7 bits a voxel.
+    #[serde(default)]
+    pub packed: [u64; 7],
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -418,7 +421,7 @@ pub fn build(b: BuildInputs) -> CookReport {
         active,
         Some(topology + atlas),
     );
-    let [r0, r1, r2, r3, r4] = asset.header.brick_counts;
+    let [r0, r1, r2, r3, r4, packed @ ..] = asset.header.brick_counts;
     let shared = match b.budgets {
         [b0, rest @ ..] if rest.iter().all(|x| x == b0) => *b0,
         _ => None,
@@ -454,6 +457,7 @@ pub fn build(b: BuildInputs) -> CookReport {
             unorm8: r2,
             f16: r3,
             f32: r4,
+            packed,
         },
         max_error: shared,
         max_error_source: b.budget_source[0].map(str::to_string),
