@@ -224,7 +224,8 @@ fn vdb_brick_quant(b: u32) -> vec2<f32> {
     return vec2<f32>(bitcast<f32>(vdb_topo[i]), bitcast<f32>(vdb_topo[i + 1u]));
 }
 
-// The group (0: BC7, 1: BC4, 2: unorm8, 3: floats) brick `b` belongs to.
+// The group (0: BC7, 1: BC4, 2: unorm8, 3: floats, 4..10: packed1..packed7) brick `b` belongs
+// to.
 fn vdb_brick_group(b: u32) -> u32 {
     var g = 0u;
     if (b >= vdb_info.groups[1].first) {

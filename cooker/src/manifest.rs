@@ -246,8 +246,10 @@ fn entry_options(e: &Entry, base: &Path) -> Result<(Vec<String>, PathBuf, CookOp
         },
     );
     if let Some(f) = &e.format {
-        if !["f32", "f16", "unorm8", "bc4", "bc7"].contains(&f.as_str()) {
-            return Err(format!("format '{f}' (f32, f16, unorm8, bc4, bc7)"));
+        if vdbcook_asset::PayloadFormat::parse(f).is_none() {
+            return Err(format!(
+                "format '{f}' (f32, f16, unorm8, bc4, bc7, packed1 .. packed7)"
+            ));
         }
     }
     if let Some(r) = &e.range {

@@ -389,7 +389,14 @@ fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
     inputs.extend(wdas.as_deref());
     for (i, inp) in inputs.iter().enumerate() {
         for e in ["0.001", "0.01", "0.05"] {
-            for fmt in [None, Some("bc7"), Some("unorm8")] {
+            // The cheapest cook's atlas, to hold against the one without packed bricks.
+            let mut cheapest_atlas = None;
+            for (fmt, no_packed) in [
+                (None, false),
+                (Some("bc7"), false),
+                (Some("unorm8"), false),
+                (None, true),
+            ] {
                 let out = d.path().join(format!("{i}-{e}.vdbc"));
                 let mut args = vec![
                     "cook",
@@ -403,7 +410,36 @@ fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
                 if let Some(f) = fmt {
                     args.extend(["--format", f]);
                 }
+                if no_packed {
+                    args.push("--no-packed");
+                }
                 let c = json(&args);
+                let version =
+                    u32::from_le_bytes(std::fs::read(&out).unwrap()[8..12].try_into().unwrap());
+                let packed: u64 = c["representations"]["packed"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|n| n.as_u64().unwrap())
+                    .sum();
+                // Packed bricks, and only they, make an asset format 7.
+                assert_eq!(
+                    version == 7,
+                    packed > 0,
+                    "{inp} E={e} {fmt:?}: version {version}"
+                );
+                let atlas = c["bytes"]["atlas"].as_u64().unwrap();
+                if no_packed || fmt == Some("unorm8") {
+                    assert_eq!(packed, 0, "{inp} E={e} {fmt:?} no-packed {no_packed}");
+                }
+                if fmt.is_none() && !no_packed {
+                    cheapest_atlas = Some(atlas);
+                }
+                if no_packed {
+                    // The packed widths only add cheaper candidates: never a larger atlas.
+                    let cheapest = cheapest_atlas.unwrap();
+                    assert!(cheapest <= atlas, "{inp} E={e}: {cheapest} > {atlas}");
+                }
                 let ev = json(&["eval", "--json", out.to_str().unwrap(), inp]);
                 let limit: f64 = e.parse().unwrap();
                 assert!(
@@ -415,7 +451,8 @@ fn max_error_holds_on_every_voxel_and_lossy_errors_match_eval() {
                 let total: u64 = ["tile", "bc7", "bc4", "unorm8", "f16", "f32"]
                     .iter()
                     .map(|k| reps[k].as_u64().unwrap())
-                    .sum();
+                    .sum::<u64>()
+                    + packed;
                 assert_eq!(
                     total,
                     c["bricks"]["unique"].as_u64().unwrap(),

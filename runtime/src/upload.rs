@@ -1,8 +1,9 @@
 //! Uploads an asset once: every frame's roots, the L2 nodes (masks, bases, prefixes, ranges),
 //! the leaf refs, tile values, brick ranges and quantization ranges into one storage buffer of
 //! u32 words, and the brick pool — the quantized formats (BC7, BC4, unorm8) as **textures**, the
-//! float formats (f16, f32) in up to four storage buffers — plus what the renderer needs per
-//! frame on the CPU side (stored boxes, value ranges).
+//! float formats (f16, f32) in up to four storage buffers, the packed formats (1–7 bits a voxel)
+//! as their own words after the float bricks in the same buffers — plus what the renderer needs
+//! per frame on the CPU side (stored boxes, value ranges).
 //!
 //! The upload checks the device's features and limits and picks a [`Layout`] for the quantized
 //! bricks (first that works: BC in 3D textures, BC in 2D arrays, BC decoded at upload into

@@ -769,11 +769,22 @@ fn layout_assets() -> Vec<(&'static str, Asset)> {
 
 /// Every voxel of every brick as the GPU reads it (`vdb_brick_voxel` of `VOLUME_WGSL`, in an
 /// engine-style pipeline of its own), in the CPU's order: brick-major, voxel `64x + 8y + z`.
+/// In chunks of bricks whose values fit one storage binding of the device.
 fn read_voxels(gpu: &Gpu, vol: &GpuVolume, bricks: usize) -> Vec<f32> {
+    let per = (gpu.device.limits().max_storage_buffer_binding_size / 2048).max(1) as usize;
+    let mut out = Vec::with_capacity(bricks * 512);
+    for first in (0..bricks).step_by(per) {
+        out.extend(read_voxel_range(gpu, vol, first, per.min(bricks - first)));
+    }
+    out
+}
+
+/// `read_voxels` of bricks `first .. first + bricks`.
+fn read_voxel_range(gpu: &Gpu, vol: &GpuVolume, first: usize, bricks: usize) -> Vec<f32> {
     let n = (bricks * 512).max(64);
     assert!(n / 64 <= 65535, "test asset too large for one dispatch row");
     let source = format!(
-        "{}\n{}",
+        "{}\nconst VOX_FIRST: u32 = {first}u;\n{}",
         vdbcook_runtime::VOLUME_WGSL,
         r#"
 @group(1) @binding(0) var<storage, read_write> vox_out: array<f32>;
@@ -785,7 +796,7 @@ fn read_voxels(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let v = i % 512u;
     let m = vec3<i32>(i32(v / 64u), i32((v / 8u) % 8u), i32(v % 8u));
-    vox_out[i] = vdb_brick_voxel(i / 512u, m);
+    vox_out[i] = vdb_brick_voxel(VOX_FIRST + i / 512u, m);
 }
 "#
     );
@@ -1223,6 +1234,49 @@ fn small_limits_fall_back_to_buffers_and_a_pool_too_big_is_an_error() {
         Err(e) => panic!("unexpected error {e}"),
         Ok(v) => panic!("uploaded as {}", v.describe()),
     }
+}
+
+#[test]
+fn packed_bricks_spread_over_several_payload_buffers_read_back_exactly() {
+    let test = "packed_bricks_spread_over_several_payload_buffers_read_back_exactly";
+    let asset = blob_asset(PayloadFormat::Packed7);
+    let topo_bytes = 4
+        * (asset.roots.len()
+            + 2 * asset.l2_masks.len()
+            + asset.l2_base.len()
+            + asset.l2_prefix.len()
+            + 2 * asset.l2_ranges.len()
+            + asset.l3_refs.len()
+            + asset.tiles.len()
+            + 4 * asset.brick_count()) as u64;
+    let packed = asset.payloads[PayloadFormat::Packed7.rank()].len() as u64;
+    // Bindings that hold the topology and about a third of the packed words (in whole f32
+    // bricks, the buffers' stride): 448-byte bricks then cross from one buffer into the next.
+    let binding = topo_bytes.max(packed / 3).next_multiple_of(2048);
+    assert!(
+        packed > 2 * binding && packed <= 4 * binding,
+        "the test asset must span 3 or 4 buffers: {packed} bytes, bindings of {binding}"
+    );
+    let limits = wgpu::Limits {
+        max_storage_buffer_binding_size: binding,
+        ..wgpu::Limits::default()
+    };
+    let Some((device, queue)) = gpu_with(test, OPTIONAL_FEATURES, Some(limits)) else {
+        return;
+    };
+    let gpu = Gpu { device, queue };
+    let force = Some(Layout::Decoded3d);
+    let vol = GpuVolume::upload_with(&gpu.device, &gpu.queue, &asset, UploadOptions { force })
+        .unwrap_or_else(|e| panic!("{e}"));
+    let l = vol.layout();
+    assert_eq!(l.packed_bytes, packed, "{}", vol.describe());
+    assert!(
+        matches!(l.buffers, vdbcook_runtime::BufferLayout::F32 { buffers, .. } if buffers >= 3),
+        "{}",
+        vol.describe()
+    );
+    let (off, max_codes) = check_voxels(&gpu, &vol, &asset, test);
+    assert_eq!(off, 0, "{off} voxels off by up to {max_codes} codes");
 }
 
 /// Cooked assets (real encoder output, not seeded noise): `VDBCOOK_TEST_ASSETS=a.vdbc,b.vdbc`

@@ -154,6 +154,9 @@ pub(super) fn collect(a: &Args) -> Result<Collected, CliError> {
             format: c
                 .format
                 .map(|f| vdbcook_asset::PayloadFormat::parse(f).expect("known format")),
+            // A format's series is that format under its guard (BC falling back to unorm8 as
+            // before); the max-error series take the cheapest representation, packed included.
+            packed: c.format.is_none(),
             clustering: c.clusters.map(|(k, t)| vdbcook_cook::Clustering {
                 variance_threshold: t,
                 ..vdbcook_cook::Clustering::new(k)

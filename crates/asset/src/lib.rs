@@ -64,7 +64,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `b"VDBCOOK\x1a"` |
-//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several, 4 with coarser levels, 5 with coarser levels from level 2 or beyond) |
+//! | 8 | 4 | format version (`u32` LE: 2 for one channel, 3 for several, 4 with coarser levels, 5 with coarser levels from level 2 or beyond, 6 with what the source says of itself, 7 with packed bricks) |
 //! | 12 | 4 | header length `H` (`u32` LE) |
 //! | 16 | H | [`Header`], bincode 2 (standard config) |
 //! | 16 + H | … | sections: zstd frames at `Header::sections[i].offset` (relative to 16 + H) |
@@ -73,7 +73,8 @@
 //! (f32 pairs), `l2_masks` (u64 × 64 per node), `l2_base` (u32), `l2_prefix` (u16 × 64 per node),
 //! `l2_ranges` (f32 pairs), `l3_refs` (u32), `tiles` (f32), `brick_ranges` (f32 pairs),
 //! `brick_quant` (f32 pairs: the `[lo, hi]` of quantized bricks, `[0, 0]` for float ones), then one
-//! payload section per format in `PayloadFormat::ORDER` (bytes, `bytes_per_brick` each). Each section records its raw length and an xxh3 hash; `content_hash` is the xxh3 of the header (with the hash
+//! payload section per format of versions 2–6 in `PayloadFormat::ORDER` (bytes, `bytes_per_brick`
+//! each), and in version 7 one `payload_packed` section with the packed atlases in that order. Each section records its raw length and an xxh3 hash; `content_hash` is the xxh3 of the header (with the hash
 //! zeroed) followed by all raw sections in order. Loading = read, decompress, validate every index and count; there is no
 //! per-node deserialization.
 

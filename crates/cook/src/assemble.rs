@@ -351,8 +351,18 @@ pub fn section_sizes(asset: &Asset) -> Vec<(&'static str, u64)> {
         ("brick_ranges", asset.brick_ranges.len() as u64 * pair),
         ("brick_quant", asset.brick_quant.len() as u64 * pair),
     ];
+    // One entry per section the file holds: the packed atlases share one (format version 7).
+    let packed: u64 = PayloadFormat::PACKED
+        .iter()
+        .map(|f| asset.payloads[f.rank()].len() as u64)
+        .sum();
     for (f, p) in PayloadFormat::ORDER.iter().zip(&asset.payloads) {
-        v.push((SectionKind::payload(*f).name(), p.len() as u64));
+        if f.packed_bits().is_none() {
+            v.push((SectionKind::payload(*f).name(), p.len() as u64));
+        }
+    }
+    if asset.header.format_version() >= vdbcook_asset::FORMAT_VERSION {
+        v.push((SectionKind::PayloadPacked.name(), packed));
     }
     v
 }
