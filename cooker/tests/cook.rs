@@ -150,7 +150,7 @@ fn output_is_byte_identical_at_any_thread_count() {
     let mut inputs = vec!["fixtures/seq/smoke5".to_string()];
     inputs.extend(sample("wdas-cloud/wdas_cloud_sixteenth.vdb"));
     for (i, inp) in inputs.iter().enumerate() {
-        for fmt in ["f32", "f16", "unorm8", "bc4", "bc7"] {
+        for fmt in ["f32", "f16", "unorm8", "bc4", "bc7", "packed5"] {
             let a = d.path().join(format!("{i}-{fmt}-1.vdbc"));
             let b = d.path().join(format!("{i}-{fmt}-2.vdbc"));
             assert_eq!(

@@ -1173,6 +1173,19 @@ fn an_adapter_without_bc_decodes_at_upload_and_forced_bc_is_refused() {
     }
 }
 
+/// Bytes of `asset`'s topology as one storage binding holds it (roots, nodes, refs, tiles and the
+/// per-brick ranges).
+fn topology_bytes(asset: &Asset) -> u64 {
+    4 * (asset.roots.len()
+        + 2 * asset.l2_masks.len()
+        + asset.l2_base.len()
+        + asset.l2_prefix.len()
+        + 2 * asset.l2_ranges.len()
+        + asset.l3_refs.len()
+        + asset.tiles.len()
+        + 4 * asset.brick_count()) as u64
+}
+
 #[test]
 fn small_limits_fall_back_to_buffers_and_a_pool_too_big_is_an_error() {
     let test = "small_limits_fall_back_to_buffers_and_a_pool_too_big_is_an_error";
@@ -1205,15 +1218,7 @@ fn small_limits_fall_back_to_buffers_and_a_pool_too_big_is_an_error() {
     );
 
     // Storage bindings that hold the topology but not a quarter of the pool either: an error.
-    let topo_bytes = 4
-        * (asset.roots.len()
-            + 2 * asset.l2_masks.len()
-            + asset.l2_base.len()
-            + asset.l2_prefix.len()
-            + 2 * asset.l2_ranges.len()
-            + asset.l3_refs.len()
-            + asset.tiles.len()
-            + 4 * asset.brick_count()) as u32;
+    let topo_bytes = topology_bytes(&asset) as u32;
     let binding = topo_bytes.next_multiple_of(1024);
     assert!(
         (binding as usize / 1024) * 4 < asset.brick_count(),
@@ -1240,15 +1245,7 @@ fn small_limits_fall_back_to_buffers_and_a_pool_too_big_is_an_error() {
 fn packed_bricks_spread_over_several_payload_buffers_read_back_exactly() {
     let test = "packed_bricks_spread_over_several_payload_buffers_read_back_exactly";
     let asset = blob_asset(PayloadFormat::Packed7);
-    let topo_bytes = 4
-        * (asset.roots.len()
-            + 2 * asset.l2_masks.len()
-            + asset.l2_base.len()
-            + asset.l2_prefix.len()
-            + 2 * asset.l2_ranges.len()
-            + asset.l3_refs.len()
-            + asset.tiles.len()
-            + 4 * asset.brick_count()) as u64;
+    let topo_bytes = topology_bytes(&asset);
     let packed = asset.payloads[PayloadFormat::Packed7.rank()].len() as u64;
     // Bindings that hold the topology and about a third of the packed words (in whole f32
     // bricks, the buffers' stride): 448-byte bricks then cross from one buffer into the next.
