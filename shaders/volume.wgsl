@@ -269,9 +269,12 @@ fn vdb_packed_texel(grp: VdbGroup, b: u32, m: vec3<u32>) -> f32 {
     let at = (64u * m.x + 8u * m.y + m.z) * bits;
     let w = grp.base + (b - grp.first) * 16u * bits + (at >> 5u);
     let s = at & 31u;
-    // Both words, no branch: the second's bits land above the first's (none when s is 0).
-    let q = ((vdb_payload_word_at(w) >> s) | ((vdb_payload_word_at(w + 1u) << 1u) << (31u - s)))
-        & ((1u << bits) - 1u);
+    // The next word only where the voxel's bits cross into it (never for widths 1, 2, 4).
+    var q = vdb_payload_word_at(w) >> s;
+    if (s + bits > 32u) {
+        q |= vdb_payload_word_at(w + 1u) << (32u - s);
+    }
+    q &= (1u << bits) - 1u;
     // round(255·q / (2^bits − 1)) with `tiles_y` holding 255 / (2^bits − 1) as f32 bits: the
     // product is never within 1/254 of a half, so the rounding is exact.
     return unpack4x8unorm(u32(floor(f32(q) * bitcast<f32>(grp.tiles_y) + 0.5))).x;

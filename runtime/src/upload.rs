@@ -732,7 +732,8 @@ impl GpuVolume {
     pub fn pipeline_constants(&self) -> Vec<(&'static str, f64)> {
         let l = &self.layout;
         let mut paths = 0u32;
-        if l.buffers != BufferLayout::None {
+        // Buffered bricks (the buffers hold more than the packed words).
+        if l.buffer_bytes > l.packed_bytes {
             paths |= 1;
         }
         if l.packed_bytes > 0 {
