@@ -202,7 +202,7 @@ fn nominal_slot_bytes(layout: Layout, format: PayloadFormat, buffered_f16: bool)
     match (textured, format, layout.native_bc()) {
         (true, PayloadFormat::Bc7, true) => 128,
         (true, PayloadFormat::Bc4, true) => 256,
-        (true, f, _) if f.packed_bits().is_some() => 4 * packed_words(f),
+        (true, f, _) if f.packed_bits().is_some() => f.bytes_per_brick() as u64,
         (true, _, _) => 512,
         (false, _, _) if buffered_f16 => 1024,
         _ => 2048,
@@ -397,7 +397,7 @@ impl StreamingVolume {
                 }
             }
             match PayloadFormat::ORDER[i] {
-                f if keep_packed && f.packed_bits().is_some() => 4 * packed_words(f),
+                f if keep_packed && f.packed_bits().is_some() => f.bytes_per_brick() as u64,
                 _ => brick_words * 4,
             }
         });
@@ -1128,7 +1128,7 @@ fn plan_pool(
                 continue;
             }
             match f.packed_bits() {
-                Some(_) if keep_packed => packed += c[i] * 4 * packed_words(*f),
+                Some(_) if keep_packed => packed += c[i] * f.bytes_per_brick() as u64,
                 _ => buffered += c[i],
             }
         }

@@ -222,9 +222,11 @@ fn group_first_format(g: usize) -> usize {
         g + 1
     }
 }
-/// The words one packed brick of `format` takes (16 per bit), 0 for other formats.
+/// The u32 words one packed brick of `format` takes (its bytes / 4), 0 for other formats.
 pub(crate) fn packed_words(format: PayloadFormat) -> u64 {
-    format.packed_bits().map_or(0, |b| 16 * b as u64)
+    format
+        .packed_bits()
+        .map_or(0, |_| format.bytes_per_brick() as u64 / 4)
 }
 
 /// `VdbGroup` of `volume.wgsl`: bricks `[first, next group's first)` are read at local index
