@@ -12,9 +12,11 @@
 //   pipeline variant) each lit instance is marched as the tracer's lit mode (`lit_primary` in
 //   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest or
 //   trilinear lookup (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
-//   `light_build.wgsl` in the instance's cell space; crossfades lerp their depths and light), the
-//   near field toward the sun walked per frame of a crossfade (`LIT_NEAR`; both frames gated on
-//   the lerped density and the one transmittance: the CPU draws single frames only).
+//   `light_build.wgsl` in the instance's cell space), the near field toward the sun walked
+//   (`LIT_NEAR`). A crossfade takes each sample (density and light) from one of its frames
+//   (`LitCrossfade::Dither`, the default) or lerps both frames' density, depths and light (`Lerp`:
+//   each frame's walk gated on the lerped density and the one transmittance; the CPU draws
+//   single frames only).
 // - `draw_half_main` (compute, one invocation per 2×2 or 4×4 block of pixels; `MarchResolution`
 //   `Half`/`Quarter`): marches the block's centre ray where no scene depth of the block cuts the
 //   instances' boxes, into a per-block (L, T) texture that `draw_main` then upsamples
@@ -140,20 +142,32 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
     var k = max(ceil(t0 * ray.per_t / step - jitter), 0.0);
     var trans = 1.0;
     var rad = vec3<f32>(0.0);
+    // `LitCrossfade::Dither`: sample k is frame 1's (density and light) where
+    // fract(u + k·φ⁻¹) < a (a golden-ratio sequence from a second per-pixel offset: a fraction a
+    // of the ray's samples, spread evenly along it), frame 0's elsewhere; the place then names
+    // that frame alone.
+    let dither = a > 0.0 && place.misc.z != 0.0;
+    let u = lv_jitter(draw_view.shading.seed ^ 0x9e3779b9u, pixel);
     for (var n = 0u; n < DRAW_MAX_SAMPLES; n++) {
         let s = (k + jitter) * step;
         if (!(s < sb)) {
             break;
         }
+        let one = dither && fract(u + k * 0.618034) < a;
         k += 1.0;
         let p = ray.o + (s / ray.per_t) * ray.d;
-        var r2 = vec2<f32>(0.0);
-        for (var f = 0u; f < select(1u, 2u, a > 0.0); f++) {
-            r2[f] = draw_density(select(inst.frame_root0, inst.frame_root1, f == 1u), p);
-        }
-        var rho = r2.x;
-        if (a > 0.0) {
-            rho = mix(r2.x, r2.y, a);
+        var rho = 0.0;
+        if (dither) {
+            rho = draw_density(select(inst.frame_root0, inst.frame_root1, one), p);
+        } else {
+            var r2 = vec2<f32>(0.0);
+            for (var f = 0u; f < select(1u, 2u, a > 0.0); f++) {
+                r2[f] = draw_density(select(inst.frame_root0, inst.frame_root1, f == 1u), p);
+            }
+            rho = r2.x;
+            if (a > 0.0) {
+                rho = mix(r2.x, r2.y, a);
+            }
         }
         if (!(rho > 0.0)) {
             continue;
@@ -165,7 +179,15 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             rad += trans * step * lv_phi(x, e) * lit_emission(rho);
         }
         let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
-        let src = lit_scattered(place, q, rho, trans, eye, &sun_ph, vec3<i32>(-1), VDB_EMPTY);
+        var pl = place;
+        if (dither) {
+            pl.lv_lo0 = select(place.lv_lo0, place.lv_lo1, one);
+            pl.lv_dims0 = select(place.lv_dims0, place.lv_dims1, one);
+            pl.near = select(place.near, place.near.zwzw, one);
+            pl.roots.x = select(place.roots.x, place.roots.y, one);
+            pl.misc.y = 0.0;
+        }
+        let src = lit_scattered(pl, q, rho, trans, eye, &sun_ph, vec3<i32>(-1), VDB_EMPTY);
         rad += trans * place.axis.w * (1.0 - e) * src;
         trans *= e;
         if (trans < LV_MIN_TRANS) {

@@ -59,7 +59,8 @@ struct VdbLitPlace {
     // x, y: the full-resolution root offsets of frames 0 and 1.
     roots: vec4<u32>,
     // x: k of the sky's source (`lv_sky_source`); y: the crossfade weight of frame 1 (0: frame 0
-    // alone).
+    // alone); z: 1 where the drawer takes each sample from one frame of the crossfade
+    // (`LitCrossfade::Dither`: `draw.wgsl`'s `draw_lit`), 0 where it lerps both.
     misc: vec4<f32>,
 }
 

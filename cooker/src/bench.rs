@@ -54,19 +54,27 @@ pub struct Args {
     /// volume built per frame change).
     #[arg(long, default_value = "crossfade", value_parser = ["crossfade", "hold"])]
     blend: String,
+    /// How the lit march crosses two frames: lerp (both frames read and lerped per sample, the
+    /// drawer's default) or dither (each sample one frame's density and light, frame 1 on the
+    /// crossfade weight's share of a ray's samples: about a whole frame's cost, a per-pixel
+    /// grain). With dither, `crossfade_error` is the playing frames' relative RMSE against the
+    /// lerp (`LitCrossfade`).
+    #[arg(long, default_value = "lerp", value_parser = ["lerp", "dither"])]
+    lit_crossfade: String,
     /// Rays the drawer marches: full (one per pixel), half or quarter (one per 2×2 or 4×4 block
     /// away from depth edges, upsampled: `MarchResolution`); with half or quarter,
     /// `resolution_error` is the static frame's relative RMSE against the full-resolution draw.
     #[arg(long, default_value = "full", value_parser = ["full", "half", "quarter"])]
     march_resolution: String,
-    /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png (tone-mapped sRGB over
+    /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png and the playing frames
+    /// checked for `playing_error` as DIR/MODE-N-RESOLUTION-tTIME.png (tone-mapped sRGB over
     /// the bench's backdrop, as `render` maps radiance): to see what was timed.
     #[arg(long, value_name = "DIR")]
     png: Option<PathBuf>,
     /// Displayed frames timed while playing (after one warm-up frame).
     #[arg(long, default_value_t = 60)]
     frames: u32,
-    /// Static draws timed (after warm-up draws filling at least 0.3 s).
+    /// Static draws timed (after a first draw that compiles, then warm-up draws filling at least 0.3 s).
     #[arg(long, default_value_t = 10)]
     runs: u32,
     /// Grid to cook when the input is VDB.
@@ -134,8 +142,8 @@ mod imp {
     use serde_json::json;
     use vdbcook_runtime::glam::{Affine3A, Vec3, Vec4};
     use vdbcook_runtime::{
-        wgpu, DrawTarget, GpuTimer, GpuVolume, Instance, MarchResolution, Shading, View,
-        VolumeDrawer,
+        wgpu, DrawTarget, GpuTimer, GpuVolume, Instance, LitCrossfade, MarchResolution, Shading,
+        View, VolumeDrawer,
     };
     use vdbcook_trace::{Camera, Mode, Output};
 
@@ -447,17 +455,24 @@ mod imp {
                     "quarter" => MarchResolution::Quarter,
                     _ => MarchResolution::Full,
                 };
-                let fresh_drawer = |resolution| -> Result<VolumeDrawer, CliError> {
+                let light = match a.lit_crossfade.as_str() {
+                    "dither" => LitCrossfade::Dither,
+                    _ => LitCrossfade::Lerp,
+                };
+                let fresh_drawer = |resolution, light| -> Result<VolumeDrawer, CliError> {
                     let mut d = VolumeDrawer::new(device, &volume, COLOR).map_err(|e| at(&e))?;
                     d.set_march_resolution(resolution);
+                    d.set_lit_crossfade(light);
                     Ok(d)
                 };
-                let mut drawer = fresh_drawer(resolution)?;
-                // Static: frame 0 again and again, after a warm-up of at least WARM_UP of
-                // draws (the first compiles and builds; a real GPU idles at a low clock and
-                // needs a fraction of a second of work to ramp up, which an H100 showed as a
-                // first configuration three times slower than the next).
+                let mut drawer = fresh_drawer(resolution, light)?;
+                // Static: frame 0 again and again, after one draw that compiles and builds and
+                // then a warm-up of at least WARM_UP of draws (a real GPU idles at a low clock
+                // while the pipelines compile and needs a fraction of a second of work to ramp
+                // up: with the compile inside the warm-up, an H100 showed each mode's first
+                // configuration up to 3.8 times slower static than playing the same frame).
                 let c = clocks.as_ref();
+                frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
                 let warm = std::time::Instant::now();
                 loop {
                     frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
@@ -506,15 +521,31 @@ mod imp {
                 // The same views and times drawn from nothing: a fresh drawer each.
                 let mut error = 0.0f64;
                 for (t, img) in &kept {
-                    let mut fresh = fresh_drawer(resolution)?;
+                    let mut fresh = fresh_drawer(resolution, light)?;
                     let (_, exact) = frame(&gpu, &mut fresh, None, &s, *t, &shading, true)?;
                     let e = exact.map_or(f64::NAN, |x| rel_rmse(img, &x));
                     error = if e.is_nan() { e } else { error.max(e) };
                 }
+                // A dithered lit crossfade against the lerp of both frames, at the same
+                // times (only where some kept time falls between two frames).
+                let crossfade_error = if mode_name == "lit"
+                    && light == LitCrossfade::Dither
+                    && kept.iter().any(|(t, _)| t.fract() != 0.0)
+                {
+                    let mut worst = 0.0f64;
+                    for (t, img) in &kept {
+                        let mut lerp = fresh_drawer(resolution, LitCrossfade::Lerp)?;
+                        let (_, want) = frame(&gpu, &mut lerp, None, &s, *t, &shading, true)?;
+                        let e = want.map_or(f64::NAN, |x| rel_rmse(img, &x));
+                        worst = if e.is_nan() { e } else { worst.max(e) };
+                    }
+                    Some(worst)
+                } else {
+                    None
+                };
                 if let Some(dir) = &a.png {
-                    let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
-                    if let Some(img) = img {
-                        let display = a.look.display(false);
+                    let display = a.look.display(false);
+                    let write = |name: String, img: &[f32]| -> Result<(), CliError> {
                         let rgba: Vec<u8> = img
                             .chunks_exact(3)
                             .flat_map(|p| {
@@ -525,14 +556,22 @@ mod imp {
                         std::fs::create_dir_all(dir).map_err(|e| {
                             CliError::Other(format!("cannot create {}: {e}", dir.display()))
                         })?;
-                        let name = format!("{mode_name}-{n}-{}.png", a.march_resolution);
-                        crate::render::write_png(&dir.join(name), a.width, a.height, &rgba)?;
+                        crate::render::write_png(&dir.join(name), a.width, a.height, &rgba)
+                    };
+                    let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
+                    if let Some(img) = img {
+                        write(format!("{mode_name}-{n}-{}.png", a.march_resolution), &img)?;
+                    }
+                    // The playing path's checked frames, named by their time.
+                    for (t, img) in &kept {
+                        let name = format!("{mode_name}-{n}-{}-t{t:.2}.png", a.march_resolution);
+                        write(name, img)?;
                     }
                 }
                 // The reduced-resolution march against the full one, static frame (same view).
                 let resolution_error = if resolution != MarchResolution::Full {
                     let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
-                    let mut full = fresh_drawer(MarchResolution::Full)?;
+                    let mut full = fresh_drawer(MarchResolution::Full, light)?;
                     let (_, exact) = frame(&gpu, &mut full, None, &s, 0.0, &shading, true)?;
                     match (img, exact) {
                         (Some(i), Some(x)) => Some(rel_rmse(&i, &x)),
@@ -562,6 +601,7 @@ mod imp {
                     "static_wall_ms": st.wall_ms, "playing_wall_ms": pl.wall_ms,
                     "playing_light_builds": builds,
                     "resolution_error": resolution_error,
+                    "crossfade_error": crossfade_error,
                 }));
             }
         }
@@ -580,6 +620,7 @@ mod imp {
                 "fps": a.fps,
                 "display_fps": a.display_fps,
                 "blend": a.blend,
+                "lit_crossfade": a.lit_crossfade,
                 "march_resolution": a.march_resolution,
                 "frames": a.frames,
                 "runs": a.runs,

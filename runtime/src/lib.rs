@@ -68,8 +68,9 @@ mod wgsl;
 
 pub use camera::{Camera, LengthUnit, Mode, Settings, GPU_MODES};
 pub use draw::{
-    DrawTarget, Instance, Interleave, MarchResolution, PreparedDraw, Shading, SunShadows, View,
-    ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS, DRAW_DEPTH_FORMATS, DRAW_WGSL,
+    DrawTarget, Instance, Interleave, LitCrossfade, MarchResolution, PreparedDraw, Shading,
+    SunShadows, View, ViewRays, VolumeDrawer, COMPOSITE_WGSL, DRAW_COLOR_FORMATS,
+    DRAW_DEPTH_FORMATS, DRAW_WGSL,
 };
 pub use error::RuntimeError;
 /// The math types of [`View`] and [`Instance`], and the wgpu this crate records with: use these

@@ -105,7 +105,8 @@ pub(crate) struct LitPlace {
     pub near: [f32; 4],
     /// The full-resolution root offsets of frames 0 and 1.
     pub roots: [u32; 4],
-    /// k of the sky's source; the crossfade weight of frame 1.
+    /// k of the sky's source; the crossfade weight of frame 1; 1 where the drawer dithers a
+    /// crossfade's samples between its frames (`LitCrossfade::Dither`, `draw.wgsl`'s `draw_lit`).
     pub misc: [f32; 4],
 }
 

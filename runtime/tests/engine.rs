@@ -15,8 +15,8 @@ use common::*;
 use vdbcook_asset::{Asset, PayloadFormat};
 use vdbcook_runtime::glam::{Affine3A, EulerRot, Mat4, Quat, Vec2, Vec3, Vec4};
 use vdbcook_runtime::{
-    DrawTarget, Filter, GpuVolume, Instance, MarchResolution, RuntimeError, Shading, View,
-    ViewRays, VolumeDrawer, DRAW_DEPTH_FORMATS,
+    DrawTarget, Filter, GpuVolume, Instance, LitCrossfade, MarchResolution, RuntimeError, Shading,
+    View, ViewRays, VolumeDrawer, DRAW_DEPTH_FORMATS,
 };
 use vdbcook_trace::{
     Camera, Integrator, LengthUnit, Lighting, Medium, MsModel, Output, RenderSettings, Scratch,
@@ -1647,6 +1647,103 @@ fn a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer() {
             "{ms_model:?}: same pair"
         );
     }
+}
+
+/// `LitCrossfade::Dither` takes each sample (density and light) from one frame: frame 1 where
+/// the per-sample sequence falls below the crossfade weight. Checked against `Lerp` (both
+/// frames per sample, lerped), whose whole frames the other tests pin to the CPU:
+/// - a whole frame is the same image bit for bit;
+/// - near either end of a crossfade (weight 0.001 or 0.999) the dither takes that end's frame on
+///   nearly every sample: the mean difference from the lerp over the image is under 2% of the
+///   mean change the crossfade makes and its RMSE under a quarter of the change's (the mapping
+///   reversed would be about all of it);
+/// - halfway it differs from the lerp (it did dither), its mean within 5% of the change (the
+///   sequence spreads frame 1 over half of each ray's samples; what is left is second order in
+///   the frames' difference) and its RMSE under a quarter of the change's (the grain).
+///
+/// This test's frames differ far more than a simulation's neighbouring frames do (the blobs
+/// jump: the crossfade changes the light by about its whole amount), so its grain is the worst
+/// case; on stormscape `vdbcook bench` measures it at about 1e-4.
+#[test]
+fn a_dithered_crossfade_takes_each_sample_from_one_frame() {
+    let Some(gpu) = Gpu::new("a_dithered_crossfade_takes_each_sample_from_one_frame") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    let lit = lit_shading();
+    let draw = |how: LitCrossfade, time: f32| {
+        let (_vol, mut drawer) = setup(&gpu, &asset);
+        drawer.set_lit_crossfade(how);
+        let inst = [Instance {
+            time,
+            ..Default::default()
+        }];
+        gpu.draw(&mut drawer, &f, &view, &inst, &lit, BG, None)
+    };
+    // (mean signed difference, RMSE) of `b` against `a` over every pixel and channel.
+    let diff = |a: &[f32], b: &[f32]| {
+        let (mut sum, mut sq, mut n) = (0.0f64, 0.0f64, 0.0f64);
+        for (a, b) in a.chunks(4).zip(b.chunks(4)) {
+            for k in 0..3 {
+                let d = b[k] as f64 - a[k] as f64;
+                sum += d;
+                sq += d * d;
+                n += 1.0;
+            }
+        }
+        (sum / n, (sq / n).sqrt())
+    };
+    assert_eq!(
+        draw(LitCrossfade::Dither, 1.0),
+        draw(LitCrossfade::Lerp, 1.0),
+        "a whole frame"
+    );
+    // The change the crossfade makes: the lerp near its two ends.
+    let (lo, hi) = (1.001f32, 1.999f32);
+    let ends = [lo, hi].map(|t| draw(LitCrossfade::Lerp, t));
+    let mean_change = {
+        let (mut s, mut n) = (0.0f64, 0.0f64);
+        for (a, b) in ends[0].chunks(4).zip(ends[1].chunks(4)) {
+            for k in 0..3 {
+                s += (b[k] as f64 - a[k] as f64).abs();
+                n += 1.0;
+            }
+        }
+        s / n
+    };
+    let (_, rms_change) = diff(&ends[0], &ends[1]);
+    assert!(mean_change > 0.01, "the frames differ: {mean_change}");
+    for (t, lerp) in [lo, hi].into_iter().zip(&ends) {
+        let (mean, rms) = diff(lerp, &draw(LitCrossfade::Dither, t));
+        eprintln!(
+            "time {t}: dither - lerp mean {mean:.2e}, RMSE {rms:.2e} (change: mean {mean_change:.3}, RMS {rms_change:.3})"
+        );
+        assert!(
+            mean.abs() <= 0.02 * mean_change,
+            "time {t}: {mean} against {mean_change}"
+        );
+        assert!(
+            rms <= 0.25 * rms_change,
+            "time {t}: RMSE {rms} against {rms_change}"
+        );
+    }
+    let (mean, rms) = diff(
+        &draw(LitCrossfade::Lerp, 1.5),
+        &draw(LitCrossfade::Dither, 1.5),
+    );
+    eprintln!(
+        "time 1.5: dither - lerp mean {mean:.2e}, RMSE {rms:.2e} (change: mean {mean_change:.3}, RMS {rms_change:.3})"
+    );
+    assert!(
+        mean.abs() <= 0.05 * mean_change,
+        "halfway: mean {mean} against {mean_change}"
+    );
+    assert!(
+        rms > 0.0 && rms <= 0.25 * rms_change,
+        "halfway: RMSE {rms} against {rms_change}"
+    );
 }
 
 /// The reduced-resolution marches (`MarchResolution::Half`, `Quarter`), flat and lit: with

@@ -6,7 +6,7 @@ use bevy::ecs::lifecycle::HookContext;
 use bevy::ecs::world::DeferredWorld;
 use bevy::prelude::*;
 use vdbcook_runtime::{
-    Emission, Filter, Integrator, Interleave, Lighting, MarchResolution, Medium,
+    Emission, Filter, Integrator, Interleave, Lighting, LitCrossfade, MarchResolution, Medium,
 };
 
 use crate::asset::VdbAsset;
@@ -127,6 +127,11 @@ pub struct VolumeCamera {
     pub march_resolution: MarchResolution,
     /// When overlapping instances are mixed along each ray.
     pub interleave: Interleave,
+    /// How a lit volume between two frames is marched: both frames lerped per sample (`Lerp`,
+    /// the default: no grain, about 1.5× the lit march of a whole frame) or each sample from one
+    /// frame (`Dither`: about a whole frame's cost, a per-pixel grain where neighbouring frames
+    /// differ, for cameras with TAA).
+    pub lit_crossfade: LitCrossfade,
 }
 
 /// [`VolumeCamera`]'s hook: the camera draws single-sampled.
