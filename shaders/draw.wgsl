@@ -11,12 +11,12 @@
 //   transmittance (L, T) to an `Rgba16Float` storage texture. With lighting (`DRAW_LIT`, a
 //   pipeline variant) each lit instance is marched as the tracer's lit mode (`lit_primary` in
 //   `trace.wgsl`, the CPU's `lit` module): samples on the same grid, density by nearest or
-//   trilinear lookup (crossfades lerp it), sun and sky from the instance's light volumes (group 2, built by
+//   trilinear lookup, sun and sky from the instance's light volumes (group 2, built by
 //   `light_build.wgsl` in the instance's cell space), the near field toward the sun walked
-//   (`LIT_NEAR`). A crossfade takes each sample (density and light) from one of its frames
-//   (`LitCrossfade::Dither`, the default) or lerps both frames' density, depths and light (`Lerp`:
-//   each frame's walk gated on the lerped density and the one transmittance; the CPU draws
-//   single frames only).
+//   (`LIT_NEAR`). A crossfade lerps both frames' density, depths and light (`LitCrossfade::Lerp`,
+//   the default: each frame's walk gated on the lerped density and the one transmittance; the
+//   CPU draws single frames only) or takes each sample, density and light, from one of its
+//   frames (`Dither`).
 // - `draw_half_main` (compute, one invocation per 2×2 or 4×4 block of pixels; `MarchResolution`
 //   `Half`/`Quarter`): marches the block's centre ray where no scene depth of the block cuts the
 //   instances' boxes, into a per-block (L, T) texture that `draw_main` then upsamples
@@ -145,7 +145,8 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
     // `LitCrossfade::Dither`: sample k is frame 1's (density and light) where
     // fract(u + k·φ⁻¹) < a (a golden-ratio sequence from a second per-pixel offset: a fraction a
     // of the ray's samples, spread evenly along it), frame 0's elsewhere; the place then names
-    // that frame alone.
+    // that frame alone. (At half and quarter resolution `pixel` is the block's: its grain is
+    // upsampled with it.)
     let dither = a > 0.0 && place.misc.z != 0.0;
     let u = lv_jitter(draw_view.shading.seed ^ 0x9e3779b9u, pixel);
     for (var n = 0u; n < DRAW_MAX_SAMPLES; n++) {
@@ -153,7 +154,9 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
         if (!(s < sb)) {
             break;
         }
-        let one = dither && fract(u + k * 0.618034) < a;
+        // k·φ⁻¹ mod 1 in integers (2654435769 = 2³²/φ), exact however far the ray starts.
+        let kf = f32((u32(k) * 2654435769u) >> 8u) / 16777216.0;
+        let one = dither && fract(u + kf) < a;
         k += 1.0;
         let p = ray.o + (s / ray.per_t) * ray.d;
         var rho = 0.0;

@@ -4,7 +4,8 @@
 # (VDBCOOK_REQUIRE_GPU=1: a missing adapter fails instead of skipping), then `vdbcook bench` at
 # 1920×1080 with 1, 8 and 64 instances on the WDAS cloud, the 200-frame stormscape sequence
 # (both from ../shared/samples) and the fire fixture, written as a table with the adapter's name
-# and the date to docs/gpu/<adapter>.md (commit it). SIZE=WxH and COUNTS=1,8,64 override;
+# and the date to docs/gpu/<adapter>.md (commit it); on stormscape also the lit crossfade dithered
+# (`--lit-crossfade dither`) beside the default lerp. SIZE=WxH and COUNTS=1,8,64 override;
 # SKIP_TESTS=1 skips the tests (a dry run of the tables); RESOLUTIONS=full,half,quarter the marches
 # benched. For a machine without cargo (binaries built
 # elsewhere): VDBCOOK=path/to/vdbcook skips the build, RUNTIME_TESTS="bin ..." runs those prebuilt
@@ -68,6 +69,14 @@ for name in "${assets[@]}"; do
             --instances "$COUNTS" --frames 60 --runs 10 --json >"$OUT/$name-$res.json" || exit 1
         runs+=("$name-$res")
     done
+    # A lit crossfade that reads one frame per sample (`--lit-crossfade dither`), against the
+    # default lerp above: its cost and its grain (`crossfade_error`), full resolution.
+    if [ "$name" = stormscape ]; then
+        "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" --modes lit \
+            --lit-crossfade dither --instances "$COUNTS" --frames 60 --runs 10 --json \
+            >"$OUT/$name-dither-full.json" || exit 1
+        runs+=("$name-dither-full")
+    fi
 done
 python3 - "$OUT" "${runs[@]}" <<'PY'
 import json, re, sys, datetime
@@ -77,16 +86,16 @@ adapter = next(iter(docs.values()))["adapter"]
 slug = re.sub(r"[^a-z0-9]+", "-", adapter.lower()).strip("-")[:60]
 clocks = sorted({d["clock"] for d in docs.values()})
 lines = [f"# `vdbcook bench` on {adapter}", "",
-         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march.", "",
-         "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error | vs full march |",
-         "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp.", "",
+         "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error | vs full march | crossfade error |",
+         "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
 def num(v, f=".2f"):
     return "–" if v is None else format(v, f)
 for n, d in docs.items():
     for r in d["results"]:
         ratio = r["playing_ms"] / r["static_ms"] if r["static_ms"] else None
         asset = n.rsplit("-", 1)[0]
-        lines.append(f"| {asset} | {d['width']}×{d['height']} | {d.get('march_resolution', 'full')} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} | {num(r.get('resolution_error'), '.3f')} |")
+        lines.append(f"| {asset} | {d['width']}×{d['height']} | {d.get('march_resolution', 'full')} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} | {num(r.get('resolution_error'), '.3f')} | {num(r.get('crossfade_error'), '.1e')} |")
 path = f"docs/gpu/{slug}.md"
 open(path, "w").write("\n".join(lines) + "\n")
 print(f"wrote {path}")

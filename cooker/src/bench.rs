@@ -67,8 +67,9 @@ pub struct Args {
     #[arg(long, default_value = "full", value_parser = ["full", "half", "quarter"])]
     march_resolution: String,
     /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png and the playing frames
-    /// checked for `playing_error` as DIR/MODE-N-RESOLUTION-tTIME.png (tone-mapped sRGB over
-    /// the bench's backdrop, as `render` maps radiance): to see what was timed.
+    /// checked for `playing_error` as DIR/MODE-N-RESOLUTION-BLEND-LITCROSSFADE-tTIME.png
+    /// (tone-mapped sRGB over the bench's backdrop, as `render` maps radiance): to see what was
+    /// timed.
     #[arg(long, value_name = "DIR")]
     png: Option<PathBuf>,
     /// Displayed frames timed while playing (after one warm-up frame).
@@ -562,9 +563,12 @@ mod imp {
                     if let Some(img) = img {
                         write(format!("{mode_name}-{n}-{}.png", a.march_resolution), &img)?;
                     }
-                    // The playing path's checked frames, named by their time.
+                    // The playing path's checked frames, named by how they were drawn and when.
                     for (t, img) in &kept {
-                        let name = format!("{mode_name}-{n}-{}-t{t:.2}.png", a.march_resolution);
+                        let name = format!(
+                            "{mode_name}-{n}-{}-{}-{}-t{t:.3}.png",
+                            a.march_resolution, a.blend, a.lit_crossfade
+                        );
                         write(name, img)?;
                     }
                 }

@@ -691,19 +691,20 @@ impl MarchResolution {
 
 /// How the lit march crosses an instance between two frames of its flip-book (a fractional
 /// time). Reading both frames' density and light (the sun's depth, the near field walked toward
-/// the sun, the diffusion's sun and sky) at every sample costs about 1.5× a whole frame lit
+/// the sun, the diffusion's sun and sky) at every sample costs about 1.6–2× a whole frame lit
 /// (`docs/engine.md` §6). The flat march is unaffected: it always lerps the frames' optical
 /// depths exactly.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LitCrossfade {
     /// Each sample reads both frames, lerps their densities, their depths toward the sun and
-    /// their diffusion light: no grain, about 1.5× the cost of a whole frame lit. The default.
+    /// their diffusion light: no grain, about 1.6–2× the cost of a whole frame lit. The default.
     #[default]
     Lerp,
     /// Each sample is one frame's, density and light: frame 1 on a fraction `weight` of a ray's
     /// samples, spread evenly along it (a golden-ratio sequence from a per-pixel offset seeded by
-    /// `Integrator::seed`), frame 0 on the rest, so a crossfade reads what a whole frame reads
-    /// (about 1.1× a whole frame on lavapipe). Its mean over a ray is the frames' lerp to within
+    /// `Integrator::seed`), frame 0 on the rest, so the lit march reads what a whole frame's
+    /// reads (1.0–1.1× a whole frame; the emission pass and the interleaved march's piece
+    /// depths still read both frames). Its mean over a ray is the frames' lerp to within
     /// the sequence's spread and a second-order term in the frames' difference; the residue is a
     /// per-pixel grain where neighbouring frames differ: invisible on a slowly changing cloud,
     /// visible on a detailed fast simulation (`vdbcook bench` states it as `crossfade_error`).

@@ -128,7 +128,7 @@ pub struct VolumeCamera {
     /// When overlapping instances are mixed along each ray.
     pub interleave: Interleave,
     /// How a lit volume between two frames is marched: both frames lerped per sample (`Lerp`,
-    /// the default: no grain, about 1.5× the lit march of a whole frame) or each sample from one
+    /// the default: no grain, about 1.6–2× the lit march of a whole frame) or each sample from one
     /// frame (`Dither`: about a whole frame's cost, a per-pixel grain where neighbouring frames
     /// differ, for cameras with TAA).
     pub lit_crossfade: LitCrossfade,
