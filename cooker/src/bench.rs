@@ -75,7 +75,8 @@ pub struct Args {
     /// Displayed frames timed while playing (after one warm-up frame).
     #[arg(long, default_value_t = 60)]
     frames: u32,
-    /// Static draws timed (after a first draw that compiles, then warm-up draws filling at least 0.3 s).
+    /// Static draws timed (after a first draw that compiles, then warm-up draws filling at least
+    /// 0.3 s).
     #[arg(long, default_value_t = 10)]
     runs: u32,
     /// Grid to cook when the input is VDB.
