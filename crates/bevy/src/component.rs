@@ -130,7 +130,8 @@ pub struct VolumeCamera {
     /// How a lit volume between two frames is marched: both frames lerped per sample (`Lerp`,
     /// the default: no grain, about 1.6–2× the lit march of a whole frame) or each sample from one
     /// frame (`Dither`: about a whole frame's cost, a per-pixel grain where neighbouring frames
-    /// differ, for cameras with TAA).
+    /// differ, for cameras with TAA: on a camera with TAA jitter the plugin varies the
+    /// integrator's seed with the jitter, so the grain changes every frame and TAA averages it).
     pub lit_crossfade: LitCrossfade,
 }
 

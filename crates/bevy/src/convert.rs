@@ -73,10 +73,51 @@ pub fn lighting(base: &Lighting, light: &SceneLight, exposure: f32) -> Lighting 
     l
 }
 
+/// The integrator's seed for a camera's frame: `seed` itself, or on a camera with TAA jitter
+/// `seed` mixed with this frame's jitter offset, so the lit march's per-pixel jitter and a
+/// dithered crossfade's grain (`LitCrossfade::Dither`) change with the jitter and TAA averages
+/// them; a camera without TAA keeps one pattern (no flicker).
+pub fn frame_seed(seed: u32, jitter: Option<&TemporalJitter>) -> u32 {
+    match jitter {
+        Some(j) => seed ^ j.offset.x.to_bits().rotate_left(16) ^ j.offset.y.to_bits(),
+        None => seed,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use bevy::prelude::{Quat, Transform, Vec3};
+
+    /// No jitter keeps the seed; each of TAA's jitter offsets (Bevy's 8-point Halton cycle,
+    /// within ±0.5 pixel) gives its own seed, so the patterns differ from frame to frame.
+    #[test]
+    fn taa_jitter_varies_the_seed_and_no_jitter_keeps_it() {
+        assert_eq!(frame_seed(7, None), 7);
+        let halton = [
+            (0.5, 0.333_333),
+            (0.25, 0.666_667),
+            (0.75, 0.111_111),
+            (0.125, 0.444_444),
+            (0.625, 0.777_778),
+            (0.375, 0.222_222),
+            (0.875, 0.555_556),
+            (0.0625, 0.888_889),
+        ];
+        let seeds: Vec<u32> = halton
+            .iter()
+            .map(|&(x, y)| {
+                let j = TemporalJitter {
+                    offset: Vec2::new(x - 0.5, y - 0.5),
+                };
+                frame_seed(7, Some(&j))
+            })
+            .collect();
+        let mut unique = seeds.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), seeds.len(), "{seeds:?}");
+    }
 
     /// Bevy's perspective (infinite reversed Z) seen through the runtime's rays: the world point
     /// that Bevy's own (jittered) clip transform puts at a pixel's centre lies on the runtime's

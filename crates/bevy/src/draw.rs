@@ -215,10 +215,12 @@ pub fn prepare_volume_draws(
                         e.intensity *= camera.exposure;
                         e
                     });
+                    let mut integrator = base.integrator.clone();
+                    integrator.seed = convert::frame_seed(integrator.seed, jitter);
                     let shading = Shading {
                         medium,
                         lighting: lighting.clone(),
-                        integrator: base.integrator.clone(),
+                        integrator,
                     };
                     groups.push(Group {
                         key,
