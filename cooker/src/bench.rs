@@ -366,6 +366,16 @@ mod imp {
         }
     }
 
+    /// The worse of a running error and a new one: a NaN (an image not read back) is kept
+    /// until a later finite error replaces it.
+    fn worse(acc: f64, e: f64) -> f64 {
+        if e.is_nan() {
+            e
+        } else {
+            acc.max(e)
+        }
+    }
+
     /// Relative RMSE of `a` against `b` (0 when both are black).
     fn rel_rmse(a: &[f32], b: &[f32]) -> f64 {
         let (mut num, mut den) = (0.0f64, 0.0f64);
@@ -525,21 +535,20 @@ mod imp {
                 for (t, img) in &kept {
                     let mut fresh = fresh_drawer(resolution, light)?;
                     let (_, exact) = frame(&gpu, &mut fresh, None, &s, *t, &shading, true)?;
-                    let e = exact.map_or(f64::NAN, |x| rel_rmse(img, &x));
-                    error = if e.is_nan() { e } else { error.max(e) };
+                    error = worse(error, exact.map_or(f64::NAN, |x| rel_rmse(img, &x)));
                 }
                 // A dithered lit crossfade against the lerp of both frames, at the same
-                // times (only where some kept time falls between two frames).
+                // times (only where some kept time falls between two frames). One drawer draws
+                // them all: a drawer carried over draws what a fresh one does (`playing_error`).
                 let crossfade_error = if mode_name == "lit"
                     && light == LitCrossfade::Dither
                     && kept.iter().any(|(t, _)| t.fract() != 0.0)
                 {
+                    let mut lerp = fresh_drawer(resolution, LitCrossfade::Lerp)?;
                     let mut worst = 0.0f64;
                     for (t, img) in &kept {
-                        let mut lerp = fresh_drawer(resolution, LitCrossfade::Lerp)?;
                         let (_, want) = frame(&gpu, &mut lerp, None, &s, *t, &shading, true)?;
-                        let e = want.map_or(f64::NAN, |x| rel_rmse(img, &x));
-                        worst = if e.is_nan() { e } else { worst.max(e) };
+                        worst = worse(worst, want.map_or(f64::NAN, |x| rel_rmse(img, &x)));
                     }
                     Some(worst)
                 } else {

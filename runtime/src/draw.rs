@@ -1264,7 +1264,7 @@ impl VolumeDrawer {
                     a,
                 );
                 if self.lit_crossfade == LitCrossfade::Dither {
-                    d.place.misc[2] = 1.0;
+                    d.place.set_dither();
                 }
             }
             out.push((distance, d, corners));

@@ -164,6 +164,11 @@ impl LitPlace {
         self.lv_dims0[3] = b0;
         self.lv_dims1[3] = b1;
     }
+
+    /// A crossfade's samples each from one frame (`LitCrossfade::Dither`; the drawer's alone).
+    pub fn set_dither(&mut self) {
+        self.misc[2] = 1.0;
+    }
 }
 
 /// The WGSL the tracer and the drawer start from: the volume, the light-volume helpers and the

@@ -1682,18 +1682,20 @@ fn a_dithered_crossfade_takes_each_sample_from_one_frame() {
         }];
         gpu.draw(&mut drawer, &f, &view, &inst, &lit, BG, None)
     };
-    // (mean signed difference, RMSE) of `b` against `a` over every pixel and channel.
+    // (mean signed difference, mean absolute difference, RMSE) of `b` against `a` over every
+    // pixel and channel.
     let diff = |a: &[f32], b: &[f32]| {
-        let (mut sum, mut sq, mut n) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut sum, mut abs, mut sq, mut n) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         for (a, b) in a.chunks(4).zip(b.chunks(4)) {
             for k in 0..3 {
                 let d = b[k] as f64 - a[k] as f64;
                 sum += d;
+                abs += d.abs();
                 sq += d * d;
                 n += 1.0;
             }
         }
-        (sum / n, (sq / n).sqrt())
+        (sum / n, abs / n, (sq / n).sqrt())
     };
     assert_eq!(
         draw(LitCrossfade::Dither, 1.0),
@@ -1703,20 +1705,10 @@ fn a_dithered_crossfade_takes_each_sample_from_one_frame() {
     // The change the crossfade makes: the lerp near its two ends.
     let (lo, hi) = (1.001f32, 1.999f32);
     let ends = [lo, hi].map(|t| draw(LitCrossfade::Lerp, t));
-    let mean_change = {
-        let (mut s, mut n) = (0.0f64, 0.0f64);
-        for (a, b) in ends[0].chunks(4).zip(ends[1].chunks(4)) {
-            for k in 0..3 {
-                s += (b[k] as f64 - a[k] as f64).abs();
-                n += 1.0;
-            }
-        }
-        s / n
-    };
-    let (_, rms_change) = diff(&ends[0], &ends[1]);
+    let (_, mean_change, rms_change) = diff(&ends[0], &ends[1]);
     assert!(mean_change > 0.01, "the frames differ: {mean_change}");
     for (t, lerp) in [lo, hi].into_iter().zip(&ends) {
-        let (mean, rms) = diff(lerp, &draw(LitCrossfade::Dither, t));
+        let (mean, _, rms) = diff(lerp, &draw(LitCrossfade::Dither, t));
         eprintln!(
             "time {t}: dither - lerp mean {mean:.2e}, RMSE {rms:.2e} (change: mean {mean_change:.3}, RMS {rms_change:.3})"
         );
@@ -1729,7 +1721,7 @@ fn a_dithered_crossfade_takes_each_sample_from_one_frame() {
             "time {t}: RMSE {rms} against {rms_change}"
         );
     }
-    let (mean, rms) = diff(
+    let (mean, _, rms) = diff(
         &draw(LitCrossfade::Lerp, 1.5),
         &draw(LitCrossfade::Dither, 1.5),
     );
