@@ -210,13 +210,18 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // comes in from outside) and the sky's light (no source, a uniform radiance of 1 comes in
 // through the boundary: φ = 4π outside the medium). Run after the passes above for the same
 // volume (they leave its cell densities in `lv_density` and τ_sun in `lv_tau`):
-// `ms_source_main` fills level 0, `ms_restrict_main` each coarser level from the finer one,
+// `ms_source_main` fills level 0 and `ms_restrict_main` each coarser level from the finer one;
+// `ms_gather_main` gathers level 0's once-scattered light through them and `ms_second_main`
+// makes the light it scatters again the source (and its beams), `ms_restrict_main` each
+// coarser level's again, the same two passes gather the light scattered twice and make its
+// light scattered again the solve's source (the solve carries the light scattered three times
+// and more), `ms_restrict_main` once more,
 // then from the coarsest level down `ms_prolong_main` starts a level from its parent (the
 // boundary's φ at the coarsest) and `ms_sweeps(level)` Jacobi sweeps of `ms_limit_main` +
 // `ms_update_main` run there (an even number: the result ends in φ A); one more
 // `ms_limit_main` on level 0's result, then `ms_store_main` writes per cell of level 0 into
 // `lv_ms_out` (six words: ρ·φ_sun/4π, ρ·φ_sky/4π, ρ as f32, then J/φ per axis of both fields
-// in 16 bits, `ms_store_main`),
+// in 16 bits, `ms_store_main`; the sun's φ and J are the solve's plus the gathered ones),
 // which the tracer and the drawer read density-weighted (`lv_diffuse_*` in `light.wgsl`).
 // One `MsParams` record per level and sweep parity (bound with a dynamic offset).
 
@@ -226,25 +231,43 @@ struct MsParams {
     // x: this level's first element in `lv_ms`; y: its finer child's; z: its coarser
     // parent's; w: 1 when it has a parent.
     off: vec4<u32>,
-    // xyz: the child's cells per axis (w unused).
+    // xyz: the child's cells per axis; w: how many levels the solve has.
     child: vec4<u32>,
-    // xyz: the parent's cells per axis (w unused).
+    // xyz: the parent's cells per axis; w: the orders gathered before the solve (0–2).
     parent: vec4<u32>,
     // xyz: the cell edge per axis (length unit); w: the albedo.
     h: vec4<f32>,
     // x: the phase's mean cosine; y: the sun's chord per cell slab; z: the extinction.
     medium: vec4<f32>,
+    // The gather's 26 direction weights (`DiffusionInputs::gather`, in `ms_gather_dirs`'
+    // order), four per element; the last two unused.
+    gather: array<vec4<f32>, 7>,
+    // xyz: the phase (g0, g1, the first lobe's weight); w unused.
+    phase: vec4<f32>,
+    // xyz: each direction's share of the sphere by how many axes it moves along
+    // (`vdbcook_scene::MS_GATHER_WEIGHTS`); w unused.
+    share: vec4<f32>,
+    // Every level of the solve (`child.w` of them): xyz its cells per axis, w its first
+    // element in `lv_ms` (the gather reads them all).
+    levels: array<vec4<u32>, 8>,
 }
 
 // Per level at `off.x` over n cells: st [0, n), sr [n, 2n), q [2n, 3n), φ A [3n, 5n) and
 // φ B [5n, 7n) (two per cell: sun, sky), the half-cell resistances [7n, 13n) (six per cell:
-// x y z of the sun's field, then of the sky's).
+// x y z of the sun's field, then of the sky's). Before the solve the gather keeps each level's
+// beam sources in the resistances' place, [7n, 12n) (five per cell:
+// `vdbcook_trace::diffusion`'s `Level::beam`), and level 0's second order in φ A's and φ B's,
+// [3n, 7n) (four per cell); the gathered light of both orders (φ, then J per axis) waits in
+// the first four of the cell's six output words in `lv_ms_out` (`ms_gathered`), which
+// `ms_store_main` reads before it writes them.
 @group(2) @binding(0) var<storage, read_write> lv_ms: array<f32>;
 @group(2) @binding(1) var<uniform> mp: MsParams;
 @group(2) @binding(2) var<storage, read_write> lv_ms_out: array<u32>;
 
 // `vdbcook_trace::diffusion::MS_VACUUM`.
 const MS_VACUUM: f32 = 2.0;
+// `vdbcook_scene::MS_GATHER_MIN_TRANS`.
+const MS_GATHER_MIN_TRANS: f32 = 1e-3;
 // 4π: the sky field's φ outside the medium (`vdbcook_trace::diffusion`'s boundary).
 const MS_FOUR_PI: f32 = 12.566370614359172;
 
@@ -277,6 +300,188 @@ fn ms_source_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_ms[o + 2u * n + i] = albedo * exp(-entry) * (1.0 - exp(-x)) / chord;
 }
 
+// (1 − e^{−x})/x, without f32's cancellation at small x (a thin cell: x below 10⁻³, the
+// series to x², relative error under 10⁻¹⁰).
+fn ms_one_minus_exp_over(x: f32) -> f32 {
+    if (x < 1e-3) {
+        return 1.0 - x * (0.5 - x / 6.0);
+    }
+    return (1.0 - exp(-x)) / x;
+}
+
+// Level 0, after `ms_restrict_main` on every coarser level: the sun's light scattered once
+// (parity 0: the sources `ms_source_main` wrote, weights `mp.gather`, into [13n, 17n)) or
+// twice (parity 1: the sources and beams `ms_second_main` wrote, weights `mp.share`, the
+// beams by the phase; into [3n, 7n) and added to [13n, 17n)), gathered along the 26
+// directions toward each cell's neighbours, the steps widening through the coarser levels
+// (`vdbcook_trace::diffusion`'s `gather`, which states the method: the same cells in the
+// same order, in integers): φ, and J (that light flows back along each direction).
+@compute @workgroup_size(4, 4, 4)
+fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    let twice = mp.dims.w == 1u;
+    let st0 = lv_ms[o + i];
+    var out = vec4<f32>(0.0);
+    let top = mp.child.w - 1u;
+    if (st0 > 0.0) {
+        for (var d = 0u; d < 26u; d++) {
+            let e = ms_gather_dir(d);
+            var w = mp.gather[d / 4u][d % 4u];
+            if (twice) {
+                w = mp.share[u32(dot(abs(e), vec3<i32>(1))) - 1u];
+            }
+            let v = vec3<f32>(e) * mp.h.xyz;
+            let len = length(v);
+            let u = v / len;
+            var r = ms_emit(0u, i, n, u, twice) * 0.5 * len
+                * ms_one_minus_exp_over(0.5 * st0 * len);
+            var t = exp(-0.5 * st0 * len);
+            // Whole cells walked past the own half cell.
+            var m = 0u;
+            loop {
+                let lk = min(firstLeadingBit(m + 2u) - 1u, top);
+                let step = 1u << lk;
+                let level = mp.levels[lk];
+                // Twice the step's middle, in level-0 cells.
+                let p2 = 2 * vec3<i32>(gid) + vec3<i32>(1) + e * i32(2u * m + 1u + step);
+                if (any(p2 < vec3<i32>(0))) {
+                    break;
+                }
+                let x = vec3<u32>(p2) / (2u * step);
+                if (any(x >= level.xyz)) {
+                    break;
+                }
+                let j = lv_index(x, level.xyz);
+                let st = lv_ms[level.w + j];
+                if (st > 0.0) {
+                    let along = f32(step) * len;
+                    let q = ms_emit(lk, j, ms_cells(level.xyz), u, twice);
+                    r += t * q * along * ms_one_minus_exp_over(st * along);
+                    t *= exp(-st * along);
+                    if (t < MS_GATHER_MIN_TRANS) {
+                        break;
+                    }
+                }
+                m += step;
+            }
+            out += w * r * vec4<f32>(1.0, -u);
+        }
+    }
+    let at = ms_gathered(i);
+    if (twice) {
+        let to = o + 3u * n + 4u * i;
+        for (var c = 0u; c < 4u; c++) {
+            lv_ms[to + c] = out[c];
+            lv_ms_out[at + c] = bitcast<u32>(bitcast<f32>(lv_ms_out[at + c]) + out[c]);
+        }
+    } else {
+        for (var c = 0u; c < 4u; c++) {
+            lv_ms_out[at + c] = bitcast<u32>(out[c]);
+        }
+    }
+}
+
+// Where level-0 cell `i`'s gathered light (φ, J per axis; f32 bits) waits until
+// `ms_store_main`: the first four of its output words.
+fn ms_gathered(i: u32) -> u32 {
+    return 6u * (lp.base + i);
+}
+
+// Gather direction `d` of 26 (`vdbcook_scene::ms_gather_dirs`: the cell offsets in
+// {−1, 0, 1}³, x fastest, 0 left out). Written without a `continue` over 27 offsets: lavapipe
+// computed a wrong sum from such a loop in `ms_beam_norm` (GPU 4% darker than the CPU on a
+// third of the pixels at one sun and phase; measured 2026-11-27), which this form does not.
+fn ms_gather_dir(d: u32) -> vec3<i32> {
+    let k = d + u32(d >= 13u);
+    return vec3<i32>(i32(k % 3u), i32((k / 3u) % 3u), i32(k / 9u)) - vec3<i32>(1);
+}
+
+// The source of cell `j` of level `lk` (`n` cells) toward −u (times 4π per unit solid angle):
+// `q`, and for the second order `q − A + B·4π·p(ĵ·(−u))` with its beam (`Level::beam`).
+// One return at the end: with early returns lavapipe gave a drawer's frame no second order at
+// all (its gathered light a quarter short of the CPU's; measured 2026-11-27).
+fn ms_emit(lk: u32, j: u32, n: u32, u: vec3<f32>, twice: bool) -> f32 {
+    let o = mp.levels[lk].w;
+    let q = lv_ms[o + 2u * n + j];
+    var e = q;
+    if (twice) {
+        let b = o + 7u * n + 5u * j;
+        let a = lv_ms[b + 3u];
+        let s = vec3<f32>(lv_ms[b], lv_ms[b + 1u], lv_ms[b + 2u]);
+        let sn = length(s);
+        if (a > 0.0 && sn > 0.0) {
+            let mu = clamp(-dot(s, u) / sn, -1.0, 1.0);
+            e = q - a + lv_ms[b + 4u] * MS_FOUR_PI * lv_phase(mp.phase.xyz, 1.0, mu);
+        }
+    }
+    return e;
+}
+
+// `vdbcook_scene::ms_beam_norm`: the 26 directions' quadrature of a beam along `dir` scattered
+// by the phase.
+fn ms_beam_norm(dir: vec3<f32>) -> f32 {
+    var sum = 0.0;
+    for (var d = 0u; d < 26u; d++) {
+        let e = ms_gather_dir(d);
+        let v = vec3<f32>(e) * mp.h.xyz;
+        let mu = clamp(dot(dir, v) / length(v), -1.0, 1.0);
+        sum += mp.share[u32(dot(abs(e), vec3<i32>(1))) - 1u] * MS_FOUR_PI
+            * lv_phase(mp.phase.xyz, 1.0, mu);
+    }
+    return sum;
+}
+
+// Level 0, after `ms_gather_main` of the same parity: the light it gathered scattered again
+// becomes the source, `α·σ·φ`; after the first order (parity 0) also its beam (`Level::beam`:
+// `A = min(|J|/φ, 1)·q` along `ĵ = J/|J|`, `B = A/N(ĵ)`), for the second order to gather; after
+// the second (parity 1) the source is the solve's, which carries the light scattered three
+// times and more.
+@compute @workgroup_size(4, 4, 4)
+fn ms_second_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    // The order just gathered: the first alone is in the gathered sum, the second in φ A/B.
+    var g = vec4<f32>(0.0);
+    if (mp.dims.w == 1u) {
+        let src = o + 3u * n + 4u * i;
+        g = vec4<f32>(lv_ms[src], lv_ms[src + 1u], lv_ms[src + 2u], lv_ms[src + 3u]);
+    } else {
+        let at = ms_gathered(i);
+        g = bitcast<vec4<f32>>(vec4<u32>(
+            lv_ms_out[at], lv_ms_out[at + 1u], lv_ms_out[at + 2u], lv_ms_out[at + 3u]
+        ));
+    }
+    let phi = g.x;
+    let q = mp.h.w * lv_ms[o + i] * phi;
+    lv_ms[o + 2u * n + i] = q;
+    if (mp.dims.w == 0u) {
+        let j = g.yzw;
+        let jn = length(j);
+        var beam = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
+        if (q > 0.0 && jn > 0.0) {
+            let a = q * min(jn / phi, 1.0);
+            let dir = j / jn;
+            let s = dir * a;
+            beam = array<f32, 5>(s.x, s.y, s.z, a, a / ms_beam_norm(dir));
+        }
+        let b = o + 7u * n + 5u * i;
+        for (var c = 0u; c < 5u; c++) {
+            lv_ms[b + c] = beam[c];
+        }
+    }
+}
+
 // A coarse cell: the means of the (up to) 8 finer cells it covers (missing ones count 0).
 @compute @workgroup_size(4, 4, 4)
 fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -301,6 +506,18 @@ fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_ms[o + i] = acc.x;
     lv_ms[o + n + i] = acc.y;
     lv_ms[o + 2u * n + i] = acc.z;
+    // The gather's beams (before the solve; the resistances' place, which the solve's
+    // `ms_limit_main` writes before it reads).
+    for (var c = 0u; c < 5u; c++) {
+        var b = 0.0;
+        for (var k = 0u; k < 8u; k++) {
+            let cc = 2u * gid + vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u);
+            if (all(cc < cd)) {
+                b += lv_ms[co + 7u * cn + 5u * lv_index(cc, cd) + c] / 8.0;
+            }
+        }
+        lv_ms[o + 7u * n + 5u * i + c] = b;
+    }
 }
 
 // φ A of a level from its parent's φ A (each cell its parent's value), the boundary's at the
@@ -426,7 +643,7 @@ fn ms_update_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // Level 0's result for the tracer and the drawer, per cell (φ A, after `ms_limit_main` on
 // it), six words (`vdbcook_scene::ms_stored_flux`; `lv_diffuse_add` in `light.wgsl` reads them):
 // ρ·φ_sun/4π, ρ·φ_sky/4π and ρ as f32 bits; then each field's net flux J per axis (the mean of
-// the cell's two faces' fluxes (φᵢ − φⱼ)/(h·R) along it) as J/φ over ±MS_FLUX_RATIO in 16 bits
+// the cell's two faces' fluxes (φᵢ − φⱼ)/R along it) as J/φ over ±MS_FLUX_RATIO in 16 bits
 // (`pack2x16snorm`): (J_sun.x, J_sun.y), (J_sun.z, J_sky.x), (J_sky.y, J_sky.z).
 @compute @workgroup_size(4, 4, 4)
 fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -440,14 +657,29 @@ fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var r = array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
     let c = vec3<i32>(gid);
     let filled = lv_ms[mp.off.x + i] > 0.0;
-    let phi = vec2<f32>(ms_phi(c, 0u), ms_phi(c, 1u));
+    // The solve's light plus the gathered light of the first two orders (the sun's field).
+    let at = ms_gathered(i);
+    var once = vec4<f32>(0.0);
+    if (mp.parent.w > 0u) {
+        once = bitcast<vec4<f32>>(vec4<u32>(
+            lv_ms_out[at], lv_ms_out[at + 1u], lv_ms_out[at + 2u], lv_ms_out[at + 3u]
+        ));
+    }
+    let solved = vec2<f32>(ms_phi(c, 0u), ms_phi(c, 1u));
+    var phi = solved;
     if (filled) {
+        phi.x += once.x;
         for (var f = 0u; f < 2u; f++) {
             if (phi[f] > 0.0) {
                 for (var a = 0u; a < 3u; a++) {
                     let lo = ms_face(i, c, a, 0u, f);
                     let up = ms_face(i, c, a, 1u, f);
-                    let j = 0.5 * ((lo.y - phi[f]) * lo.x + (phi[f] - up.y) * up.x);
+                    // A face's flux is its fluence difference over its resistance R
+                    // (`ms_face` gives 1/(h·R)).
+                    var j = 0.5 * mp.h[a] * ((lo.y - solved[f]) * lo.x + (solved[f] - up.y) * up.x);
+                    if (f == 0u) {
+                        j += once[1u + a];
+                    }
                     r[f][a] = j / phi[f] / MS_FLUX_RATIO;
                 }
             }

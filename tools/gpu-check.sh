@@ -5,7 +5,8 @@
 # 1920×1080 with 1, 8 and 64 instances on the WDAS cloud, the 200-frame stormscape sequence
 # (both from ../shared/samples) and the fire fixture, written as a table with the adapter's name
 # and the date to docs/gpu/<adapter>.md (commit it); on stormscape also the lit crossfade dithered
-# (`--lit-crossfade dither`) beside the default lerp. SIZE=WxH and COUNTS=1,8,64 override;
+# (`--lit-crossfade dither`) beside the default lerp, and the light volumes built without the
+# gathered orders (`--ms-gather 0`) beside the default two. SIZE=WxH and COUNTS=1,8,64 override;
 # SKIP_TESTS=1 skips the tests (a dry run of the tables); RESOLUTIONS=full,half,quarter the marches
 # benched. For a machine without cargo (binaries built
 # elsewhere): VDBCOOK=path/to/vdbcook skips the build, RUNTIME_TESTS="bin ..." runs those prebuilt
@@ -76,6 +77,13 @@ for name in "${assets[@]}"; do
             --lit-crossfade dither --instances "$COUNTS" --frames 60 --runs 10 --json \
             >"$OUT/$name-dither-full.json" || exit 1
         runs+=("$name-dither-full")
+        # The light-volume build without the gathered orders (`--ms-gather 0`, the solve
+        # alone), against the default two above: what the gather costs on this GPU (the
+        # playing mean holds 0.4 builds per displayed frame).
+        "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" --modes lit \
+            --ms-gather 0 --instances "$COUNTS" --frames 60 --runs 10 --json \
+            >"$OUT/$name-gather0-full.json" || exit 1
+        runs+=("$name-gather0-full")
     fi
 done
 python3 - "$OUT" "${runs[@]}" <<'PY'
@@ -86,7 +94,7 @@ adapter = next(iter(docs.values()))["adapter"]
 slug = re.sub(r"[^a-z0-9]+", "-", adapter.lower()).strip("-")[:60]
 clocks = sorted({d["clock"] for d in docs.values()})
 lines = [f"# `vdbcook bench` on {adapter}", "",
-         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp.", "",
+         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp. The `-gather0` rows build light volumes without the gathered orders (`--ms-gather 0`): their playing mean against the default's is what the gather costs (0.4 builds per displayed frame).", "",
          "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error | vs full march | crossfade error |",
          "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
 def num(v, f=".2f"):

@@ -945,6 +945,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "ms_sky": short(s.lighting.ms_sky), "ms_model": s.lighting.ms_model.name(), "filter": s.integrator.filter.name(),
             "march": a.look.march, "march_used": march_used, "sun_near": short(s.lighting.sun_near),
             "near_scatter": short(s.lighting.near_scatter),
+            "ms_gather": s.lighting.ms_gather,
             "primary_lod": s.integrator.primary_lod,
         });
         if let (Some(settings), Some(lit), Some(look)) = (

@@ -1250,6 +1250,7 @@ impl VolumeDrawer {
                                 extinction,
                                 albedo,
                                 (medium.phase_g, medium.phase_w),
+                                l.ms_gather,
                             )
                         }));
                         volumes.len() - 1

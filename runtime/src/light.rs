@@ -7,8 +7,8 @@
 //! through one bind group (`lit.wgsl`'s `lit_tau`, `lit_ms`: the renderer's group 3, the
 //! drawer's group 2); the draws holding it keep it from being overwritten.
 //!
-//! A volume built for `MsModel::Diffusion` also runs the diffusion solve (`ms_*` passes, six
-//! more pipelines over a scratch of every level, one `MsParams` record per level and sweep
+//! A volume built for `MsModel::Diffusion` also gathers the sun's once-scattered light and runs
+//! the diffusion solve on the rest (`ms_*` passes, eight more pipelines over a scratch of every level, one `MsParams` record per level and sweep
 //! parity bound with a dynamic offset) and stores six 32-bit words per cell in a second buffer
 //! (cell `i` of the volume at base `b` at words `6(b + i)..`): `ρ·φ_sun/4π`, `ρ·φ_sky/4π` and
 //! `ρ` as f32, then each field's flux per axis as `J/φ` in 16 bits (`ms_store_main`,
@@ -20,6 +20,7 @@ use std::sync::{Arc, Mutex};
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
     light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LevelChain, LightGrid,
+    MAX_MS_GATHER, MS_GATHER_WEIGHTS,
 };
 use wgpu::util::DeviceExt;
 
@@ -119,14 +120,24 @@ pub(crate) struct MsParams {
     /// x: the level's first element in the scratch; y: its finer child's; z: its parent's;
     /// w: 1 when it has a parent.
     pub off: [u32; 4],
-    /// xyz: the child's cells per axis.
+    /// xyz: the child's cells per axis; w: how many levels the solve has.
     pub child: [u32; 4],
-    /// xyz: the parent's cells per axis.
+    /// xyz: the parent's cells per axis; w: the orders gathered before the solve.
     pub parent: [u32; 4],
     /// xyz: the cell edge per axis (length unit); w: the albedo.
     pub h: [f32; 4],
     /// x: the phase's mean cosine; y: the sun's chord per cell slab; z: the extinction.
     pub medium: [f32; 4],
+    /// The gather's 26 direction weights (`DiffusionInputs::gather`), four per element, the
+    /// last two 0.
+    pub gather: [[f32; 4]; 7],
+    /// xyz: the phase (g0, g1, the first lobe's weight).
+    pub phase: [f32; 4],
+    /// xyz: `vdbcook_scene::MS_GATHER_WEIGHTS` (a direction's share of the sphere).
+    pub share: [f32; 4],
+    /// Every level (`child.w` of them): xyz its cells per axis, w its first element in the
+    /// scratch (the gather reads them all).
+    pub levels: [[u32; 4]; 8],
 }
 
 /// The bytes between two diffusion records in the uniform buffer: the record's size rounded up to
@@ -146,6 +157,7 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
         offs.push(total as u32);
         total += MS_FLOATS_PER_CELL * cells(d);
     }
+    let orders = m.orders.min(MAX_MS_GATHER);
     let records = (0..levels.len())
         .map(|k| {
             let d = levels[k];
@@ -160,10 +172,25 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
                     offs.get(k + 1).copied().unwrap_or(0),
                     parent.is_some() as u32,
                 ],
-                child: [child[0], child[1], child[2], 0],
-                parent: parent.map_or([0; 4], |p| [p[0], p[1], p[2], 0]),
+                child: [child[0], child[1], child[2], levels.len() as u32],
+                parent: parent.map_or([0, 0, 0, orders], |p| [p[0], p[1], p[2], orders]),
                 h: [m.h[0] * scale, m.h[1] * scale, m.h[2] * scale, m.albedo].map(|v| v as f32),
                 medium: [m.mean_cos, m.chord, m.extinction, 0.0].map(|v| v as f32),
+                phase: [m.phase.0[0], m.phase.0[1], m.phase.1, 0.0],
+                share: [
+                    MS_GATHER_WEIGHTS[0] as f32,
+                    MS_GATHER_WEIGHTS[1] as f32,
+                    MS_GATHER_WEIGHTS[2] as f32,
+                    0.0,
+                ],
+                levels: std::array::from_fn(|k| {
+                    levels
+                        .get(k)
+                        .map_or([0; 4], |d| [d[0], d[1], d[2], offs[k]])
+                }),
+                gather: std::array::from_fn(|k| {
+                    std::array::from_fn(|c| m.gather.get(4 * k + c).map_or(0.0, |&w| w as f32))
+                }),
             })
         })
         .collect();
@@ -171,7 +198,8 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
 }
 
 /// f32s of the diffusion solve's scratch per cell of a level (`light_build.wgsl`: st, sr, q,
-/// two fields in φ A and φ B, six resistances).
+/// two fields in φ A and φ B, six resistances; before the solve the gather's beams and second
+/// order use the last two's place, and the gathered light waits in the output's words).
 const MS_FLOATS_PER_CELL: usize = 13;
 /// Bytes of the diffusion model's output per cell (six words: three f32, six 16-bit fluxes).
 const MS_OUT_BYTES: usize = 24;
@@ -214,8 +242,8 @@ struct State {
 pub(crate) struct LightPass {
     /// `light_build.wgsl`'s passes in their order: density, sun, the three axes, sky.
     passes: [wgpu::ComputePipeline; 6],
-    /// The diffusion solve's: source, restrict, prolong, limit, update, store.
-    ms_passes: [wgpu::ComputePipeline; 6],
+    /// The diffusion solve's: source, gather, second, restrict, prolong, limit, update, store.
+    ms_passes: [wgpu::ComputePipeline; 8],
     build_layout: wgpu::BindGroupLayout,
     ms_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
@@ -288,6 +316,8 @@ impl LightPass {
         let constants = volume.pipeline_constants();
         let ms_passes = [
             "ms_source_main",
+            "ms_gather_main",
+            "ms_second_main",
             "ms_restrict_main",
             "ms_prolong_main",
             "ms_limit_main",
@@ -605,7 +635,8 @@ impl LightPass {
                     let d = records[k][0].dims;
                     [d[0], d[1], d[2]].map(|v| v.div_ceil(WORKGROUP))
                 };
-                let [source, restrict, prolong, limit, update, store] = &self.ms_passes;
+                let [source, gather, second, restrict, prolong, limit, update, store] =
+                    &self.ms_passes;
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("vdbcook light diffusion"),
                     timestamp_writes: None,
@@ -620,6 +651,15 @@ impl LightPass {
                 run(source, 0, 0);
                 for k in 1..records.len() {
                     run(restrict, k, 0);
+                }
+                // The light scattered once, then twice (the record's parity), as many orders
+                // as the inputs ask.
+                for order in 0..records[0][0].parent[3] as usize {
+                    run(gather, 0, order);
+                    run(second, 0, order);
+                    for k in 1..records.len() {
+                        run(restrict, k, 0);
+                    }
                 }
                 for k in (0..records.len()).rev() {
                     run(prolong, k, 0);
@@ -723,6 +763,10 @@ mod tests {
                 parent,
                 h,
                 medium,
+                gather,
+                phase,
+                share,
+                levels,
             }),
         );
     }

@@ -1610,6 +1610,35 @@ fn lit_diffusion_matches_the_cpu() {
         // than the 5‰ above (where a mixed-up read shows on fewer pixels).
         assert!(bad * 1000 <= cpu.value.len(), "{bad} pixels; {first}");
     }
+    // Fewer gathered orders (`Lighting::ms_gather`: the solve from the first order's light, or
+    // alone): the GPU skips the same passes the CPU skips, and each changes the image.
+    let mut prev: Option<Vec<f32>> = None;
+    for ms_gather in [0, 1] {
+        let base = small(Mode::Lit, 1);
+        let s = RenderSettings {
+            lighting: Lighting {
+                light_dir: [-0.5, 0.2, 0.6],
+                light_color: [6.0; 3],
+                sky: [0.0; 3],
+                ms_gather,
+                ..base.lighting
+            },
+            ..base
+        };
+        let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
+        let g = gpu.render(&r, &target, &cam, &s).unwrap();
+        let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
+        eprintln!("ms_gather {ms_gather}: {bad} differ (max {max_diff:.2e}) {first}");
+        assert!(bad * 1000 <= cpu.value.len(), "{bad} pixels; {first}");
+        if let Some(p) = &prev {
+            let changed = values_changed(p, &g.rgba);
+            assert!(
+                changed > 100,
+                "ms_gather {ms_gather}: {changed} values changed"
+            );
+        }
+        prev = Some(g.rgba);
+    }
 }
 
 /// Both lit marches against the CPU on random bricks and tiles (rotated) and the blob: the voxel

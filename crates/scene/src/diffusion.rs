@@ -2,7 +2,7 @@
 //! (`MsModel::Diffusion`), defined once for the CPU solver (`vdbcook_trace::diffusion`, whose
 //! module docs state the method) and the GPU passes (`shaders/light_build.wgsl`'s `ms_*`).
 
-use crate::{light_dirs, Affine, LightGrid, RenderSettings};
+use crate::{light_dirs, phase, Affine, LightGrid, RenderSettings};
 
 /// Jacobi sweeps on each coarse level (all but the light volume's own cells).
 pub const MS_ITERATIONS: usize = 16;
@@ -26,6 +26,66 @@ pub const MS_COARSEST: u32 = 6;
 /// Resistance of the half-face toward empty space or the grid's edge (Marshak's vacuum
 /// boundary: the net flux out is half the fluence).
 pub const MS_VACUUM: f64 = 2.0;
+
+/// Weights of the 26 directions toward a cell's neighbours (the 6 faces', the 12 edges', the 8
+/// corners') in the gather of the sun's once-scattered light (`vdbcook_trace::diffusion`): the
+/// share of the sphere's directions nearer to each than to any other (measured by sampling 4
+/// million uniform directions: 0.04576, 0.03700, 0.03518; the corners' takes what the others
+/// leave, so the 26 sum to 1 and a uniform medium gathers exactly `q/σ`).
+pub const MS_GATHER_WEIGHTS: [f64; 3] =
+    [0.04576, 0.037, (1.0 - 6.0 * 0.04576 - 12.0 * 0.037) / 8.0];
+/// A gather ray stops once its transmittance falls below this (the light it leaves out is at
+/// most this share of what it would add).
+pub const MS_GATHER_MIN_TRANS: f64 = 1e-3;
+
+/// The 26 gather directions: each cell offset `e ∈ {−1, 0, 1}³ \ 0` (x fastest) with its weight
+/// from [`MS_GATHER_WEIGHTS`] by how many axes it moves along.
+pub fn ms_gather_dirs() -> impl Iterator<Item = ([i32; 3], f64)> {
+    (0..27).filter(|&k| k != 13).map(|k| {
+        let e = [k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1];
+        let n = e.iter().filter(|&&v| v != 0).count();
+        (e, MS_GATHER_WEIGHTS[n - 1])
+    })
+}
+
+/// [`DiffusionInputs::gather`] for cells of edges `h` (length per cell along each axis), the sun
+/// along `sun` (toward it, in the same lengths; any length) and the dual-lobe phase `(g, w)`.
+pub fn ms_gather_weights(h: [f64; 3], sun: [f64; 3], phase: ([f32; 2], f32)) -> [f64; 26] {
+    let n = sun.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let sun = if n > 0.0 {
+        sun.map(|v| v / n)
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    let terms = ms_beam_terms(h, sun, phase);
+    let total: f64 = terms.iter().sum();
+    terms.map(|v| v / total)
+}
+
+/// Per gather direction `u_d` (of [`ms_gather_dirs`], in the metric of cells of edges `h`),
+/// `share_d·4π·p(ĵ·u_d)`: a beam along unit `dir` scattered by the dual-lobe phase `(g, w)`
+/// toward `u_d` (or, as the 26 are symmetric, light from `u_d` scattered along `dir`).
+fn ms_beam_terms(h: [f64; 3], dir: [f64; 3], (g, w): ([f32; 2], f32)) -> [f64; 26] {
+    let mut out = [0.0; 26];
+    for (o, (e, share)) in out.iter_mut().zip(ms_gather_dirs()) {
+        let v = [0, 1, 2].map(|a| e[a] as f64 * h[a]);
+        let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let mu = (0..3)
+            .map(|a| dir[a] * v[a] / len)
+            .sum::<f64>()
+            .clamp(-1.0, 1.0);
+        *o = share * 4.0 * std::f64::consts::PI * phase(g, w, mu);
+    }
+    out
+}
+
+/// `N(ĵ)`: the gather's quadrature of a beam along unit `dir` scattered by the dual-lobe phase
+/// (the sum of [`ms_beam_terms`]: 1 for an isotropic phase; for g = 0.6 it ranges 0.95–1.08
+/// with the beam's direction). Dividing a beam's scattered source by it keeps the gathered
+/// energy exact.
+pub fn ms_beam_norm(h: [f64; 3], dir: [f64; 3], phase: ([f32; 2], f32)) -> f64 {
+    ms_beam_terms(h, dir, phase).iter().sum()
+}
 
 /// Largest `|J|/φ` per axis a light volume stores (`ms_stored_flux`): the flux is stored as
 /// that ratio, a 16-bit signed normalized integer over `±MS_FLUX_RATIO` (WGSL's
@@ -72,6 +132,16 @@ pub struct DiffusionInputs {
     pub h: [f64; 3],
     /// Length of the sun's ray across one cell slab along its major axis.
     pub chord: f64,
+    /// The gather's weight of each of the 26 directions of [`ms_gather_dirs`] for the sun's
+    /// once-scattered light: its share of the sphere ([`MS_GATHER_WEIGHTS`]) times `4π·p(μ)`,
+    /// `μ` the cosine between the sun's direction and the direction toward that neighbour
+    /// (light scattered there flows back along it, so `μ` is its scattering angle's cosine),
+    /// scaled so the 26 sum to 1: the quadrature of the phase keeps the scattered energy.
+    pub gather: [f64; 26],
+    /// The dual-lobe phase `(g, w)` (the gather's light scattered a second time).
+    pub phase: ([f32; 2], f32),
+    /// Orders of the sun's scattered light gathered before the solve (`Lighting::ms_gather`).
+    pub orders: u32,
 }
 
 impl DiffusionInputs {
@@ -86,29 +156,34 @@ impl DiffusionInputs {
             extinction,
             albedo,
             (s.medium.phase_g, s.medium.phase_w),
+            s.lighting.ms_gather,
         )
     }
 
     /// The inputs over `grid` for the sun `(l, len)` and axis lengths of
-    /// [`crate::light_dirs`], `extinction` per unit density per length, `albedo` and the
-    /// dual-lobe phase `(g, w)`.
+    /// [`crate::light_dirs`], `extinction` per unit density per length, `albedo`, the
+    /// dual-lobe phase `(g, w)` and the gathered `orders` (`Lighting::ms_gather`).
     pub fn new(
         grid: &LightGrid,
         ((l, sun_len), axis_len): (([f64; 3], f64), [f64; 3]),
         extinction: f64,
         albedo: f64,
         (g, w): ([f32; 2], f32),
+        orders: u32,
     ) -> DiffusionInputs {
         let m = (0..3)
             .max_by(|&a, &b| l[a].abs().total_cmp(&l[b].abs()))
             .unwrap_or(0);
-        let w = w as f64;
+        let h = axis_len.map(|a| a * grid.cell);
         DiffusionInputs {
             extinction,
             albedo,
-            mean_cos: w * g[0] as f64 + (1.0 - w) * g[1] as f64,
-            h: axis_len.map(|a| a * grid.cell),
+            mean_cos: w as f64 * g[0] as f64 + (1.0 - w as f64) * g[1] as f64,
+            h,
             chord: grid.cell / l[m].abs() * sun_len,
+            gather: ms_gather_weights(h, [0, 1, 2].map(|a| l[a] * axis_len[a]), (g, w)),
+            phase: (g, w),
+            orders,
         }
     }
 }
@@ -143,6 +218,77 @@ mod tests {
         for phi in [0.0f32, -1.0, f32::NAN] {
             assert_eq!(ms_stored_flux(1.0, phi), 0.0, "φ {phi}");
         }
+    }
+
+    /// The 26 shares are the sphere's: they sum to 1, and sampling uniform directions and
+    /// counting the nearest of the 26 gives each its share (a million here, within 0.001).
+    #[test]
+    fn gather_shares_are_the_sphere_nearest_each_direction() {
+        let total: f64 = ms_gather_dirs().map(|(_, w)| w).sum();
+        assert!((total - 1.0).abs() < 1e-12, "{total}");
+        let dirs: Vec<([f64; 3], f64)> = ms_gather_dirs()
+            .map(|(e, w)| {
+                let n = ((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) as f64).sqrt();
+                (e.map(|v| v as f64 / n), w)
+            })
+            .collect();
+        let mut hits = [0usize; 26];
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut unit = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = 1_000_000;
+        for _ in 0..n {
+            // A uniform direction: z uniform in [−1, 1], azimuth uniform.
+            let z = 2.0 * unit() - 1.0;
+            let a = 2.0 * std::f64::consts::PI * unit();
+            let r = (1.0 - z * z).sqrt();
+            let d = [r * a.cos(), r * a.sin(), z];
+            let best = (0..26)
+                .max_by(|&i, &j| {
+                    let dot = |k: usize| (0..3).map(|c| d[c] * dirs[k].0[c]).sum::<f64>();
+                    dot(i).total_cmp(&dot(j))
+                })
+                .unwrap();
+            hits[best] += 1;
+        }
+        for (k, h) in hits.iter().enumerate() {
+            let got = *h as f64 / n as f64;
+            assert!(
+                (got - dirs[k].1).abs() < 1e-3,
+                "direction {k}: {got} vs {}",
+                dirs[k].1
+            );
+        }
+    }
+
+    /// The sun's weights are the shares with an isotropic phase; with a forward phase the
+    /// direction toward the sun weighs most and one away from it least, and they always sum to 1.
+    #[test]
+    fn gather_weights_follow_the_phase_and_keep_the_energy() {
+        let h = [1.0, 1.0, 2.0];
+        let iso = ms_gather_weights(h, [0.0, 0.0, 1.0], ([0.0; 2], 1.0));
+        let share: Vec<f64> = ms_gather_dirs().map(|(_, w)| w).collect();
+        for (a, b) in iso.iter().zip(&share) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        let fwd = ms_gather_weights(h, [0.0, 0.0, 3.0], ([0.6; 2], 1.0));
+        let total: f64 = fwd.iter().sum();
+        assert!((total - 1.0).abs() < 1e-12, "{total}");
+        // +z is direction 21 (x fastest, the 27 offsets' 13th skipped), −z direction 4.
+        let dirs: Vec<[i32; 3]> = ms_gather_dirs().map(|(e, _)| e).collect();
+        assert_eq!((dirs[21], dirs[4]), ([0, 0, 1], [0, 0, -1]));
+        let max = fwd.iter().cloned().fold(0.0, f64::max);
+        let min = (0..26).min_by(|&a, &b| fwd[a].total_cmp(&fwd[b])).unwrap();
+        assert_eq!(fwd[21], max);
+        assert_eq!(dirs[min][2], -1, "least weight toward {:?}", dirs[min]);
+        assert!(fwd[4] < 0.2 * max, "{} vs {max}", fwd[4]);
+        assert!((ms_beam_norm(h, [0.0, 0.0, 1.0], ([0.0; 2], 1.0)) - 1.0).abs() < 1e-12);
+        let n = ms_beam_norm([1.0; 3], [0.0, 0.6, 0.8], ([0.6; 2], 1.0));
+        assert!((0.9..1.1).contains(&n), "{n}");
     }
 
     #[test]

@@ -25,8 +25,9 @@ mod space;
 pub use camera::{from_up_frame, source_up, stored_bbox, stored_boxes, up_frame, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use diffusion::{
-    ms_levels, ms_stored_flux, ms_sweeps, DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS,
-    MS_FLUX_RATIO, MS_ITERATIONS, MS_VACUUM,
+    ms_beam_norm, ms_gather_dirs, ms_gather_weights, ms_levels, ms_stored_flux, ms_sweeps,
+    DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_FLUX_RATIO, MS_GATHER_MIN_TRANS,
+    MS_GATHER_WEIGHTS, MS_ITERATIONS, MS_VACUUM,
 };
 pub use display::{
     linear_to_srgb8, srgb_decode, srgb_encode, srgb_to_linear, Display, Tonemap,
@@ -40,14 +41,14 @@ pub use fire::{
 };
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
-    light_dirs, lit_near_depth, near_scatter_source, octave_source, sky_diffusion, sky_source,
-    LevelChain, LightGrid, LIT_NEAR_DEPTH, LIT_NEAR_DEPTH_FINE, LIT_NEAR_MAX_VOXELS,
+    light_dirs, lit_near_depth, near_scatter_source, octave_source, phase, sky_diffusion,
+    sky_source, LevelChain, LightGrid, LIT_NEAR_DEPTH, LIT_NEAR_DEPTH_FINE, LIT_NEAR_MAX_VOXELS,
     LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
     Filter, Integrator, LengthUnit, Lighting, March, Medium, Mode, MsModel, Output, RenderSettings,
     TraceError, DEFAULT_NEAR_SCATTER, DEFAULT_SUN_NEAR, LIT_VOXEL_DEPTH, MAX_BOUNCES,
-    MAX_LIGHT_RES, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MAX_SUN_NEAR,
-    MIN_STEP,
+    MAX_LIGHT_RES, MAX_MS_GATHER, MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP,
+    MAX_SUN_NEAR, MIN_STEP,
 };
 pub use space::{depth_range, length, mul3, normalize, Affine};

@@ -33,6 +33,18 @@ pub fn light_dirs(
     (sun, axis)
 }
 
+/// `HG(g, μ)`.
+fn hg(g: f64, mu: f64) -> f64 {
+    let d = 1.0 + g * g - 2.0 * g * mu;
+    (1.0 - g * g) / (4.0 * std::f64::consts::PI * d * d.sqrt())
+}
+
+/// The settings' dual-lobe Henyey–Greenstein phase (per steradian) at scattering cosine `mu`.
+pub fn phase(g: [f32; 2], w: f32, mu: f64) -> f64 {
+    let w = w as f64;
+    w * hg(g[0] as f64, mu) + (1.0 - w) * hg(g[1] as f64, mu)
+}
+
 /// Optical depth of one light-volume cell below which `Lit` reads the sun's depth from the
 /// light volume alone (`RenderSettings::sun_near`; `vdbcook_trace::Tracer::sun_depth`, the
 /// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell.

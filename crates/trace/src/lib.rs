@@ -146,8 +146,8 @@ pub use vdbcook_scene::{
     stored_boxes, up_frame, Affine, Basis, Camera, Display, Emission, Filter, FireConvention,
     Integrator, LengthUnit, LevelChain, LightGrid, Lighting, March, Medium, Mode, MsModel, Output,
     RenderSettings, Tonemap, TraceError, DEFAULT_NEAR_SCATTER, DEFAULT_SUN_NEAR, DRAPER_KELVIN,
-    HEAT_NAMES, KELVIN_MIN_MAX, KELVIN_PER_UNIT, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_OCTAVES,
-    MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
+    HEAT_NAMES, KELVIN_MIN_MAX, KELVIN_PER_UNIT, MAX_BOUNCES, MAX_LIGHT_RES, MAX_MS_GATHER,
+    MAX_MS_OCTAVES, MAX_MS_SKY, MAX_PHASE_G, MAX_SIDE, MAX_SPP, MIN_STEP,
 };
 pub use vdbcook_scene::{
     length, level_start, light_dirs, normalize, octave_source, pixel_angle, sky_diffusion,

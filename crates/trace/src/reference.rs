@@ -29,19 +29,8 @@ use crate::rng::Rng64;
 use crate::space::IndexRay;
 use crate::walk::{walk, SpanSampler};
 use crate::{Scratch, Tracer};
+pub use vdbcook_scene::phase;
 use vdbcook_scene::{normalize, Emission, BLACKBODY_TABLE_LEN};
-
-/// `HG(g, μ)`.
-fn hg(g: f64, mu: f64) -> f64 {
-    let d = 1.0 + g * g - 2.0 * g * mu;
-    (1.0 - g * g) / (4.0 * std::f64::consts::PI * d * d.sqrt())
-}
-
-/// The settings' dual-lobe phase at scattering cosine `mu`.
-pub fn phase(g: [f32; 2], w: f32, mu: f64) -> f64 {
-    let w = w as f64;
-    w * hg(g[0] as f64, mu) + (1.0 - w) * hg(g[1] as f64, mu)
-}
 
 /// A cosine drawn from `HG(g, ·)` (inverse CDF; uniform for `|g| < 1e-4`).
 fn sample_hg(g: f64, u: f64) -> f64 {

@@ -566,6 +566,13 @@ fn lit_settings_out_of_range_are_refused() {
             },
             ..ok.clone()
         },
+        RenderSettings {
+            lighting: Lighting {
+                ms_gather: 3,
+                ..ok.lighting.clone()
+            },
+            ..ok.clone()
+        },
     ] {
         let e = render(&asset, &camera(), &bad).unwrap_err();
         assert!(matches!(e, TraceError::Setting(_)), "{e}");

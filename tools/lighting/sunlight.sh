@@ -1,0 +1,35 @@
+#!/bin/bash
+# Sunlight-only accuracy check of `--mode lit` against the reference path tracer (issue 34
+# item 4): per scene a converged `--mode reference` image (rendered once, kept) and a lit image,
+# both 160×90, sun only (sky 0), `--transparent`, compared over the reference's pixels above
+# 1e-3 by tools/mitsuba/compare.py (mean ratio lit/reference, relative RMSE).
+#
+#   tools/lighting/sunlight.sh BIN SCENES OUT [SPP] [-- extra lit flags]
+#
+# SCENES: one scene per line, `name asset frame absorb scatter phase [units]` (phase as
+# `--phase` takes it; units voxel or world, default world); `#` starts a comment. OUT gets
+# refs/NAME_SPP.pfm, lit/NAME.pfm and one line per scene on stdout. Example (the scenes of
+# docs/rendering.md, "The light scattered once and twice, gathered"):
+#   tools/lighting/sunlight.sh target/release/vdbcook tools/lighting/sunlight_scenes.txt /tmp/sun 8192
+set -euo pipefail
+bin=$1; scenes=$2; out=$3; spp=${4:-8192}
+shift $(( $# < 4 ? $# : 4 ))
+[ "${1:-}" = "--" ] && shift
+here=$(cd "$(dirname "$0")/../.." && pwd)
+mkdir -p "$out/refs" "$out/lit"
+grep -v '^\s*#' "$scenes" | grep -v '^\s*$' | while read -r name asset frame absorb scatter phase units; do
+  units=${units:-world}
+  common=(--frame "$frame" --backend cpu --sky=0,0,0 --phase="$phase" --units "$units"
+          --absorb "$absorb" --scatter "$scatter" --width 160 --height 90 --transparent
+          --emission off)
+  ref="$out/refs/${name}_${spp}.pfm"
+  if [ ! -f "$ref" ]; then
+    "$bin" render "$asset" -o "$ref" --mode reference --spp "$spp" --seed 1 "${common[@]}" >/dev/null
+  fi
+  lit="$out/lit/$name.pfm"
+  start=$(date +%s.%N)
+  "$bin" render "$asset" -o "$lit" --mode lit "${common[@]}" "$@" >/dev/null
+  wall=$(echo "$(date +%s.%N) - $start" | bc)
+  /usr/bin/python3 "$here/tools/mitsuba/compare.py" "$lit" "$ref" --mask-from "$ref" |
+    /usr/bin/python3 -c "import json, sys; d = json.load(sys.stdin); print(f\"$name: mean ratio {d['mean_ratio']:.4f}, rel RMSE {d['rel_rmse']:.4f}, lit wall {float('$wall'):.2f} s\")"
+done
