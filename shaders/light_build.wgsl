@@ -300,19 +300,20 @@ fn ms_source_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_ms[o + 2u * n + i] = albedo * exp(-entry) * (1.0 - exp(-x)) / chord;
 }
 
-// (1 − e^{−x})/x, without f32's cancellation at small x (a thin cell: x below 10⁻³, the
-// series to x², relative error under 10⁻¹⁰).
+// (1 − e^{−x})/x, without f32's cancellation at small x: below 0.05 the series to x³
+// (truncation under 6·10⁻⁸ relative; `1 − e^{−x}` in f32 would lose up to 10⁻⁴ there), above it
+// directly (the CPU's `exp_m1` agrees to f32 rounding).
 fn ms_one_minus_exp_over(x: f32) -> f32 {
-    if (x < 1e-3) {
-        return 1.0 - x * (0.5 - x / 6.0);
+    if (x < 0.05) {
+        return 1.0 - x * (0.5 - x * (1.0 / 6.0 - x / 24.0));
     }
     return (1.0 - exp(-x)) / x;
 }
 
 // Level 0, after `ms_restrict_main` on every coarser level: the sun's light scattered once
-// (parity 0: the sources `ms_source_main` wrote, weights `mp.gather`, into [13n, 17n)) or
-// twice (parity 1: the sources and beams `ms_second_main` wrote, weights `mp.share`, the
-// beams by the phase; into [3n, 7n) and added to [13n, 17n)), gathered along the 26
+// (parity 0: the sources `ms_source_main` wrote, weights `mp.gather`; into the gathered sum,
+// `ms_gathered`) or twice (parity 1: the sources and beams `ms_second_main` wrote, weights
+// `mp.share`, the beams by the phase; into [3n, 7n) and added to the sum), gathered along the 26
 // directions toward each cell's neighbours, the steps widening through the coarser levels
 // (`vdbcook_trace::diffusion`'s `gather`, which states the method: the same cells in the
 // same order, in integers): φ, and J (that light flows back along each direction).
@@ -465,7 +466,8 @@ fn ms_second_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let phi = g.x;
     let q = mp.h.w * lv_ms[o + i] * phi;
     lv_ms[o + 2u * n + i] = q;
-    if (mp.dims.w == 0u) {
+    // The beams only where a second order will gather them.
+    if (mp.dims.w == 0u && mp.parent.w > 1u) {
         let j = g.yzw;
         let jn = length(j);
         var beam = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
@@ -659,16 +661,16 @@ fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let filled = lv_ms[mp.off.x + i] > 0.0;
     // The solve's light plus the gathered light of the first two orders (the sun's field).
     let at = ms_gathered(i);
-    var once = vec4<f32>(0.0);
+    var gathered = vec4<f32>(0.0);
     if (mp.parent.w > 0u) {
-        once = bitcast<vec4<f32>>(vec4<u32>(
+        gathered = bitcast<vec4<f32>>(vec4<u32>(
             lv_ms_out[at], lv_ms_out[at + 1u], lv_ms_out[at + 2u], lv_ms_out[at + 3u]
         ));
     }
     let solved = vec2<f32>(ms_phi(c, 0u), ms_phi(c, 1u));
     var phi = solved;
     if (filled) {
-        phi.x += once.x;
+        phi.x += gathered.x;
         for (var f = 0u; f < 2u; f++) {
             if (phi[f] > 0.0) {
                 for (var a = 0u; a < 3u; a++) {
@@ -678,7 +680,7 @@ fn ms_store_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     // (`ms_face` gives 1/(h·R)).
                     var j = 0.5 * mp.h[a] * ((lo.y - solved[f]) * lo.x + (solved[f] - up.y) * up.x);
                     if (f == 0u) {
-                        j += once[1u + a];
+                        j += gathered[1u + a];
                     }
                     r[f][a] = j / phi[f] / MS_FLUX_RATIO;
                 }

@@ -125,7 +125,8 @@ pub struct LookArgs {
     /// Lit mode, diffusion model: orders of the sun's scattered light the light volume gathers
     /// exactly before the diffusion solve takes the rest: 2 (once and twice scattered; the
     /// closest to the reference), 1, or 0 (the solve alone: a cheaper light-volume build,
-    /// 4–11% dark on wispy clouds). docs/rendering.md charts the error against the build time.
+    /// 2–11% dark in sunlight, WDAS 7%). docs/rendering.md charts the error against the build
+    /// time.
     #[arg(long, default_value_t = vdbcook_trace::MAX_MS_GATHER, value_name = "ORDERS")]
     pub ms_gather: u32,
     /// Lit mode on an asset cooked with --lod: read level k where a pixel spans 2^k voxels or

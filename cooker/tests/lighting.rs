@@ -52,10 +52,18 @@ fn error_of(
 /// `input` cooked, its default camera at 64×36, the lit mode's default settings there, and the
 /// reference path tracer's image at 1024 spp (its own noise is about 0.03 of the errors below).
 fn lit_scene(input: &str) -> (vdbcook_asset::Asset, Camera, RenderSettings, Image) {
+    lit_scene_with(input, |_| {})
+}
+
+/// [`lit_scene`] with the settings changed by `tweak` (for both images).
+fn lit_scene_with(
+    input: &str,
+    tweak: impl Fn(&mut RenderSettings),
+) -> (vdbcook_asset::Asset, Camera, RenderSettings, Image) {
     let (w, h) = (64u32, 36u32);
     let asset = cook(input);
     let cam = Camera::framing(&asset, 0, w as f64 / h as f64).unwrap();
-    let s = RenderSettings {
+    let mut s = RenderSettings {
         output: Output {
             width: w,
             height: h,
@@ -67,6 +75,7 @@ fn lit_scene(input: &str) -> (vdbcook_asset::Asset, Camera, RenderSettings, Imag
         },
         ..Default::default()
     };
+    tweak(&mut s);
     let truth = render(
         &asset,
         &cam,
@@ -182,40 +191,14 @@ fn lit_is_unbiased_in_sunlight() {
         .into_owned()];
     inputs.extend(sample("wdas-cloud/wdas_cloud_sixteenth.vdb"));
     for input in inputs {
-        let (w, h) = (64u32, 36u32);
-        let asset = cook(&input);
-        let cam = Camera::framing(&asset, 0, w as f64 / h as f64).unwrap();
-        let mut s = RenderSettings {
-            output: Output {
-                width: w,
-                height: h,
-                ..Default::default()
-            },
-            integrator: Integrator {
-                mode: Mode::Lit,
-                ..Default::default()
-            },
-            ..Default::default()
-        };
-        s.lighting.sky = [0.0; 3];
-        s.medium.phase_g = [0.0; 2];
-        s.medium.phase_w = 1.0;
-        // A thin medium: a mean free path of about 7 voxels at density 1.
-        s.medium.absorb = 0.007;
-        s.medium.scatter = 0.14;
-        let truth = render(
-            &asset,
-            &cam,
-            &RenderSettings {
-                integrator: Integrator {
-                    mode: Mode::Reference,
-                    spp: 1024,
-                    ..s.integrator.clone()
-                },
-                ..s.clone()
-            },
-        )
-        .unwrap();
+        let (asset, cam, s, truth) = lit_scene_with(&input, |s| {
+            s.lighting.sky = [0.0; 3];
+            s.medium.phase_g = [0.0; 2];
+            s.medium.phase_w = 1.0;
+            // A thin medium: a mean free path of about 7 voxels at density 1.
+            s.medium.absorb = 0.007;
+            s.medium.scatter = 0.14;
+        });
         let (e, r) = error_of(&asset, &cam, &s, &truth);
         let solve_alone = RenderSettings {
             lighting: Lighting {

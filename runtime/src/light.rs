@@ -7,8 +7,9 @@
 //! through one bind group (`lit.wgsl`'s `lit_tau`, `lit_ms`: the renderer's group 3, the
 //! drawer's group 2); the draws holding it keep it from being overwritten.
 //!
-//! A volume built for `MsModel::Diffusion` also gathers the sun's once-scattered light and runs
-//! the diffusion solve on the rest (`ms_*` passes, eight more pipelines over a scratch of every level, one `MsParams` record per level and sweep
+//! A volume built for `MsModel::Diffusion` also gathers the sun's light scattered once and
+//! twice (`Lighting::ms_gather` orders) and runs the diffusion solve on the rest (`ms_*` passes,
+//! eight more pipelines over a scratch of every level, one `MsParams` record per level and sweep
 //! parity bound with a dynamic offset) and stores six 32-bit words per cell in a second buffer
 //! (cell `i` of the volume at base `b` at words `6(b + i)..`): `ρ·φ_sun/4π`, `ρ·φ_sky/4π` and
 //! `ρ` as f32, then each field's flux per axis as `J/φ` in 16 bits (`ms_store_main`,
@@ -142,7 +143,7 @@ pub(crate) struct MsParams {
 
 /// The bytes between two diffusion records in the uniform buffer: the record's size rounded up to
 /// a multiple of the device's dynamic-offset alignment (a power of two; 64 on NVIDIA, so a
-/// 96-byte record takes 128, not 96 — every offset must be a multiple of the alignment).
+/// 368-byte record takes 384 — every offset must be a multiple of the alignment).
 fn ms_record_stride(min_uniform_offset_alignment: u32) -> usize {
     (MS_PARAMS_SIZE as usize).next_multiple_of(min_uniform_offset_alignment.max(1) as usize)
 }
@@ -158,6 +159,8 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
         total += MS_FLOATS_PER_CELL * cells(d);
     }
     let orders = m.orders.min(MAX_MS_GATHER);
+    // `MsParams::levels` holds eight: `MAX_LIGHT_RES` (256) makes seven.
+    assert!(levels.len() <= 8, "{} diffusion levels", levels.len());
     let records = (0..levels.len())
         .map(|k| {
             let d = levels[k];

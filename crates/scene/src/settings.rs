@@ -302,7 +302,7 @@ pub struct Lighting {
     /// `MsModel::Diffusion`: how many orders of the sun's scattered light the light-volume
     /// build gathers exactly before the diffusion solve takes the rest
     /// (`vdbcook_trace::diffusion`): 2 (default) the light scattered once and twice, 1 once,
-    /// 0 none (the solve carries all of it: cheaper to build, 4–11% dark on wispy clouds;
+    /// 0 none (the solve carries all of it: cheaper to build, 2–11% dark in sunlight, WDAS 7%;
     /// `docs/rendering.md` charts error against build time). At most [`MAX_MS_GATHER`].
     pub ms_gather: u32,
 }

@@ -223,10 +223,10 @@ pub fn solve(
         for i in 0..cells {
             let q = m.albedo * f.st[i] * got[i][0];
             f.q[i] = q;
-            // The beams of the light just gathered, for the next order.
+            // The beams of the light just gathered, where a next order will gather them.
             let j = [got[i][1], got[i][2], got[i][3]];
             let jn = (j[0] * j[0] + j[1] * j[1] + j[2] * j[2]).sqrt();
-            f.beam[i] = if q > 0.0 && jn > 0.0 {
+            f.beam[i] = if order + 1 < m.orders.min(MAX_MS_GATHER) && q > 0.0 && jn > 0.0 {
                 let a = q * (jn / got[i][0]).min(1.0);
                 let dir = j.map(|v| v / jn);
                 let norm = ms_beam_norm(m.h, dir, m.phase);
