@@ -92,14 +92,19 @@ fn lit_scene_with(
     (asset, cam, s, truth)
 }
 
-#[test]
-fn diffusion_is_closer_to_the_reference_than_the_octaves() {
+/// The smoke5 fixture's first frame and, where the samples are present, the WDAS cloud.
+fn smoke5_and_wdas() -> Vec<String> {
     let mut inputs = vec![common::root()
         .join("fixtures/seq/smoke5/smoke.0001.vdb")
         .to_string_lossy()
         .into_owned()];
     inputs.extend(sample("wdas-cloud/wdas_cloud_sixteenth.vdb"));
-    for input in inputs {
+    inputs
+}
+
+#[test]
+fn diffusion_is_closer_to_the_reference_than_the_octaves() {
+    for input in smoke5_and_wdas() {
         let (asset, cam, s, truth) = lit_scene(&input);
         let lit = |ms_model: MsModel| {
             let s = RenderSettings {
@@ -185,12 +190,7 @@ fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
 /// (`ms_gather` 0, asserted worse in both); the smoke5 fixture 0.992 / 0.087 and 0.942 / 0.119.
 #[test]
 fn lit_is_unbiased_in_sunlight() {
-    let mut inputs = vec![common::root()
-        .join("fixtures/seq/smoke5/smoke.0001.vdb")
-        .to_string_lossy()
-        .into_owned()];
-    inputs.extend(sample("wdas-cloud/wdas_cloud_sixteenth.vdb"));
-    for input in inputs {
+    for input in smoke5_and_wdas() {
         let (asset, cam, s, truth) = lit_scene_with(&input, |s| {
             s.lighting.sky = [0.0; 3];
             s.medium.phase_g = [0.0; 2];
