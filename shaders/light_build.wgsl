@@ -335,7 +335,7 @@ fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let e = ms_gather_dir(d);
             var w = mp.gather[d / 4u][d % 4u];
             if (twice) {
-                w = mp.share[u32(dot(abs(e), vec3<i32>(1))) - 1u];
+                w = ms_share(e);
             }
             let v = vec3<f32>(e) * mp.h.xyz;
             let len = length(v);
@@ -403,6 +403,11 @@ fn ms_gather_dir(d: u32) -> vec3<i32> {
     return vec3<i32>(i32(k % 3u), i32((k / 3u) % 3u), i32(k / 9u)) - vec3<i32>(1);
 }
 
+// Direction `e`'s share of the sphere, by how many axes it moves along (`mp.share`).
+fn ms_share(e: vec3<i32>) -> f32 {
+    return mp.share[u32(dot(abs(e), vec3<i32>(1))) - 1u];
+}
+
 // The source of cell `j` of level `lk` (`n` cells) toward −u (times 4π per unit solid angle):
 // `q`, and for the second order `q − A + B·4π·p(ĵ·(−u))` with its beam (`Level::beam`).
 // One return at the end: with early returns lavapipe gave a drawer's frame no second order at
@@ -432,8 +437,7 @@ fn ms_beam_norm(dir: vec3<f32>) -> f32 {
         let e = ms_gather_dir(d);
         let v = vec3<f32>(e) * mp.h.xyz;
         let mu = clamp(dot(dir, v) / length(v), -1.0, 1.0);
-        sum += mp.share[u32(dot(abs(e), vec3<i32>(1))) - 1u] * MS_FOUR_PI
-            * lv_phase(mp.phase.xyz, 1.0, mu);
+        sum += ms_share(e) * MS_FOUR_PI * lv_phase(mp.phase.xyz, 1.0, mu);
     }
     return sum;
 }
@@ -495,11 +499,17 @@ fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cn = ms_cells(cd);
     let co = mp.off.y;
     var acc = vec3<f32>(0.0);
+    // The gather's beams too (before the solve they sit in the resistances' place, which the
+    // solve's `ms_limit_main` writes before it reads).
+    var beam = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
     for (var k = 0u; k < 8u; k++) {
         let c = 2u * gid + vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u);
         if (all(c < cd)) {
             let j = lv_index(c, cd);
             acc += vec3<f32>(lv_ms[co + j], lv_ms[co + cn + j], lv_ms[co + 2u * cn + j]) / 8.0;
+            for (var b = 0u; b < 5u; b++) {
+                beam[b] += lv_ms[co + 7u * cn + 5u * j + b] / 8.0;
+            }
         }
     }
     let i = lv_index(gid, dims);
@@ -508,17 +518,8 @@ fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_ms[o + i] = acc.x;
     lv_ms[o + n + i] = acc.y;
     lv_ms[o + 2u * n + i] = acc.z;
-    // The gather's beams (before the solve; the resistances' place, which the solve's
-    // `ms_limit_main` writes before it reads).
-    for (var c = 0u; c < 5u; c++) {
-        var b = 0.0;
-        for (var k = 0u; k < 8u; k++) {
-            let cc = 2u * gid + vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u);
-            if (all(cc < cd)) {
-                b += lv_ms[co + 7u * cn + 5u * lv_index(cc, cd) + c] / 8.0;
-            }
-        }
-        lv_ms[o + 7u * n + 5u * i + c] = b;
+    for (var b = 0u; b < 5u; b++) {
+        lv_ms[o + 7u * n + 5u * i + b] = beam[b];
     }
 }
 

@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
     light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LevelChain, LightGrid,
-    MAX_MS_GATHER, MS_GATHER_WEIGHTS,
+    MS_GATHER_WEIGHTS,
 };
 use wgpu::util::DeviceExt;
 
@@ -158,7 +158,7 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
         offs.push(total as u32);
         total += MS_FLOATS_PER_CELL * cells(d);
     }
-    let orders = m.orders.min(MAX_MS_GATHER);
+    let orders = m.gathered_orders();
     // `MsParams::levels` holds eight: `MAX_LIGHT_RES` (256) makes seven.
     assert!(levels.len() <= 8, "{} diffusion levels", levels.len());
     let records = (0..levels.len())
@@ -178,7 +178,7 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
                 child: [child[0], child[1], child[2], levels.len() as u32],
                 parent: parent.map_or([0, 0, 0, orders], |p| [p[0], p[1], p[2], orders]),
                 h: [m.h[0] * scale, m.h[1] * scale, m.h[2] * scale, m.albedo].map(|v| v as f32),
-                medium: [m.mean_cos, m.chord, m.extinction, 0.0].map(|v| v as f32),
+                medium: [m.mean_cos(), m.chord, m.extinction, 0.0].map(|v| v as f32),
                 phase: [m.phase.0[0], m.phase.0[1], m.phase.1, 0.0],
                 share: [
                     MS_GATHER_WEIGHTS[0] as f32,

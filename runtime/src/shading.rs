@@ -52,8 +52,8 @@ impl ShadingUniform {
         let l = normalize(lighting.light_dir.map(|c| c as f64)).map(|c| c as f32);
         let c = lighting.light_color;
         let s = lighting.sky;
-        let (g, w) = (medium.phase_g, medium.phase_w as f64);
-        let mean_cos = w * g[0] as f64 + (1.0 - w) * g[1] as f64;
+        let g = medium.phase_g;
+        let mean_cos = vdbcook_scene::phase_mean_cos(g, medium.phase_w);
         ShadingUniform {
             sun: [l[0], l[1], l[2], integrator.step],
             sun_color: [c[0], c[1], c[2], lighting.near_scatter],

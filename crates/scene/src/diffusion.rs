@@ -2,7 +2,7 @@
 //! (`MsModel::Diffusion`), defined once for the CPU solver (`vdbcook_trace::diffusion`, whose
 //! module docs state the method) and the GPU passes (`shaders/light_build.wgsl`'s `ms_*`).
 
-use crate::{light_dirs, phase, Affine, LightGrid, RenderSettings};
+use crate::{light_dirs, phase, phase_mean_cos, Affine, LightGrid, RenderSettings};
 
 /// Jacobi sweeps on each coarse level (all but the light volume's own cells).
 pub const MS_ITERATIONS: usize = 16;
@@ -66,17 +66,44 @@ pub fn ms_gather_weights(h: [f64; 3], sun: [f64; 3], phase: ([f32; 2], f32)) -> 
 /// `share_d·4π·p(ĵ·u_d)`: a beam along unit `dir` scattered by the dual-lobe phase `(g, w)`
 /// toward `u_d` (or, as the 26 are symmetric, light from `u_d` scattered along `dir`).
 fn ms_beam_terms(h: [f64; 3], dir: [f64; 3], (g, w): ([f32; 2], f32)) -> [f64; 26] {
-    let mut out = [0.0; 26];
-    for (o, (e, share)) in out.iter_mut().zip(ms_gather_dirs()) {
-        let v = [0, 1, 2].map(|a| e[a] as f64 * h[a]);
-        let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    ms_gather_steps(h).map(|s| {
         let mu = (0..3)
-            .map(|a| dir[a] * v[a] / len)
+            .map(|a| dir[a] * s.unit[a])
             .sum::<f64>()
             .clamp(-1.0, 1.0);
-        *o = share * 4.0 * std::f64::consts::PI * phase(g, w, mu);
-    }
-    out
+        s.share * 4.0 * std::f64::consts::PI * phase(g, w, mu)
+    })
+}
+
+/// One of the 26 gather directions (`ms_gather_dirs`, in order) in the metric of cells of
+/// edges `h`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GatherStep {
+    /// The cell offset `e ∈ {−1, 0, 1}³`.
+    pub e: [i32; 3],
+    /// Its share of the sphere (`MS_GATHER_WEIGHTS`).
+    pub share: f64,
+    /// The length of one step `|e·h|`.
+    pub len: f64,
+    /// The unit direction `e·h / |e·h|`.
+    pub unit: [f64; 3],
+}
+
+/// The 26 gather directions over cells of edges `h` (what the CPU's gather walks and
+/// [`ms_beam_norm`] sums over; `light_build.wgsl` computes the same from `mp.h`).
+pub fn ms_gather_steps(h: [f64; 3]) -> [GatherStep; 26] {
+    let mut dirs = ms_gather_dirs();
+    std::array::from_fn(|_| {
+        let (e, share) = dirs.next().expect("26 directions");
+        let v = [0, 1, 2].map(|a| e[a] as f64 * h[a]);
+        let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        GatherStep {
+            e,
+            share,
+            len,
+            unit: v.map(|x| x / len),
+        }
+    })
 }
 
 /// `N(ĵ)`: the gather's quadrature of a beam along unit `dir` scattered by the dual-lobe phase
@@ -126,8 +153,6 @@ pub struct DiffusionInputs {
     /// Extinction per unit density per unit length.
     pub extinction: f64,
     pub albedo: f64,
-    /// The phase's mean cosine `ḡ`.
-    pub mean_cos: f64,
     /// Length (in the settings' unit) of one cell edge along each axis.
     pub h: [f64; 3],
     /// Length of the sun's ray across one cell slab along its major axis.
@@ -138,9 +163,10 @@ pub struct DiffusionInputs {
     /// (light scattered there flows back along it, so `μ` is its scattering angle's cosine),
     /// scaled so the 26 sum to 1: the quadrature of the phase keeps the scattered energy.
     pub gather: [f64; 26],
-    /// The dual-lobe phase `(g, w)` (the gather's light scattered a second time).
+    /// The dual-lobe phase `(g, w)`.
     pub phase: ([f32; 2], f32),
-    /// Orders of the sun's scattered light gathered before the solve (`Lighting::ms_gather`).
+    /// Orders of the sun's scattered light gathered before the solve (`Lighting::ms_gather`;
+    /// read through [`DiffusionInputs::gathered_orders`]).
     pub orders: u32,
 }
 
@@ -178,13 +204,23 @@ impl DiffusionInputs {
         DiffusionInputs {
             extinction,
             albedo,
-            mean_cos: w as f64 * g[0] as f64 + (1.0 - w as f64) * g[1] as f64,
             h,
             chord: grid.cell / l[m].abs() * sun_len,
             gather: ms_gather_weights(h, [0, 1, 2].map(|a| l[a] * axis_len[a]), (g, w)),
             phase: (g, w),
             orders,
         }
+    }
+
+    /// The orders gathered: `orders`, at most `MAX_MS_GATHER` (what the CPU's solve and the
+    /// GPU's passes, whose records hold one parity per order, both run).
+    pub fn gathered_orders(&self) -> u32 {
+        self.orders.min(crate::MAX_MS_GATHER)
+    }
+
+    /// The phase's mean cosine `ḡ` (the solve's reduced extinction, the march's P1 read).
+    pub fn mean_cos(&self) -> f64 {
+        phase_mean_cos(self.phase.0, self.phase.1)
     }
 }
 

@@ -25,9 +25,9 @@ mod space;
 pub use camera::{from_up_frame, source_up, stored_bbox, stored_boxes, up_frame, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use diffusion::{
-    ms_beam_norm, ms_gather_dirs, ms_gather_weights, ms_levels, ms_stored_flux, ms_sweeps,
-    DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_FLUX_RATIO, MS_GATHER_MIN_TRANS,
-    MS_GATHER_WEIGHTS, MS_ITERATIONS, MS_VACUUM,
+    ms_beam_norm, ms_gather_dirs, ms_gather_steps, ms_gather_weights, ms_levels, ms_stored_flux,
+    ms_sweeps, DiffusionInputs, GatherStep, MS_COARSEST, MS_FINE_SWEEPS, MS_FLUX_RATIO,
+    MS_GATHER_MIN_TRANS, MS_GATHER_WEIGHTS, MS_ITERATIONS, MS_VACUUM,
 };
 pub use display::{
     linear_to_srgb8, srgb_decode, srgb_encode, srgb_to_linear, Display, Tonemap,
@@ -41,9 +41,9 @@ pub use fire::{
 };
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
-    light_dirs, lit_near_depth, near_scatter_source, octave_source, phase, sky_diffusion,
-    sky_source, LevelChain, LightGrid, LIT_NEAR_DEPTH, LIT_NEAR_DEPTH_FINE, LIT_NEAR_MAX_VOXELS,
-    LIT_NEAR_TRANS, MAX_SUB,
+    light_dirs, lit_near_depth, near_scatter_source, octave_source, phase, phase_mean_cos,
+    sky_diffusion, sky_source, LevelChain, LightGrid, LIT_NEAR_DEPTH, LIT_NEAR_DEPTH_FINE,
+    LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
     Filter, Integrator, LengthUnit, Lighting, March, Medium, Mode, MsModel, Output, RenderSettings,

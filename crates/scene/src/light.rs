@@ -45,6 +45,12 @@ pub fn phase(g: [f32; 2], w: f32, mu: f64) -> f64 {
     w * hg(g[0] as f64, mu) + (1.0 - w) * hg(g[1] as f64, mu)
 }
 
+/// The mean cosine `ḡ` of the dual-lobe phase `(g, w)`: `w·g₀ + (1 − w)·g₁`.
+pub fn phase_mean_cos(g: [f32; 2], w: f32) -> f64 {
+    let w = w as f64;
+    w * g[0] as f64 + (1.0 - w) * g[1] as f64
+}
+
 /// Optical depth of one light-volume cell below which `Lit` reads the sun's depth from the
 /// light volume alone (`RenderSettings::sun_near`; `vdbcook_trace::Tracer::sun_depth`, the
 /// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell.

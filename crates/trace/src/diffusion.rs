@@ -54,7 +54,7 @@
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use vdbcook_scene::{
-    ms_beam_norm, ms_gather_dirs, ms_levels, ms_stored_flux, ms_sweeps, LightGrid, MAX_MS_GATHER,
+    ms_beam_norm, ms_gather_steps, ms_levels, ms_stored_flux, ms_sweeps, LightGrid,
     MS_GATHER_MIN_TRANS,
 };
 pub use vdbcook_scene::{DiffusionInputs, MS_COARSEST, MS_FINE_SWEEPS, MS_ITERATIONS, MS_VACUUM};
@@ -184,7 +184,7 @@ pub fn solve(
         .collect();
     let sr = st
         .iter()
-        .map(|&t| t * (1.0 - m.mean_cos * m.albedo))
+        .map(|&t| t * (1.0 - m.mean_cos() * m.albedo))
         .collect();
     let q = (0..n)
         .map(|i| {
@@ -212,8 +212,9 @@ pub fn solve(
     // carries the rest, from the last gathered order's light scattering again.
     let cells = levels[0].cells();
     let mut gathered = vec![[0.0f64; 4]; cells];
-    let shares: [f64; 26] = std::array::from_fn(|d| ms_gather_dirs().nth(d).map_or(0.0, |e| e.1));
-    for order in 0..m.orders.min(MAX_MS_GATHER) {
+    let shares = ms_gather_steps(m.h).map(|s| s.share);
+    let orders = m.gathered_orders();
+    for order in 0..orders {
         let got = if order == 0 {
             gather(&levels, &m.gather, None)
         } else {
@@ -226,7 +227,7 @@ pub fn solve(
             // The beams of the light just gathered, where a next order will gather them.
             let j = [got[i][1], got[i][2], got[i][3]];
             let jn = (j[0] * j[0] + j[1] * j[1] + j[2] * j[2]).sqrt();
-            f.beam[i] = if order + 1 < m.orders.min(MAX_MS_GATHER) && q > 0.0 && jn > 0.0 {
+            f.beam[i] = if order + 1 < orders && q > 0.0 && jn > 0.0 {
                 let a = q * (jn / got[i][0]).min(1.0);
                 let dir = j.map(|v| v / jn);
                 let norm = ms_beam_norm(m.h, dir, m.phase);
@@ -284,14 +285,7 @@ pub fn solve(
 /// `q/σ` exactly.
 fn gather(levels: &[Level], weights: &[f64; 26], beam: Option<([f32; 2], f32)>) -> Vec<[f64; 4]> {
     let l = &levels[0];
-    let dirs: Vec<([i32; 3], f64, f64, [f64; 3])> = ms_gather_dirs()
-        .zip(weights)
-        .map(|((e, _), &w)| {
-            let v = [0, 1, 2].map(|a| e[a] as f64 * l.h[a]);
-            let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            (e, w, len, v.map(|x| x / len))
-        })
-        .collect();
+    let steps = ms_gather_steps(l.h);
     let part = |q: f64, st: f64, len: f64| {
         if st > 0.0 {
             q * -(-st * len).exp_m1() / st
@@ -319,7 +313,8 @@ fn gather(levels: &[Level], weights: &[f64; 26], beam: Option<([f32; 2], f32)>) 
         if l.st[i] <= 0.0 {
             return out;
         }
-        for &(e, w, len, u) in &dirs {
+        for (s, &w) in steps.iter().zip(weights) {
+            let (e, len, u) = (s.e, s.len, s.unit);
             let mut r = part(emit(l.q[i], &l.beam[i], u), l.st[i], 0.5 * len);
             let mut tr = (-0.5 * l.st[i] * len).exp();
             // Whole cells walked past the own half cell.
@@ -497,7 +492,6 @@ mod tests {
         let inputs = DiffusionInputs {
             extinction: 1.0,
             albedo,
-            mean_cos: 0.0,
             h: [1.0; 3],
             chord: 1.0,
             gather: vdbcook_scene::ms_gather_weights([1.0; 3], [0.0, 0.0, 1.0], ([0.0; 2], 1.0)),

@@ -133,7 +133,6 @@ pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
 pub use image::Image;
 pub use lit::{lit_jitter, sky_depth, LightVolume, LIT_MAX_SKY_DEPTH, LIT_MIN_TRANS};
-pub use reference::phase;
 pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng, Rng64};
 pub use scatter::MAX_MARCH_SAMPLES;

@@ -67,10 +67,10 @@ use vdbcook_scene::{
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
 use crate::dda::{ceil_f64, Flow};
-use crate::reference::phase;
 use crate::space::IndexRay;
 use crate::walk::{BrickCache, Holder, SpanSampler, Visitor};
 use crate::Tracer;
+use vdbcook_scene::phase;
 
 /// Transmittance below which a `Lit` ray stops (what is left counts as opaque).
 pub const LIT_MIN_TRANS: f64 = 1e-4;
@@ -201,7 +201,7 @@ impl LightVolume {
             tau,
             diffusion,
             axis_len,
-            mean_cos: inputs.mean_cos,
+            mean_cos: inputs.mean_cos(),
             sun: l,
             cell_len: inputs.h.into_iter().fold(f64::INFINITY, f64::min),
         }

@@ -29,8 +29,7 @@ use crate::rng::Rng64;
 use crate::space::IndexRay;
 use crate::walk::{walk, SpanSampler};
 use crate::{Scratch, Tracer};
-pub use vdbcook_scene::phase;
-use vdbcook_scene::{normalize, Emission, BLACKBODY_TABLE_LEN};
+use vdbcook_scene::{normalize, phase, Emission, BLACKBODY_TABLE_LEN};
 
 /// A cosine drawn from `HG(g, ·)` (inverse CDF; uniform for `|g| < 1e-4`).
 fn sample_hg(g: f64, u: f64) -> f64 {
