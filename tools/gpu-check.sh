@@ -84,6 +84,13 @@ for name in "${assets[@]}"; do
             --ms-gather 0 --instances "$COUNTS" --frames 60 --runs 10 --json \
             >"$OUT/$name-gather0-full.json" || exit 1
         runs+=("$name-gather0-full")
+        # Each next frame's light volume built over the two displayed frames before it
+        # (`--light-ahead 2`): the same light and mean, the builds' frames (max) against the
+        # default's.
+        "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" --modes lit \
+            --light-ahead 2 --instances "$COUNTS" --frames 60 --runs 10 --json \
+            >"$OUT/$name-ahead2-full.json" || exit 1
+        runs+=("$name-ahead2-full")
     fi
 done
 python3 - "$OUT" "${runs[@]}" <<'PY'
@@ -94,16 +101,16 @@ adapter = next(iter(docs.values()))["adapter"]
 slug = re.sub(r"[^a-z0-9]+", "-", adapter.lower()).strip("-")[:60]
 clocks = sorted({d["clock"] for d in docs.values()})
 lines = [f"# `vdbcook bench` on {adapter}", "",
-         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp. The `-gather0` rows build light volumes without the gathered orders (`--ms-gather 0`): their playing mean against the default's is what the gather costs (0.4 builds per displayed frame).", "",
-         "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing draw ms | playing / static | playing error | vs full march | crossfade error |",
-         "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp. The `-gather0` rows build light volumes without the gathered orders (`--ms-gather 0`): their playing mean against the default's is what the gather costs (0.4 builds per displayed frame). The `-ahead2` rows build each next frame's light volume over the two displayed frames before it (`--light-ahead 2`): compare their playing max (the worst displayed frame) with the default's.", "",
+         "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing max ms | playing draw ms | playing / static | playing error | vs full march | crossfade error |",
+         "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
 def num(v, f=".2f"):
     return "–" if v is None else format(v, f)
 for n, d in docs.items():
     for r in d["results"]:
         ratio = r["playing_ms"] / r["static_ms"] if r["static_ms"] else None
         asset = n.rsplit("-", 1)[0]
-        lines.append(f"| {asset} | {d['width']}×{d['height']} | {d.get('march_resolution', 'full')} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} | {num(r.get('resolution_error'), '.3f')} | {num(r.get('crossfade_error'), '.1e')} |")
+        lines.append(f"| {asset} | {d['width']}×{d['height']} | {d.get('march_resolution', 'full')} | {r['mode']} | {r['instances']} | {num(r['static_ms'])} | {num(r['playing_ms'])} | {num(r['playing_mean_ms'])} | {num(r.get('playing_max_ms'))} | {num(r['playing_draw_ms'])} | {num(ratio)} | {num(r['playing_error'], '.1e')} | {num(r.get('resolution_error'), '.3f')} | {num(r.get('crossfade_error'), '.1e')} |")
 path = f"docs/gpu/{slug}.md"
 open(path, "w").write("\n".join(lines) + "\n")
 print(f"wrote {path}")

@@ -76,6 +76,8 @@ fn bench_reports_static_and_playing_costs_and_the_playing_error() {
             "static_ms",
             "playing_ms",
             "playing_mean_ms",
+            "playing_p95_ms",
+            "playing_max_ms",
             "static_prepare_ms",
             "playing_prepare_ms",
             "static_wall_ms",
@@ -105,19 +107,36 @@ fn bench_reports_static_and_playing_costs_and_the_playing_error() {
 /// Playing the 5-frame smoke at 24 fps under 60 for 10 displayed frames reaches frames 2, 3 and
 /// 4 for the first time (frames 0 and 1 were built before the timed frames): with a volume a
 /// kept build holds copied rather than rebuilt, about 3 builds in 10 frames, in both blends;
-/// rebuilding each crossfaded pair whenever it changes (the drawer before) built about 8.
+/// rebuilding each crossfaded pair whenever it changes (the drawer before) built about 8. Built
+/// ahead (`--light-ahead 2`), the same number of builds and the same images (the exact light).
 #[test]
 fn bench_builds_each_frames_light_volume_about_once() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
-    for blend in ["crossfade", "hold"] {
+    for (blend, ahead) in [("crossfade", "0"), ("hold", "0"), ("crossfade", "2")] {
         let Some(doc) = bench_json(&[
-            "bench", &asset, "--width", "48", "--height", "27", "--modes", "lit", "--frames", "10",
-            "--runs", "1", "--blend", blend, "--json",
+            "bench",
+            &asset,
+            "--width",
+            "48",
+            "--height",
+            "27",
+            "--modes",
+            "lit",
+            "--frames",
+            "10",
+            "--runs",
+            "1",
+            "--blend",
+            blend,
+            "--light-ahead",
+            ahead,
+            "--json",
         ]) else {
             return;
         };
         assert_eq!(doc["blend"].as_str(), Some(blend));
+        assert_eq!(doc["light_ahead"].to_string(), ahead);
         let r = &doc["results"][0];
         let builds = r["playing_light_builds"].as_f64().unwrap();
         assert!(
@@ -177,6 +196,7 @@ fn bench_refuses_flags_out_of_range_before_any_work() {
         (&["--fps", "0"][..], "--fps"),
         (&["--frames", "0"][..], "--frames"),
         (&["--width", "0"][..], "--width"),
+        (&["--light-ahead", "1001"][..], "--light-ahead"),
     ] {
         let mut args = vec!["bench", asset.as_str()];
         args.extend_from_slice(extra);

@@ -41,6 +41,7 @@ use crate::{Result, RuntimeError};
 
 /// The light volumes one draw needs (deduplicated), and the diffusion inputs of each
 /// (`MsModel::Diffusion`), as `LightPass::prepare` takes them.
+#[derive(Default)]
 struct LitVolumes {
     volumes: Vec<LightParams>,
     diffusion: Vec<Option<DiffusionInputs>>,
@@ -656,6 +657,8 @@ pub struct VolumeDrawer {
     half_pipelines: Vec<Option<wgpu::ComputePipeline>>,
     resolution: MarchResolution,
     lit_crossfade: LitCrossfade,
+    /// Displayed frames a light volume is built ahead over (0: none).
+    light_ahead: u32,
     /// 1×1 `(L, T)` textures bound where a pass writes (0) or reads (1) no half-resolution
     /// texture (two: one texture may not be written and read in one dispatch).
     lt_stand_in: [wgpu::TextureView; 2],
@@ -906,6 +909,7 @@ impl VolumeDrawer {
             half_pipelines: vec![None; Variant::COUNT],
             resolution: MarchResolution::Full,
             lit_crossfade: LitCrossfade::default(),
+            light_ahead: 0,
             lt_stand_in,
             shadow_layout,
             light,
@@ -980,7 +984,7 @@ impl VolumeDrawer {
                 "sun shadows need Shading::lighting (the light volumes of the lit mode)".into(),
             ));
         }
-        let (mut draws, volumes, _) = self.instances(DVec3::ZERO, instances, shading)?;
+        let (mut draws, [volumes, _], _) = self.instances(DVec3::ZERO, instances, shading)?;
         // The unit cell-space direction toward the sun: each lit instance's light volume's.
         let suns: Vec<[f32; 4]> = draws
             .iter()
@@ -1138,23 +1142,24 @@ impl VolumeDrawer {
     /// The shading checked, then the GPU instances in front-to-back order (by the distance
     /// from the eye, or the near plane's centre, to the centre of each instance's box; ties keep
     /// the caller's order), leaving out instances with nothing > 0 in their frames and nothing
-    /// glowing, the light volumes the lit ones need, and each instance's box (content and
-    /// emission) as its eight world corners.
+    /// glowing, the light volumes the lit ones need and those of the frames after their pairs
+    /// (only with `light_ahead`), and each instance's box (content and emission) as its eight
+    /// world corners.
     #[allow(clippy::type_complexity)]
     fn instances(
         &self,
         eye: DVec3,
         instances: &[Instance],
         shading: &Shading,
-    ) -> Result<(Vec<DrawInstance>, LitVolumes, Vec<[DVec3; 8]>)> {
+    ) -> Result<(Vec<DrawInstance>, [LitVolumes; 2], Vec<[DVec3; 8]>)> {
         let medium = &shading.medium;
         shading
             .settings()
             .validate(self.vol.frames)
             .map_err(|e| RuntimeError::Setting(format!("shading: {e}")))?;
         let mut out = Vec::with_capacity(instances.len());
-        let mut volumes: Vec<LightParams> = Vec::new();
-        let mut diffusion: Vec<Option<DiffusionInputs>> = Vec::new();
+        let mut volumes = LitVolumes::default();
+        let mut ahead = LitVolumes::default();
         for (i, inst) in instances.iter().enumerate() {
             inst.validate()
                 .map_err(|e| RuntimeError::Setting(format!("instance {i}: {e}")))?;
@@ -1227,34 +1232,50 @@ impl VolumeDrawer {
                 // bases hold their indices in `volumes` until `prepare` places them.
                 let grids = [f0, f1]
                     .map(|f| LightGrid::with_levels(meta.content[f], l.light_res, meta.lod().0));
+                // The light volume of frame `f` over `grid`.
+                let volume = |grid: &LightGrid, f: usize| {
+                    let at = FrameAt {
+                        asset: inst.asset as u32,
+                        frame_root: (f * meta.root_len) as u32,
+                        lod: meta.lod(),
+                    };
+                    let lp = LightParams::new(grid, &xf, l.light_dir, extinction, medium.unit, at);
+                    let m = (l.ms_model == MsModel::Diffusion).then(|| {
+                        DiffusionInputs::new(
+                            grid,
+                            light_dirs(&xf, l.light_dir, medium.unit),
+                            extinction,
+                            albedo,
+                            (medium.phase_g, medium.phase_w),
+                            l.ms_gather,
+                        )
+                    });
+                    (lp, m)
+                };
                 let mut idx = [0u32; 2];
                 for (n, grid) in grids.iter().enumerate() {
-                    let lp = LightParams::new(
-                        grid,
-                        &xf,
-                        l.light_dir,
-                        extinction,
-                        medium.unit,
-                        FrameAt {
-                            asset: inst.asset as u32,
-                            frame_root: roots[n],
-                            lod: meta.lod(),
-                        },
-                    );
-                    idx[n] = volumes.iter().position(|v| *v == lp).unwrap_or_else(|| {
-                        volumes.push(lp);
-                        diffusion.push((l.ms_model == MsModel::Diffusion).then(|| {
-                            DiffusionInputs::new(
-                                grid,
-                                light_dirs(&xf, l.light_dir, medium.unit),
-                                extinction,
-                                albedo,
-                                (medium.phase_g, medium.phase_w),
-                                l.ms_gather,
-                            )
-                        }));
-                        volumes.len() - 1
-                    }) as u32;
+                    let (lp, m) = volume(grid, [f0, f1][n]);
+                    idx[n] = volumes
+                        .volumes
+                        .iter()
+                        .position(|v| *v == lp)
+                        .unwrap_or_else(|| {
+                            volumes.volumes.push(lp);
+                            volumes.diffusion.push(m);
+                            volumes.volumes.len() - 1
+                        }) as u32;
+                }
+                // The flip-book frame after the pair (the first after the last: effects loop),
+                // which a drawer building light ahead builds next.
+                let next = (f1 + 1) % meta.frames;
+                if self.light_ahead > 0 && next != f1 && next != f0 {
+                    let grid =
+                        LightGrid::with_levels(meta.content[next], l.light_res, meta.lod().0);
+                    let (lp, m) = volume(&grid, next);
+                    if !ahead.volumes.contains(&lp) {
+                        ahead.volumes.push(lp);
+                        ahead.diffusion.push(m);
+                    }
                 }
                 d.place = LitPlace::new(
                     &xf,
@@ -1274,7 +1295,7 @@ impl VolumeDrawer {
         let corners = out.iter().map(|x| x.2).collect();
         Ok((
             out.into_iter().map(|(_, d, _)| d).collect(),
-            LitVolumes { volumes, diffusion },
+            [volumes, ahead],
             corners,
         ))
     }
@@ -1347,6 +1368,26 @@ impl VolumeDrawer {
     /// How the lit march crosses instances between two frames ([`LitCrossfade`]).
     pub fn lit_crossfade(&self) -> LitCrossfade {
         self.lit_crossfade
+    }
+
+    /// Builds each lit instance's next light volume ahead, over `displayed_frames` calls of
+    /// [`VolumeDrawer::prepare`] (0, the default: no building ahead). With it, `prepare` also
+    /// builds the light volume of the flip-book frame after each instance's pair (after the
+    /// last frame, the first: effects loop), a `1 / displayed_frames` share of the build's
+    /// dispatches per call, so that when the time moves on to it the volume is copied rather
+    /// than built inside that frame. A flip-book at 24 fps shown at 60 changes frame every 2 or
+    /// 3 displayed frames: `2` spreads each build over the frames before it is needed. The
+    /// light drawn stays the exact build (the same bits); what moves is when the work happens.
+    /// A frame needed before its build completes finishes it at once. Costs a second scratch
+    /// (the solve's, about `light_res³ · 60` bytes) and, when playback stops or jumps, one
+    /// build that may not be used. `docs/engine.md` §6 has its figures.
+    pub fn set_light_ahead(&mut self, displayed_frames: u32) {
+        self.light_ahead = displayed_frames;
+    }
+
+    /// Displayed frames a light volume is built ahead over (0: none).
+    pub fn light_ahead(&self) -> u32 {
+        self.light_ahead
     }
 
     /// Makes the pipelines draws under `shading` use (with and without overlapping instances).
@@ -1447,10 +1488,16 @@ impl VolumeDrawer {
         }
         let size = view.viewport;
         self.check_targets(target, size)?;
-        let (mut gpu_instances, volumes, corners) =
+        let (mut gpu_instances, [volumes, ahead], corners) =
             self.instances(rays.eye(), instances, shading)?;
         let rect = coverage(view, &corners);
         let build = self.build_lights(device, queue, &mut gpu_instances, &volumes)?;
+        if !ahead.volumes.is_empty() {
+            let (v, d) = (&ahead.volumes, &ahead.diffusion);
+            let spread = self.light_ahead;
+            self.light
+                .ahead(device, queue, &self.vol.group, v, d, spread);
+        }
         let light_group = build
             .as_ref()
             .map_or_else(|| self.light.empty_group.clone(), |b| b.read.clone());

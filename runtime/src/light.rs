@@ -5,7 +5,9 @@
 //! encoder of its own and submitted at once, in `prepare`: a caller's encoder holds only draws,
 //! so dropping one never leaves light volumes unbuilt. The renderer and the drawer read a build
 //! through one bind group (`lit.wgsl`'s `lit_tau`, `lit_ms`: the renderer's group 3, the
-//! drawer's group 2); the draws holding it keep it from being overwritten.
+//! drawer's group 2); the draws holding it keep it from being overwritten. A build may also be
+//! made ahead of need, a share of its dispatches per call (`LightPass::ahead`, the drawer's
+//! `set_light_ahead`): the same dispatches (`Recording`), its own scratch.
 //!
 //! A volume built for `MsModel::Diffusion` also gathers the sun's light scattered once and
 //! twice (`Lighting::ms_gather` orders) and runs the diffusion solve on the rest (`ms_*` passes,
@@ -16,6 +18,7 @@
 //! `vdbcook_scene::ms_stored_flux`; binding 1 of the read group; `lv_diffuse_*` in `light.wgsl`
 //! reads it). 24 bytes a cell: 6 MiB at `light_res` 64 on a cubic box (48 until 2026-11-26).
 
+use std::ops::Range;
 use std::sync::{Arc, Mutex};
 
 use bytemuck::{Pod, Zeroable};
@@ -110,6 +113,8 @@ pub struct LightBuilds {
     pub built: u64,
     /// Volumes read from an earlier build: whole lists kept, or single volumes copied.
     pub reused: u64,
+    /// Of `built`, those built ahead of need (`VolumeDrawer::set_light_ahead`).
+    pub ahead: u64,
 }
 
 /// `MsParams` of `light_build.wgsl`: one level of the diffusion solve and one sweep parity.
@@ -225,6 +230,51 @@ pub(crate) struct LightEntry {
     pub bases: Vec<u32>,
 }
 
+impl LightEntry {
+    /// A build's entry over its two buffers (`pool`, `ms_pool`) of the given capacities in
+    /// cells, with the bind group that reads them.
+    fn new(
+        lp: &LightPass,
+        device: &wgpu::Device,
+        key: (Vec<LightParams>, Vec<Option<DiffusionInputs>>),
+        (pool, ms_pool): (wgpu::Buffer, wgpu::Buffer),
+        (cells, ms_cells): (usize, usize),
+    ) -> LightEntry {
+        let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vdbcook light read"),
+            layout: &lp.read_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: pool.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: ms_pool.as_entire_binding(),
+                },
+            ],
+        });
+        let bases = key.0.iter().map(|lp| lp.base).collect();
+        LightEntry {
+            key,
+            pool,
+            ms_pool,
+            cells,
+            ms_cells,
+            read,
+            bases,
+        }
+    }
+
+    /// Whether it holds the volume `lp` with the diffusion inputs `m` (wherever placed).
+    fn holds(&self, lp: &LightParams, m: &Option<DiffusionInputs>) -> bool {
+        let (vols, solves) = &self.key;
+        vols.iter()
+            .zip(solves)
+            .any(|(v, d)| v.same_volume(lp) && d == m)
+    }
+}
+
 /// Builds kept for reuse: a repeated list of light volumes (the same frames, lights and media)
 /// is read from its build instead of rebuilt.
 const KEPT_BUILDS: usize = 8;
@@ -238,6 +288,11 @@ struct State {
     scratch: Option<(wgpu::Buffer, usize)>,
     /// The diffusion solve's scratch (every level of one volume) and its capacity in f32s.
     ms_scratch: Option<(wgpu::Buffer, usize)>,
+    /// A build under way ahead of need, and the two scratch buffers of such builds (their own:
+    /// the builds of `prepare` run between its shares).
+    ahead: Option<Ahead>,
+    ahead_scratch: Option<(wgpu::Buffer, usize)>,
+    ahead_ms_scratch: Option<(wgpu::Buffer, usize)>,
     counts: LightBuilds,
 }
 
@@ -383,16 +438,19 @@ impl LightPass {
         self.state.lock().expect("light state").counts
     }
 
-    /// Forgets the kept builds (the volume behind them changed).
+    /// Forgets the kept builds and any build under way ahead (the volume behind them changed).
     pub fn invalidate(&self) {
-        self.state.lock().expect("light state").builds.clear();
+        let mut state = self.state.lock().expect("light state");
+        state.builds.clear();
+        state.ahead = None;
     }
 
     /// The light volumes `volumes`, built one after the other into one buffer and submitted
     /// at once on `queue` (so a caller's dropped encoder never leaves them unbuilt), unless a
     /// kept build holds the same ones. `diffusion[i]`: the inputs of volume `i`'s diffusion
     /// solve (`MsModel::Diffusion`), if it runs one (a shorter slice: the rest run none). Hold
-    /// the returned build while a draw that reads it is pending.
+    /// the returned build while a draw that reads it is pending. A build under way ahead
+    /// ([`LightPass::ahead`]) that holds one of them is finished first, and its volumes copied.
     pub fn prepare(
         &self,
         device: &wgpu::Device,
@@ -401,6 +459,441 @@ impl LightPass {
         volumes: &[LightParams],
         diffusion: &[Option<DiffusionInputs>],
     ) -> Result<Arc<LightEntry>, RuntimeError> {
+        let plan = Plan::new(device, volumes, diffusion)?;
+        let mut state = self.state.lock().expect("light state");
+        let wanted = plan.key.0.iter().zip(&plan.key.1);
+        if let Some(a) = state
+            .ahead
+            .take_if(|a| wanted.clone().any(|(lp, m)| a.entry.holds(lp, m)))
+        {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            a.rec.record(self, &mut encoder, a.next..a.rec.steps.len());
+            queue.submit([encoder.finish()]);
+            self.keep(&mut state, a.entry, true);
+        }
+        let key = plan.key.clone();
+        if let Some(i) = state.builds.iter().position(|b| b.key == key) {
+            let b = state.builds.remove(i);
+            state.builds.push(b.clone());
+            state.counts.reused += key.0.len() as u64;
+            return Ok(b);
+        }
+        let (placed, diffusion) = &key;
+        // A volume a kept build already holds (the same frame, light, medium and grid) is copied
+        // from it instead of built: a crossfade whose pair moves on by one frame builds one
+        // volume, not two. The clones held here keep the sources from being picked as the
+        // destination below (a build no one else holds).
+        let sources: Vec<Option<(Arc<LightEntry>, u32)>> = placed
+            .iter()
+            .zip(diffusion)
+            .map(|(lp, m)| {
+                state.builds.iter().rev().find_map(|b| {
+                    let (vols, solves) = &b.key;
+                    vols.iter()
+                        .zip(solves)
+                        .find(|(v, d)| v.same_volume(lp) && *d == m)
+                        .map(|(v, _)| (b.clone(), v.base))
+                })
+            })
+            .collect();
+        let built: Vec<bool> = sources.iter().map(Option::is_none).collect();
+        // Checked before a kept build is taken over, so that an error loses none.
+        let solves = plan.solves(&built)?;
+        let (pool, ms_pool, cells, ms_cells) = self.destination(device, &mut state, &plan);
+        let scratch = grown(
+            device,
+            &mut state.scratch,
+            plan.largest,
+            "vdbcook light density",
+        );
+        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
+        let ms_scratch = (ms_floats > 0).then(|| {
+            grown(
+                device,
+                &mut state.ms_scratch,
+                ms_floats,
+                "vdbcook light diffusion scratch",
+            )
+        });
+        let mut rec = self.recording(
+            device,
+            volume_group,
+            &plan,
+            (&built, &solves),
+            (&scratch, ms_scratch.as_ref()),
+            (&pool, &ms_pool),
+        );
+        for ((lp, m), src) in placed.iter().zip(diffusion).zip(&sources) {
+            if let Some((from, at)) = src {
+                let n = lp.cells() as u64;
+                let (at, to) = (u64::from(*at), u64::from(lp.base));
+                rec.copies
+                    .push((from.pool.clone(), 8 * at, pool.clone(), 8 * to, 8 * n));
+                if m.is_some() {
+                    let w = MS_OUT_BYTES as u64;
+                    let (src, dst) = (from.ms_pool.clone(), ms_pool.clone());
+                    rec.copies.push((src, w * at, dst, w * to, w * n));
+                }
+            }
+        }
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("vdbcook light volumes"),
+        });
+        rec.record(self, &mut encoder, 0..rec.steps.len());
+        queue.submit([encoder.finish()]);
+        let copied = sources.iter().flatten().count() as u64;
+        drop(sources);
+        state.counts.reused += copied;
+        state.counts.built += placed.len() as u64 - copied;
+        let entry = LightEntry::new(self, device, key, (pool, ms_pool), (cells, ms_cells));
+        Ok(self.keep(&mut state, entry, false))
+    }
+
+    /// Builds `volumes` ahead of the draws that will need them, a share of the work a call:
+    /// each call records and submits about `1 / spread` of the build (whole dispatches, by
+    /// their estimated cost: the gather's are the largest), so that the light volume of a
+    /// flip-book frame about to be shown is built over the displayed frames before it rather
+    /// than inside the one that reaches it. One build is under way at a time: while it is,
+    /// other volumes wait for the next call after it completes; volumes a kept build holds are
+    /// not built again. A completed build joins the kept builds, where [`LightPass::prepare`]
+    /// copies its volumes from; a `prepare` that needs one of them before it completes finishes
+    /// it at once. Best effort: volumes over the device's limits are left to `prepare` (which
+    /// reports them). Built ahead, a volume is the same bits `prepare` builds.
+    pub fn ahead(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        volume_group: &wgpu::BindGroup,
+        volumes: &[LightParams],
+        diffusion: &[Option<DiffusionInputs>],
+        spread: u32,
+    ) {
+        let mut state = self.state.lock().expect("light state");
+        if state.ahead.is_none() {
+            let (want, solve): (Vec<LightParams>, Vec<Option<DiffusionInputs>>) = volumes
+                .iter()
+                .enumerate()
+                .map(|(i, lp)| (*lp, diffusion.get(i).copied().flatten()))
+                .filter(|(lp, m)| !state.builds.iter().any(|b| b.holds(lp, m)))
+                .unzip();
+            if want.is_empty() {
+                return;
+            }
+            let Ok(plan) = Plan::new(device, &want, &solve) else {
+                return;
+            };
+            let built = vec![true; want.len()];
+            let Ok(solves) = plan.solves(&built) else {
+                return;
+            };
+            let (pool, ms_pool, cells, ms_cells) = self.destination(device, &mut state, &plan);
+            let label = "vdbcook light density (ahead)";
+            let scratch = grown(device, &mut state.ahead_scratch, plan.largest, label);
+            let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
+            let ms_scratch = (ms_floats > 0).then(|| {
+                let label = "vdbcook light diffusion scratch (ahead)";
+                grown(device, &mut state.ahead_ms_scratch, ms_floats, label)
+            });
+            let rec = self.recording(
+                device,
+                volume_group,
+                &plan,
+                (&built, &solves),
+                (&scratch, ms_scratch.as_ref()),
+                (&pool, &ms_pool),
+            );
+            let total = rec.steps.iter().map(|s| s.cost).sum::<f64>();
+            let entry = LightEntry::new(self, device, plan.key, (pool, ms_pool), (cells, ms_cells));
+            state.ahead = Some(Ahead {
+                entry,
+                rec,
+                next: 0,
+                done: 0.0,
+                goal: 0.0,
+                share: total / f64::from(spread.max(1)),
+            });
+        }
+        let a = state.ahead.as_mut().expect("just made");
+        // This call's share: whole dispatches (at least one), each taken while it brings the
+        // recorded cost nearer to `calls · share` than leaving it would.
+        a.goal += a.share;
+        let first = a.next;
+        while let Some(s) = a.rec.steps.get(a.next) {
+            if a.next > first && a.done + 0.5 * s.cost > a.goal {
+                break;
+            }
+            a.done += s.cost;
+            a.next += 1;
+        }
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("vdbcook light volumes (ahead)"),
+        });
+        a.rec.record(self, &mut encoder, first..a.next);
+        queue.submit([encoder.finish()]);
+        if a.next == a.rec.steps.len() {
+            let a = state.ahead.take().expect("under way");
+            self.keep(&mut state, a.entry, true);
+        }
+    }
+
+    /// Adds a completed build to the kept ones (counting its volumes as built, and as built
+    /// ahead when `ahead`); kept builds beyond the limit that no draw holds go, oldest first.
+    fn keep(&self, state: &mut State, entry: LightEntry, ahead: bool) -> Arc<LightEntry> {
+        if ahead {
+            let n = entry.key.0.len() as u64;
+            state.counts.built += n;
+            state.counts.ahead += n;
+        }
+        let entry = Arc::new(entry);
+        state.builds.push(entry.clone());
+        while state.builds.len() > KEPT_BUILDS {
+            match state.builds.iter().position(|b| Arc::strong_count(b) == 1) {
+                Some(i) => {
+                    state.builds.remove(i);
+                }
+                None => break,
+            }
+        }
+        entry
+    }
+
+    /// Where a build goes: the buffers of a kept build no draw holds when large enough (that
+    /// build is forgotten), else new ones. Returns them and their capacities in cells.
+    fn destination(
+        &self,
+        device: &wgpu::Device,
+        state: &mut State,
+        plan: &Plan,
+    ) -> (wgpu::Buffer, wgpu::Buffer, usize, usize) {
+        let free = state.builds.iter().position(|b| Arc::strong_count(b) == 1);
+        let old = free.map(|i| state.builds.remove(i));
+        match old {
+            Some(b) if b.cells >= plan.total && b.ms_cells >= plan.ms_total => {
+                (b.pool.clone(), b.ms_pool.clone(), b.cells, b.ms_cells)
+            }
+            _ => (
+                storage_buffer(device, "vdbcook light volumes", 8 * plan.total),
+                storage_buffer(
+                    device,
+                    "vdbcook light diffusion",
+                    (MS_OUT_BYTES * plan.ms_total).max(MS_OUT_BYTES),
+                ),
+                plan.total,
+                plan.ms_total,
+            ),
+        }
+    }
+
+    /// The dispatches that build `plan`'s volumes that `built` marks (the others are copied from
+    /// kept builds: see `prepare`; `solves` holds the records of those built with one) into `pool` and
+    /// `ms_pool`, through the density scratch and the diffusion scratch `scratch`: per volume
+    /// the six light-volume passes, then for a diffusion volume the source, the gathered orders
+    /// and the multigrid solve (`vdbcook_trace::diffusion` on the CPU, in the same order).
+    fn recording(
+        &self,
+        device: &wgpu::Device,
+        volume_group: &wgpu::BindGroup,
+        plan: &Plan,
+        (built, solves): (&[bool], &[Option<Solve>]),
+        scratch: (&wgpu::Buffer, Option<&wgpu::Buffer>),
+        (pool, ms_pool): (&wgpu::Buffer, &wgpu::Buffer),
+    ) -> Recording {
+        let align = ms_record_stride(device.limits().min_uniform_buffer_offset_alignment);
+        let mut bytes: Vec<u8> = Vec::new();
+        for (records, _) in solves.iter().flatten() {
+            for r in records.iter().flatten() {
+                bytes.extend_from_slice(bytemuck::bytes_of(r));
+                bytes.resize(bytes.len().next_multiple_of(align), 0);
+            }
+        }
+        let ms_group = scratch.1.filter(|_| !bytes.is_empty()).map(|ms_scratch| {
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vdbcook light diffusion params"),
+                contents: &bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vdbcook light diffusion"),
+                layout: &self.ms_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: ms_scratch.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &uniform,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(MS_PARAMS_SIZE),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: ms_pool.as_entire_binding(),
+                    },
+                ],
+            })
+        });
+        let mut rec = Recording {
+            volume_group: volume_group.clone(),
+            groups: Vec::new(),
+            ms_group,
+            copies: Vec::new(),
+            steps: Vec::new(),
+        };
+        let mut next_record = 0usize;
+        for ((lp, solve), &b) in plan.key.0.iter().zip(solves).zip(built) {
+            if !b {
+                continue;
+            }
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vdbcook light params"),
+                contents: bytemuck::bytes_of(lp),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let g = rec.groups.len();
+            rec.groups
+                .push(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("vdbcook light build"),
+                    layout: &self.build_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: uniform.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: scratch.0.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: pool.as_entire_binding(),
+                        },
+                    ],
+                }));
+            // Per cell (4³ groups) or per column of an axis (8² groups over the other two).
+            let [x, y, z, sub] = lp.dims;
+            let cells = [x, y, z].map(|d| d.div_ceil(WORKGROUP));
+            let columns = |u: u32, v: u32| [u.div_ceil(8), v.div_ceil(8), 1];
+            let sizes = [
+                cells,
+                cells,
+                columns(y, z),
+                columns(z, x),
+                columns(x, y),
+                cells,
+            ];
+            let n = lp.cells() as f64;
+            for (k, size) in sizes.into_iter().enumerate() {
+                let per_cell = match k {
+                    0 => 2.0 * f64::from(sub).powi(3),
+                    // The sun's pass walks the grid toward the sun from every cell.
+                    1 => VOLUME_COST[1] * f64::from(x.max(y).max(z)),
+                    _ => VOLUME_COST[k],
+                };
+                rec.steps.push(Step {
+                    pass: Pass::Volume(k),
+                    group: g,
+                    offset: 0,
+                    size,
+                    cost: per_cell * n,
+                });
+            }
+            let Some((records, _)) = solve else {
+                continue;
+            };
+            let first = next_record;
+            next_record += 2 * records.len();
+            let mut run = |pass: usize, k: usize, parity: usize| {
+                let d = records[k][0].dims;
+                rec.steps.push(Step {
+                    pass: Pass::Ms(pass),
+                    group: g,
+                    // The dynamic offset of level `k`'s record of `parity`.
+                    offset: ((first + 2 * k + parity) * align) as u32,
+                    size: [d[0], d[1], d[2]].map(|v| v.div_ceil(WORKGROUP)),
+                    cost: MS_COST[pass] * f64::from(d[0] * d[1] * d[2]),
+                });
+            };
+            let [source, gather, second, restrict, prolong, limit, update, store] =
+                [0, 1, 2, 3, 4, 5, 6, 7];
+            run(source, 0, 0);
+            for k in 1..records.len() {
+                run(restrict, k, 0);
+            }
+            // The light scattered once, then twice (the record's parity), as many orders
+            // as the inputs ask.
+            for order in 0..records[0][0].parent[3] as usize {
+                run(gather, 0, order);
+                run(second, 0, order);
+                for k in 1..records.len() {
+                    run(restrict, k, 0);
+                }
+            }
+            for k in (0..records.len()).rev() {
+                run(prolong, k, 0);
+                for sweep in 0..ms_sweeps(k) {
+                    run(limit, k, sweep % 2);
+                    run(update, k, sweep % 2);
+                }
+            }
+            // The resistances of the result (in φ A), for the flux.
+            run(limit, 0, 0);
+            run(store, 0, 0);
+        }
+        rec
+    }
+}
+
+/// A storage buffer of `bytes` (at least 8) that copies may read and write.
+fn storage_buffer(device: &wgpu::Device, label: &str, bytes: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(8) as u64,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// The scratch buffer in `slot`, made anew when it holds fewer than `floats` f32s.
+fn grown(
+    device: &wgpu::Device,
+    slot: &mut Option<(wgpu::Buffer, usize)>,
+    floats: usize,
+    label: &str,
+) -> wgpu::Buffer {
+    if slot.as_ref().is_none_or(|s| s.1 < floats) {
+        *slot = Some((storage_buffer(device, label, 4 * floats), floats));
+    }
+    slot.as_ref().expect("just made").0.clone()
+}
+
+/// One volume's diffusion solve: its records `[level][parity]` and the scratch it needs (f32s).
+type Solve = (Vec<[MsParams; 2]>, usize);
+
+/// A list of light volumes placed one after the other in one buffer, checked against the
+/// device's limits.
+struct Plan {
+    /// The volumes (placed) and the diffusion inputs of those that solve it.
+    key: (Vec<LightParams>, Vec<Option<DiffusionInputs>>),
+    /// Cells in all, cells of the diffusion output (all of them when any volume solves it, else
+    /// 0), and of the largest volume.
+    total: usize,
+    ms_total: usize,
+    largest: usize,
+    /// The device's largest storage binding, in bytes.
+    most: usize,
+}
+
+impl Plan {
+    fn new(
+        device: &wgpu::Device,
+        volumes: &[LightParams],
+        diffusion: &[Option<DiffusionInputs>],
+    ) -> Result<Plan, RuntimeError> {
         let diffusion: Vec<Option<DiffusionInputs>> = (0..volumes.len())
             .map(|i| diffusion.get(i).copied().flatten())
             .collect();
@@ -428,281 +921,136 @@ impl LightPass {
                 per_cell * total
             )));
         }
-        let key = (placed, diffusion);
-        let mut state = self.state.lock().expect("light state");
-        if let Some(i) = state.builds.iter().position(|b| b.key == key) {
-            let b = state.builds.remove(i);
-            state.builds.push(b.clone());
-            state.counts.reused += key.0.len() as u64;
-            return Ok(b);
-        }
-        let (placed, diffusion) = &key;
-        // A volume a kept build already holds (the same frame, light, medium and grid) is copied
-        // from it instead of built: a crossfade whose pair moves on by one frame builds one
-        // volume, not two. The clones held here keep the sources from being picked as the
-        // destination below (a build no one else holds).
-        let sources: Vec<Option<(Arc<LightEntry>, u32)>> = placed
+        let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
+        Ok(Plan {
+            key: (placed, diffusion),
+            total,
+            ms_total: if per_cell == MS_OUT_BYTES { total } else { 0 },
+            largest,
+            most,
+        })
+    }
+
+    /// The diffusion solves' records of the volumes `built` marks (and that solve one), and the
+    /// scratch each needs; refused when that scratch exceeds the device's binding limit.
+    fn solves(&self, built: &[bool]) -> Result<Vec<Option<Solve>>, RuntimeError> {
+        let solves: Vec<_> = self
+            .key
+            .0
             .iter()
-            .zip(diffusion)
-            .map(|(lp, m)| {
-                state.builds.iter().rev().find_map(|b| {
-                    let (vols, solves) = &b.key;
-                    vols.iter()
-                        .zip(solves)
-                        .find(|(v, d)| v.same_volume(lp) && *d == m)
-                        .map(|(v, _)| (b.clone(), v.base))
-                })
-            })
-            .collect();
-        let buffer = |label: &str, bytes: usize| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(8) as u64,
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        // Cells the diffusion output must hold: all of them when any volume solves it.
-        let ms_total = if per_cell == MS_OUT_BYTES { total } else { 0 };
-        // The diffusion solves' records, all built volumes', each `align`-aligned (checked
-        // before a kept build is taken over, so that an error loses none).
-        let solves: Vec<Option<(Vec<[MsParams; 2]>, usize)>> = placed
-            .iter()
-            .zip(diffusion)
-            .zip(&sources)
-            .map(|((lp, m), src)| {
-                m.filter(|_| src.is_none())
+            .zip(&self.key.1)
+            .zip(built)
+            .map(|((lp, m), &b)| {
+                m.filter(|_| b)
                     .map(|m| ms_records([lp.dims[0], lp.dims[1], lp.dims[2]], &m))
             })
             .collect();
         let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
-        if 4 * ms_floats > most {
+        if 4 * ms_floats > self.most {
             return Err(RuntimeError::Limits(format!(
-                "the diffusion solve needs {} bytes of scratch, the device binds at most {most} \
+                "the diffusion solve needs {} bytes of scratch, the device binds at most {} \
                  (lower light_res, or use MsModel::Octaves)",
-                4 * ms_floats
+                4 * ms_floats,
+                self.most
             )));
         }
-        // Where to build: a kept build no draw holds (its buffers when large enough), else new.
-        let free = state.builds.iter().position(|b| Arc::strong_count(b) == 1);
-        let old = free.map(|i| state.builds.remove(i));
-        let (pool, ms_pool, cells, ms_cells) = match old {
-            Some(b) if b.cells >= total && b.ms_cells >= ms_total => {
-                (b.pool.clone(), b.ms_pool.clone(), b.cells, b.ms_cells)
-            }
-            _ => (
-                buffer("vdbcook light volumes", 8 * total),
-                buffer(
-                    "vdbcook light diffusion",
-                    (MS_OUT_BYTES * ms_total).max(MS_OUT_BYTES),
-                ),
-                total,
-                ms_total,
-            ),
-        };
-        let read = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vdbcook light read"),
-            layout: &self.read_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: pool.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: ms_pool.as_entire_binding(),
-                },
-            ],
-        });
-        let largest = placed.iter().map(|lp| lp.cells()).max().unwrap_or(1);
-        if state.scratch.as_ref().is_none_or(|s| s.1 < largest) {
-            state.scratch = Some((buffer("vdbcook light density", 4 * largest), largest));
-        }
-        if ms_floats > 0 && state.ms_scratch.as_ref().is_none_or(|s| s.1 < ms_floats) {
-            state.ms_scratch = Some((
-                buffer("vdbcook light diffusion scratch", 4 * ms_floats),
-                ms_floats,
-            ));
-        }
-        let (scratch, _) = state.scratch.as_ref().expect("just made");
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("vdbcook light volumes"),
-        });
-        let align = ms_record_stride(limits.min_uniform_buffer_offset_alignment);
-        let mut bytes: Vec<u8> = Vec::new();
-        for (records, _) in solves.iter().flatten() {
-            for r in records.iter().flatten() {
-                bytes.extend_from_slice(bytemuck::bytes_of(r));
-                bytes.resize(bytes.len().next_multiple_of(align), 0);
-            }
-        }
-        let ms_group = (!bytes.is_empty()).then(|| {
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("vdbcook light diffusion params"),
-                contents: &bytes,
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let (ms_scratch, _) = state.ms_scratch.as_ref().expect("made above");
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vdbcook light diffusion"),
-                layout: &self.ms_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: ms_scratch.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &uniform,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(MS_PARAMS_SIZE),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: ms_pool.as_entire_binding(),
-                    },
-                ],
-            })
-        });
-        let mut next_record = 0usize;
-        for ((lp, solve), (src, m)) in placed
-            .iter()
-            .zip(&solves)
-            .zip(sources.iter().zip(diffusion))
-        {
-            if let Some((from, at)) = src {
-                let n = lp.cells() as u64;
-                let (at, to) = (u64::from(*at), u64::from(lp.base));
-                encoder.copy_buffer_to_buffer(&from.pool, 8 * at, &pool, 8 * to, 8 * n);
-                if m.is_some() {
-                    let w = MS_OUT_BYTES as u64;
-                    encoder.copy_buffer_to_buffer(&from.ms_pool, w * at, &ms_pool, w * to, w * n);
-                }
-                continue;
-            }
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("vdbcook light params"),
-                contents: bytemuck::bytes_of(lp),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vdbcook light build"),
-                layout: &self.build_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: uniform.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: scratch.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: pool.as_entire_binding(),
-                    },
-                ],
-            });
-            // Per cell (4³ groups) or per column of an axis (8² groups over the other two).
-            let [x, y, z, _] = lp.dims;
-            let cells = [x, y, z].map(|d| d.div_ceil(WORKGROUP));
-            let columns = |u: u32, v: u32| [u.div_ceil(8), v.div_ceil(8), 1];
-            let sizes = [
-                cells,
-                cells,
-                columns(y, z),
-                columns(z, x),
-                columns(x, y),
-                cells,
-            ];
-            for (pipeline, size) in self.passes.iter().zip(sizes) {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("vdbcook light volume"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, volume_group, &[]);
-                pass.set_bind_group(1, &group, &[]);
-                pass.dispatch_workgroups(size[0], size[1], size[2]);
-            }
-            if let (Some((records, _)), Some(ms_group)) = (solve, &ms_group) {
-                let first = next_record;
-                next_record += 2 * records.len();
-                // The dynamic offset of level `k`'s record of `parity`.
-                let at = |k: usize, parity: usize| ((first + 2 * k + parity) * align) as u32;
-                let groups = |k: usize| {
-                    let d = records[k][0].dims;
-                    [d[0], d[1], d[2]].map(|v| v.div_ceil(WORKGROUP))
-                };
-                let [source, gather, second, restrict, prolong, limit, update, store] =
-                    &self.ms_passes;
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("vdbcook light diffusion"),
-                    timestamp_writes: None,
-                });
-                pass.set_bind_group(1, &group, &[]);
-                let mut run = |pipeline: &wgpu::ComputePipeline, k: usize, parity: usize| {
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(2, ms_group, &[at(k, parity)]);
-                    let [x, y, z] = groups(k);
-                    pass.dispatch_workgroups(x, y, z);
-                };
-                run(source, 0, 0);
-                for k in 1..records.len() {
-                    run(restrict, k, 0);
-                }
-                // The light scattered once, then twice (the record's parity), as many orders
-                // as the inputs ask.
-                for order in 0..records[0][0].parent[3] as usize {
-                    run(gather, 0, order);
-                    run(second, 0, order);
-                    for k in 1..records.len() {
-                        run(restrict, k, 0);
-                    }
-                }
-                for k in (0..records.len()).rev() {
-                    run(prolong, k, 0);
-                    for sweep in 0..ms_sweeps(k) {
-                        run(limit, k, sweep % 2);
-                        run(update, k, sweep % 2);
-                    }
-                }
-                // The resistances of the result (in φ A), for the flux.
-                run(limit, 0, 0);
-                run(store, 0, 0);
-            }
-        }
-        queue.submit([encoder.finish()]);
-        let copied = sources.iter().flatten().count() as u64;
-        drop(sources);
-        state.counts.reused += copied;
-        state.counts.built += placed.len() as u64 - copied;
-        let bases = placed.iter().map(|lp| lp.base).collect();
-        let entry = Arc::new(LightEntry {
-            key: key.clone(),
-            pool,
-            ms_pool,
-            cells,
-            ms_cells,
-            read,
-            bases,
-        });
-        state.builds.push(entry.clone());
-        // Kept builds beyond the limit that no draw holds go, oldest first.
-        while state.builds.len() > KEPT_BUILDS {
-            match state.builds.iter().position(|b| Arc::strong_count(b) == 1) {
-                Some(i) => {
-                    state.builds.remove(i);
-                }
-                None => break,
-            }
-        }
-        Ok(entry)
+        Ok(solves)
     }
+}
+
+/// Relative cost per cell of the light-volume passes (the sun's per cell and cell of the grid's
+/// longest side; the three axes, sky; the density pass's is `2·sub³`, not measured) and of the
+/// diffusion passes (source, gather, second, restrict, prolong, limit, update, store), by which
+/// [`LightPass::ahead`] shares a build out. Measured on lavapipe, one dispatch per displayed
+/// frame of a 64³ stormscape volume (`vdbcook bench --light-ahead 1000 --fps 0.5`, the spans
+/// less the static frame; a unit ≈ 2.5 ms there): sun 49 ms, axes 0.5–2.7, sky 1.3, source 13,
+/// gather 810–860, second 31 (4.8 after the last order), limit 8, update 22, store 20.
+const VOLUME_COST: [f64; 6] = [0.0, 0.3, 0.5, 0.5, 0.5, 0.5];
+const MS_COST: [f64; 8] = [5.0, 324.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0];
+
+/// Which pipeline a step runs: `LightPass::passes[k]` or `ms_passes[k]`.
+#[derive(Debug, Clone, Copy)]
+enum Pass {
+    Volume(usize),
+    Ms(usize),
+}
+
+/// One dispatch of a build.
+struct Step {
+    pass: Pass,
+    /// The volume's `LightParams` group in `Recording::groups`.
+    group: usize,
+    /// The diffusion record's dynamic offset (`Pass::Ms`).
+    offset: u32,
+    size: [u32; 3],
+    /// Estimated (`VOLUME_COST`, `MS_COST`).
+    cost: f64,
+}
+
+/// A build as buffer copies and dispatches, recorded at once (`prepare`) or a share at a time
+/// (`ahead`): the bind groups keep every buffer they read alive.
+struct Recording {
+    volume_group: wgpu::BindGroup,
+    groups: Vec<wgpu::BindGroup>,
+    ms_group: Option<wgpu::BindGroup>,
+    /// `(from, byte, to, byte, bytes)`, recorded before the first step.
+    copies: Vec<(wgpu::Buffer, u64, wgpu::Buffer, u64, u64)>,
+    steps: Vec<Step>,
+}
+
+impl Recording {
+    /// Records `steps` (with the copies when it starts at 0): each light-volume pass in a compute
+    /// pass of its own, each run of diffusion passes in one.
+    fn record(&self, lp: &LightPass, encoder: &mut wgpu::CommandEncoder, steps: Range<usize>) {
+        if steps.start == 0 {
+            for (from, at, to, to_at, bytes) in &self.copies {
+                encoder.copy_buffer_to_buffer(from, *at, to, *to_at, *bytes);
+            }
+        }
+        let mut k = steps.start;
+        while k < steps.end {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vdbcook light volume"),
+                timestamp_writes: None,
+            });
+            loop {
+                let s = &self.steps[k];
+                match s.pass {
+                    Pass::Volume(p) => {
+                        pass.set_pipeline(&lp.passes[p]);
+                        pass.set_bind_group(0, &self.volume_group, &[]);
+                        pass.set_bind_group(1, &self.groups[s.group], &[]);
+                    }
+                    Pass::Ms(p) => {
+                        pass.set_pipeline(&lp.ms_passes[p]);
+                        pass.set_bind_group(1, &self.groups[s.group], &[]);
+                        let group = self.ms_group.as_ref().expect("a diffusion build");
+                        pass.set_bind_group(2, group, &[s.offset]);
+                    }
+                }
+                pass.dispatch_workgroups(s.size[0], s.size[1], s.size[2]);
+                k += 1;
+                let both_ms = |a: Pass, b: Pass| matches!((a, b), (Pass::Ms(_), Pass::Ms(_)));
+                if k == steps.end || !both_ms(s.pass, self.steps[k].pass) {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// A build under way ahead of need ([`LightPass::ahead`]): its destination (the entry it
+/// becomes), its dispatches and how far they have been recorded.
+struct Ahead {
+    entry: LightEntry,
+    rec: Recording,
+    /// The next step to record, the estimated cost of those recorded, and of those the calls so
+    /// far should have recorded.
+    next: usize,
+    done: f64,
+    goal: f64,
+    /// The estimated cost a call records.
+    share: f64,
 }
 
 #[cfg(test)]

@@ -1649,6 +1649,91 @@ fn a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer() {
     }
 }
 
+/// Light built ahead (`VolumeDrawer::set_light_ahead`, issue 34: light volumes amortized over
+/// displayed frames): a flip-book played at 0.4 frames per displayed frame, then stopped, in
+/// both multiple-scattering models. Each displayed frame is the image of a drawer that builds
+/// every light volume when it needs it, bit for bit (the light is the exact build, moving on and
+/// stopped); frame 2's volume is built over the two displayed frames before its pair is shown
+/// (spread 2), and the displayed frame that reaches it builds nothing (its volumes are copied);
+/// each of the three frames' volumes is built once in all, none wasted; stopped, the drawer
+/// builds nothing more.
+#[test]
+fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
+    let Some(gpu) = Gpu::new("light_built_ahead_is_the_exact_build_spread_over_displayed_frames")
+    else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let f = gpu.frame();
+    let (view, _) = framing_view(&asset);
+    for ms_model in [MsModel::Diffusion, MsModel::Octaves] {
+        let (_vol, mut ahead) = setup(&gpu, &asset);
+        ahead.set_light_ahead(2);
+        let (_vol2, mut exact) = setup(&gpu, &asset);
+        let medium = Shading {
+            lighting: Some(Lighting {
+                light_res: 20,
+                ms_model,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let at = |time: f32| {
+            [Instance {
+                time,
+                ..Default::default()
+            }]
+        };
+        let mut shown = false;
+        for (k, time) in [0.0f32, 0.4, 0.8, 1.2, 1.6, 1.6, 1.6]
+            .into_iter()
+            .enumerate()
+        {
+            let before = ahead.light_builds();
+            let got = gpu.draw(&mut ahead, &f, &view, &at(time), &medium, BG, None);
+            let after = ahead.light_builds();
+            let want = gpu.draw(&mut exact, &f, &view, &at(time), &medium, BG, None);
+            shown |= want.chunks(4).any(|p| (p[0] as f64 - BG[0]).abs() > 0.05);
+            assert!(
+                got == want,
+                "{ms_model:?}: time {time} differs from the exact build"
+            );
+            let own = (after.built - after.ahead) - (before.built - before.ahead);
+            eprintln!("{ms_model:?} time {time}: {after:?} (built in the frame itself: {own})");
+            if time == 0.4 {
+                // Frame 1's build finished, frame 2's begun: a half of it in this frame.
+                assert_eq!(after.ahead, 1, "{ms_model:?}: {after:?}");
+            }
+            if time == 0.8 {
+                assert_eq!(
+                    (own, after.ahead),
+                    (0, 2),
+                    "{ms_model:?}: frame 2's second half"
+                );
+            }
+            if time == 1.2 {
+                assert_eq!(
+                    after.built, before.built,
+                    "{ms_model:?}: frame 2 was built ahead"
+                );
+            }
+            if k >= 5 {
+                assert_eq!(
+                    after.built, before.built,
+                    "{ms_model:?}: stopped, nothing built"
+                );
+            }
+        }
+        assert!(shown, "the cloud shows");
+        assert_eq!(
+            ahead.light_builds().built,
+            3,
+            "{ms_model:?}: each frame's volume once"
+        );
+        assert_eq!(exact.light_builds().built, 3, "{ms_model:?}");
+    }
+}
+
 /// `LitCrossfade::Dither` takes each sample (density and light) from one frame: frame 1 where
 /// the per-sample sequence falls below the crossfade weight. Checked against `Lerp` (both
 /// frames per sample, lerped), whose whole frames the other tests pin to the CPU:

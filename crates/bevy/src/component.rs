@@ -133,6 +133,11 @@ pub struct VolumeCamera {
     /// differ, for cameras with TAA: on a camera with TAA jitter the plugin varies the
     /// integrator's seed with the jitter, so the grain changes every frame and TAA averages it).
     pub lit_crossfade: LitCrossfade,
+    /// Builds each lit volume's next flip-book frame's light ahead over this many rendered
+    /// frames (0, the default: built in the frame that reaches it). The same light, the
+    /// build's cost spread over the frames before it (`VolumeDrawer::set_light_ahead`): 2 suits
+    /// a 24-fps effect on a 60-Hz display.
+    pub light_ahead: u32,
 }
 
 /// [`VolumeCamera`]'s hook: the camera draws single-sampled.

@@ -264,6 +264,7 @@ pub fn prepare_volume_draws(
                 .set_march_resolution(vc.settings.march_resolution);
             kept.drawer.set_interleave(vc.settings.interleave);
             kept.drawer.set_lit_crossfade(vc.settings.lit_crossfade);
+            kept.drawer.set_light_ahead(vc.settings.light_ahead);
             match kept
                 .drawer
                 .prepare(device, queue, &draw_target, &rt_view, &instances, &shading)
