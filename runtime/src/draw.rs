@@ -1373,16 +1373,24 @@ impl VolumeDrawer {
     /// Builds each lit instance's next light volume ahead, over `displayed_frames` calls of
     /// [`VolumeDrawer::prepare`] (0, the default: no building ahead). With it, `prepare` also
     /// builds the light volume of the flip-book frame after each instance's pair (after the
-    /// last frame, the first: effects loop), a `1 / displayed_frames` share of the build's
-    /// dispatches per call, so that when the time moves on to it the volume is copied rather
-    /// than built inside that frame. A flip-book at 24 fps shown at 60 changes frame every 2 or
-    /// 3 displayed frames: `2` spreads each build over the frames before it is needed. The
-    /// light drawn stays the exact build (the same bits); what moves is when the work happens.
-    /// A frame needed before its build completes finishes it at once. Costs a second scratch
-    /// (the solve's, about `light_res³ · 60` bytes) and, when playback stops or jumps, one
-    /// build that may not be used. `docs/engine.md` §6 has its figures.
+    /// last frame, the first: it assumes forward, looping play), one volume after the other,
+    /// each call a share of the work (whole dispatches by estimated cost) such that the volumes
+    /// asked for are built in `displayed_frames` calls; when the time moves on to such a frame
+    /// its volume is copied rather than built inside that displayed frame. A flip-book at 24
+    /// fps shown at 60 changes frame every 2 or 3 displayed frames: `2` spreads each build over
+    /// the frames before it is needed. The light drawn stays the exact build (the same bits);
+    /// what moves is when the work happens. A volume needed before its build completes is
+    /// finished (or built) at once. Of no use while the light, the medium or an instance's
+    /// rotation or scale changes every frame (each frame then needs new volumes; up to one
+    /// build a call goes unused), nor for effects played backwards or not looping (one unused
+    /// build at the end). Costs a second scratch while on (the solve's, about
+    /// `light_res³ · 60` bytes, and the density's, `light_res³ · 4`); 0 frees it.
+    /// `docs/engine.md` §6 has its figures.
     pub fn set_light_ahead(&mut self, displayed_frames: u32) {
         self.light_ahead = displayed_frames;
+        if displayed_frames == 0 {
+            self.light.drop_ahead();
+        }
     }
 
     /// Displayed frames a light volume is built ahead over (0: none).
@@ -1492,7 +1500,7 @@ impl VolumeDrawer {
             self.instances(rays.eye(), instances, shading)?;
         let rect = coverage(view, &corners);
         let build = self.build_lights(device, queue, &mut gpu_instances, &volumes)?;
-        if !ahead.volumes.is_empty() {
+        if self.light_ahead > 0 && shading.lighting.is_some() {
             let (v, d) = (&ahead.volumes, &ahead.diffusion);
             let spread = self.light_ahead;
             self.light

@@ -5,9 +5,10 @@
 //! encoder of its own and submitted at once, in `prepare`: a caller's encoder holds only draws,
 //! so dropping one never leaves light volumes unbuilt. The renderer and the drawer read a build
 //! through one bind group (`lit.wgsl`'s `lit_tau`, `lit_ms`: the renderer's group 3, the
-//! drawer's group 2); the draws holding it keep it from being overwritten. A build may also be
-//! made ahead of need, a share of its dispatches per call (`LightPass::ahead`, the drawer's
-//! `set_light_ahead`): the same dispatches (`Recording`), its own scratch.
+//! drawer's group 2); the draws holding it keep it from being overwritten. Volumes may also be
+//! built ahead of need, one at a time, a share of a build's dispatches per call
+//! (`LightPass::ahead`, the drawer's `set_light_ahead`): the same dispatches (`Recording`), a
+//! scratch of their own.
 //!
 //! A volume built for `MsModel::Diffusion` also gathers the sun's light scattered once and
 //! twice (`Lighting::ms_gather` orders) and runs the diffusion solve on the rest (`ms_*` passes,
@@ -108,6 +109,7 @@ impl LightParams {
 /// How many light volumes a renderer's or a drawer's `prepare` calls have built and how many
 /// they took from earlier builds (a kept build of the same list, or a copy of one volume).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct LightBuilds {
     /// Volumes built by the light passes (and the diffusion solve).
     pub built: u64,
@@ -549,16 +551,20 @@ impl LightPass {
         Ok(self.keep(&mut state, entry, false))
     }
 
-    /// Builds `volumes` ahead of the draws that will need them, a share of the work a call:
-    /// each call records and submits about `1 / spread` of the build (whole dispatches, by
-    /// their estimated cost: the gather's are the largest), so that the light volume of a
-    /// flip-book frame about to be shown is built over the displayed frames before it rather
-    /// than inside the one that reaches it. One build is under way at a time: while it is,
-    /// other volumes wait for the next call after it completes; volumes a kept build holds are
-    /// not built again. A completed build joins the kept builds, where [`LightPass::prepare`]
-    /// copies its volumes from; a `prepare` that needs one of them before it completes finishes
-    /// it at once. Best effort: volumes over the device's limits are left to `prepare` (which
-    /// reports them). Built ahead, a volume is the same bits `prepare` builds.
+    /// Builds `volumes` ahead of the draws that will need them, one volume after the other and a
+    /// share of the work a call, so that the light volume of a flip-book frame about to be shown
+    /// is built over the displayed frames before it rather than inside the one that reaches it.
+    /// A call records whole dispatches worth about `queued / spread` of one volume's build by
+    /// their estimated costs (`VOLUME_COST`, `MS_COST`: the gathers are the largest), `queued`
+    /// being the volumes not built yet (the one under way included), with what earlier calls
+    /// recorded over or under their budgets for the volume under way carried over: `spread`
+    /// calls build them all. Volumes a
+    /// kept build holds are not built again. A completed volume joins the kept builds, where
+    /// [`LightPass::prepare`] copies it from; a `prepare` that needs the volume under way
+    /// finishes it at once, and builds those not begun itself. The volume under way is finished
+    /// even when no longer asked for (one volume at most is built in vain). Best effort: volumes
+    /// over the device's limits are left to `prepare` (which reports them). Built ahead, a
+    /// volume is the same bits `prepare` builds.
     pub fn ahead(
         &self,
         device: &wgpu::Device,
@@ -569,71 +575,118 @@ impl LightPass {
         spread: u32,
     ) {
         let mut state = self.state.lock().expect("light state");
-        if state.ahead.is_none() {
-            let (want, solve): (Vec<LightParams>, Vec<Option<DiffusionInputs>>) = volumes
-                .iter()
-                .enumerate()
-                .map(|(i, lp)| (*lp, diffusion.get(i).copied().flatten()))
-                .filter(|(lp, m)| !state.builds.iter().any(|b| b.holds(lp, m)))
-                .unzip();
-            if want.is_empty() {
-                return;
+        let state = &mut *state;
+        let mut wanted: Vec<(LightParams, Option<DiffusionInputs>)> = Vec::new();
+        for (i, lp) in volumes.iter().enumerate() {
+            let m = diffusion.get(i).copied().flatten();
+            let held = state.builds.iter().any(|b| b.holds(lp, &m))
+                || state.ahead.as_ref().is_some_and(|a| a.entry.holds(lp, &m))
+                || wanted.iter().any(|(v, d)| v.same_volume(lp) && *d == m);
+            if !held {
+                wanted.push((*lp, m));
             }
-            let Ok(plan) = Plan::new(device, &want, &solve) else {
-                return;
-            };
-            let built = vec![true; want.len()];
-            let Ok(solves) = plan.solves(&built) else {
-                return;
-            };
-            let (pool, ms_pool, cells, ms_cells) = self.destination(device, &mut state, &plan);
-            let label = "vdbcook light density (ahead)";
-            let scratch = grown(device, &mut state.ahead_scratch, plan.largest, label);
-            let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
-            let ms_scratch = (ms_floats > 0).then(|| {
-                let label = "vdbcook light diffusion scratch (ahead)";
-                grown(device, &mut state.ahead_ms_scratch, ms_floats, label)
-            });
-            let rec = self.recording(
-                device,
-                volume_group,
-                &plan,
-                (&built, &solves),
-                (&scratch, ms_scratch.as_ref()),
-                (&pool, &ms_pool),
-            );
-            let total = rec.steps.iter().map(|s| s.cost).sum::<f64>();
-            let entry = LightEntry::new(self, device, plan.key, (pool, ms_pool), (cells, ms_cells));
-            state.ahead = Some(Ahead {
-                entry,
-                rec,
-                next: 0,
-                done: 0.0,
-                goal: 0.0,
-                share: total / f64::from(spread.max(1)),
-            });
         }
-        let a = state.ahead.as_mut().expect("just made");
-        // This call's share: whole dispatches (at least one), each taken while it brings the
-        // recorded cost nearer to `calls · share` than leaving it would.
-        a.goal += a.share;
-        let first = a.next;
-        while let Some(s) = a.rec.steps.get(a.next) {
-            if a.next > first && a.done + 0.5 * s.cost > a.goal {
-                break;
-            }
-            a.done += s.cost;
-            a.next += 1;
+        let queued = wanted.len() + usize::from(state.ahead.is_some());
+        if queued == 0 {
+            return;
         }
+        let mut wanted = wanted.into_iter();
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("vdbcook light volumes (ahead)"),
         });
-        a.rec.record(self, &mut encoder, first..a.next);
-        queue.submit([encoder.finish()]);
-        if a.next == a.rec.steps.len() {
+        // This call's budget, once the first volume's cost is known.
+        let mut budget = None;
+        let mut spent = 0.0;
+        loop {
+            if state.ahead.is_none() {
+                // The budget spent on a volume this call completed: the next one waits.
+                if budget.is_some_and(|b| spent >= b) {
+                    break;
+                }
+                let Some((lp, m)) = wanted.next() else {
+                    break;
+                };
+                state.ahead = self.begin_ahead(device, state, volume_group, lp, m);
+                if state.ahead.is_none() {
+                    continue;
+                }
+            }
+            let a = state.ahead.as_mut().expect("under way");
+            let share = a.total * queued as f64 / f64::from(spread.max(1));
+            let budget = *budget.get_or_insert(share + a.carry);
+            // Whole dispatches (at least one a call), each taken while it brings the spent cost
+            // nearer to the budget than leaving it would; the build's rest all at once when it
+            // is under a quarter of a share over the budget (no tail left for another call).
+            let first = a.next;
+            let mut rest: f64 = a.rec.steps[a.next..].iter().map(|s| s.cost).sum();
+            while let Some(s) = a.rec.steps.get(a.next) {
+                let all = spent + rest <= budget + 0.25 * share;
+                if spent > 0.0 && !all && spent + 0.5 * s.cost > budget {
+                    break;
+                }
+                spent += s.cost;
+                rest -= s.cost;
+                a.next += 1;
+            }
+            a.rec.record(self, &mut encoder, first..a.next);
+            if a.next < a.rec.steps.len() {
+                // What this call recorded over or under its budget, within a share either way.
+                a.carry = (budget - spent).clamp(-share, share);
+                break;
+            }
             let a = state.ahead.take().expect("under way");
-            self.keep(&mut state, a.entry, true);
+            self.keep(state, a.entry, true);
         }
+        queue.submit([encoder.finish()]);
+    }
+
+    /// Forgets the build under way ahead and the ahead builds' scratch (building ahead turned
+    /// off).
+    pub fn drop_ahead(&self) {
+        let mut state = self.state.lock().expect("light state");
+        state.ahead = None;
+        state.ahead_scratch = None;
+        state.ahead_ms_scratch = None;
+    }
+
+    /// The build of the one volume `lp` ahead of need (none when it is over the device's
+    /// limits), through the ahead builds' own scratch: `prepare`'s builds run between its shares.
+    fn begin_ahead(
+        &self,
+        device: &wgpu::Device,
+        state: &mut State,
+        volume_group: &wgpu::BindGroup,
+        lp: LightParams,
+        m: Option<DiffusionInputs>,
+    ) -> Option<Ahead> {
+        let plan = Plan::new(device, &[lp], &[m]).ok()?;
+        let built = [true];
+        let solves = plan.solves(&built).ok()?;
+        let (pool, ms_pool, cells, ms_cells) = self.destination(device, state, &plan);
+        let label = "vdbcook light density (ahead)";
+        let scratch = grown(device, &mut state.ahead_scratch, plan.largest, label);
+        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
+        let ms_scratch = (ms_floats > 0).then(|| {
+            let label = "vdbcook light diffusion scratch (ahead)";
+            grown(device, &mut state.ahead_ms_scratch, ms_floats, label)
+        });
+        let rec = self.recording(
+            device,
+            volume_group,
+            &plan,
+            (&built, &solves),
+            (&scratch, ms_scratch.as_ref()),
+            (&pool, &ms_pool),
+        );
+        let total = rec.steps.iter().map(|s| s.cost).sum::<f64>();
+        let entry = LightEntry::new(self, device, plan.key, (pool, ms_pool), (cells, ms_cells));
+        Some(Ahead {
+            entry,
+            rec,
+            next: 0,
+            total,
+            carry: 0.0,
+        })
     }
 
     /// Adds a completed build to the kept ones (counting its volumes as built, and as built
@@ -657,21 +710,21 @@ impl LightPass {
         entry
     }
 
-    /// Where a build goes: the buffers of a kept build no draw holds when large enough (that
-    /// build is forgotten), else new ones. Returns them and their capacities in cells.
+    /// Where a build goes: the buffers of the oldest kept build no draw holds that is large
+    /// enough (that build is forgotten), else new ones (`keep` forgets builds beyond the limit).
+    /// Returns them and their capacities in cells.
     fn destination(
         &self,
         device: &wgpu::Device,
         state: &mut State,
         plan: &Plan,
     ) -> (wgpu::Buffer, wgpu::Buffer, usize, usize) {
-        let free = state.builds.iter().position(|b| Arc::strong_count(b) == 1);
-        let old = free.map(|i| state.builds.remove(i));
-        match old {
-            Some(b) if b.cells >= plan.total && b.ms_cells >= plan.ms_total => {
-                (b.pool.clone(), b.ms_pool.clone(), b.cells, b.ms_cells)
-            }
-            _ => (
+        let free = state.builds.iter().position(|b| {
+            Arc::strong_count(b) == 1 && b.cells >= plan.total && b.ms_cells >= plan.ms_total
+        });
+        match free.map(|i| state.builds.remove(i)) {
+            Some(b) => (b.pool.clone(), b.ms_pool.clone(), b.cells, b.ms_cells),
+            None => (
                 storage_buffer(device, "vdbcook light volumes", 8 * plan.total),
                 storage_buffer(
                     device,
@@ -1039,18 +1092,16 @@ impl Recording {
     }
 }
 
-/// A build under way ahead of need ([`LightPass::ahead`]): its destination (the entry it
-/// becomes), its dispatches and how far they have been recorded.
+/// A volume's build under way ahead of need ([`LightPass::ahead`]): its destination (the entry
+/// it becomes), its dispatches, how far they have been recorded and their estimated cost.
 struct Ahead {
     entry: LightEntry,
     rec: Recording,
-    /// The next step to record, the estimated cost of those recorded, and of those the calls so
-    /// far should have recorded.
+    /// The next step to record.
     next: usize,
-    done: f64,
-    goal: f64,
-    /// The estimated cost a call records.
-    share: f64,
+    total: f64,
+    /// The estimated cost the calls so far recorded under (+) or over (−) their budgets.
+    carry: f64,
 }
 
 #[cfg(test)]

@@ -1656,7 +1656,9 @@ fn a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer() {
 /// stopped); frame 2's volume is built over the two displayed frames before its pair is shown
 /// (spread 2), and the displayed frame that reaches it builds nothing (its volumes are copied);
 /// each of the three frames' volumes is built once in all, none wasted; stopped, the drawer
-/// builds nothing more.
+/// builds nothing more. Then one drawer draws two lights in turn, every image the exact build's.
+/// (That a build ahead has a scratch of its own, apart from `prepare`'s, is by construction; no
+/// test here makes `prepare` build between two shares of one volume.)
 #[test]
 fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
     let Some(gpu) = Gpu::new("light_built_ahead_is_the_exact_build_spread_over_displayed_frames")
@@ -1732,6 +1734,36 @@ fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
         );
         assert_eq!(exact.light_builds().built, 3, "{ms_model:?}");
     }
+    // Two lights drawn in turn by one drawer: each light's volumes built ahead are shared out
+    // over both lights' draws, and every image is still the exact build's.
+    let (_vol3, mut both) = setup(&gpu, &asset);
+    both.set_light_ahead(3);
+    let shadings = [[0.3f32, 0.3, 0.0], [-0.3, 0.8, 0.5]].map(|light_dir| Shading {
+        lighting: Some(Lighting {
+            light_res: 20,
+            light_dir,
+            ..Default::default()
+        }),
+        ..Default::default()
+    });
+    let mut exact: Vec<_> = shadings.iter().map(|_| setup(&gpu, &asset)).collect();
+    for k in 0..10 {
+        let time = 0.2 * k as f32;
+        for (s, (_, ex)) in shadings.iter().zip(&mut exact) {
+            let inst = [Instance {
+                time,
+                ..Default::default()
+            }];
+            let got = gpu.draw(&mut both, &f, &view, &inst, s, BG, None);
+            let want = gpu.draw(ex, &f, &view, &inst, s, BG, None);
+            assert!(
+                got == want,
+                "two lights: time {time} differs from the exact build"
+            );
+        }
+    }
+    let counts = both.light_builds();
+    assert!(counts.ahead >= 4, "two lights: {counts:?}");
 }
 
 /// `LitCrossfade::Dither` takes each sample (density and light) from one frame: frame 1 where
