@@ -558,10 +558,9 @@ impl LightPass {
     /// their estimated costs (`VOLUME_COST`, `MS_COST`: the gathers are the largest), `queued`
     /// being the volumes not built yet (the one under way included), with what earlier calls
     /// recorded over or under their budgets for the volume under way carried over: `spread`
-    /// calls build them all. Volumes a
-    /// kept build holds are not built again. A completed volume joins the kept builds, where
-    /// [`LightPass::prepare`] copies it from; a `prepare` that needs the volume under way
-    /// finishes it at once, and builds those not begun itself. The volume under way is finished
+    /// calls build them all. Volumes a kept build holds are not built again. A completed volume
+    /// joins the kept builds, where [`LightPass::prepare`] copies it from; a `prepare` that
+    /// needs the volume under way finishes it at once, and builds those not begun itself. The volume under way is finished
     /// even when no longer asked for (one volume at most is built in vain). Best effort: volumes
     /// over the device's limits are left to `prepare` (which reports them). Built ahead, a
     /// volume is the same bits `prepare` builds.
