@@ -5,8 +5,8 @@
 # 1920×1080 with 1, 8 and 64 instances on the WDAS cloud, the 200-frame stormscape sequence
 # (both from ../shared/samples) and the fire fixture, written as a table with the adapter's name
 # and the date to docs/gpu/<adapter>.md (commit it); on stormscape also the lit crossfade dithered
-# (`--lit-crossfade dither`) beside the default lerp, and the light volumes built without the
-# gathered orders (`--ms-gather 0`) beside the default two. SIZE=WxH and COUNTS=1,8,64 override;
+# (`--lit-crossfade dither`) beside the default lerp, the light volumes built without the
+# gathered orders (`--ms-gather 0`) beside the default two, and built ahead (`--light-ahead 2`). SIZE=WxH and COUNTS=1,8,64 override;
 # SKIP_TESTS=1 skips the tests (a dry run of the tables); RESOLUTIONS=full,half,quarter the marches
 # benched. For a machine without cargo (binaries built
 # elsewhere): VDBCOOK=path/to/vdbcook skips the build, RUNTIME_TESTS="bin ..." runs those prebuilt
