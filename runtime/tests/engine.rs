@@ -356,6 +356,26 @@ fn centre_distance(cam: &Camera) -> f32 {
 }
 
 /// The default lighting with a small light volume (20 cells: quick to build on lavapipe).
+/// [`lit_shading`] with the multiple-scattering model `ms_model`.
+fn lit_with(ms_model: MsModel) -> Shading {
+    Shading {
+        lighting: Some(Lighting {
+            light_res: 20,
+            ms_model,
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// One instance at the origin at flip-book time `time`.
+fn at_time(time: f32) -> [Instance; 1] {
+    [Instance {
+        time,
+        ..Default::default()
+    }]
+}
+
 fn lit_shading() -> Shading {
     Shading {
         lighting: Some(Lighting {
@@ -1607,24 +1627,11 @@ fn a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer() {
     let (view, _) = framing_view(&asset);
     for ms_model in [MsModel::Diffusion, MsModel::Octaves] {
         let (_vol, mut drawer) = setup(&gpu, &asset);
-        let medium = Shading {
-            lighting: Some(Lighting {
-                light_res: 20,
-                ms_model,
-                ..Default::default()
-            }),
-            ..Default::default()
-        };
-        let at = |time: f32| {
-            [Instance {
-                time,
-                ..Default::default()
-            }]
-        };
-        gpu.draw(&mut drawer, &f, &view, &at(0.5), &medium, BG, None);
+        let medium = lit_with(ms_model);
+        gpu.draw(&mut drawer, &f, &view, &at_time(0.5), &medium, BG, None);
         let first = drawer.light_builds();
         assert_eq!((first.built, first.reused), (2, 0), "{ms_model:?}");
-        let moved_on = gpu.draw(&mut drawer, &f, &view, &at(1.5), &medium, BG, None);
+        let moved_on = gpu.draw(&mut drawer, &f, &view, &at_time(1.5), &medium, BG, None);
         let next = drawer.light_builds();
         assert_eq!(
             (next.built, next.reused),
@@ -1632,14 +1639,14 @@ fn a_crossfade_moving_on_builds_one_light_volume_and_draws_as_a_fresh_drawer() {
             "{ms_model:?}: frame 1 copied"
         );
         let (_vol2, mut fresh) = setup(&gpu, &asset);
-        let want = gpu.draw(&mut fresh, &f, &view, &at(1.5), &medium, BG, None);
+        let want = gpu.draw(&mut fresh, &f, &view, &at_time(1.5), &medium, BG, None);
         assert!(
             want.chunks(4).any(|p| (p[0] as f64 - BG[0]).abs() > 0.05),
             "the cloud shows"
         );
         assert_eq!(moved_on, want, "{ms_model:?}");
         assert_eq!(fresh.light_builds().built, 2);
-        gpu.draw(&mut drawer, &f, &view, &at(1.75), &medium, BG, None);
+        gpu.draw(&mut drawer, &f, &view, &at_time(1.75), &medium, BG, None);
         let again = drawer.light_builds();
         assert_eq!(
             (again.built, again.reused),
@@ -1672,29 +1679,16 @@ fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
         let (_vol, mut ahead) = setup(&gpu, &asset);
         ahead.set_light_ahead(2);
         let (_vol2, mut exact) = setup(&gpu, &asset);
-        let medium = Shading {
-            lighting: Some(Lighting {
-                light_res: 20,
-                ms_model,
-                ..Default::default()
-            }),
-            ..Default::default()
-        };
-        let at = |time: f32| {
-            [Instance {
-                time,
-                ..Default::default()
-            }]
-        };
+        let medium = lit_with(ms_model);
         let mut shown = false;
         for (k, time) in [0.0f32, 0.4, 0.8, 1.2, 1.6, 1.6, 1.6]
             .into_iter()
             .enumerate()
         {
             let before = ahead.light_builds();
-            let got = gpu.draw(&mut ahead, &f, &view, &at(time), &medium, BG, None);
+            let got = gpu.draw(&mut ahead, &f, &view, &at_time(time), &medium, BG, None);
             let after = ahead.light_builds();
-            let want = gpu.draw(&mut exact, &f, &view, &at(time), &medium, BG, None);
+            let want = gpu.draw(&mut exact, &f, &view, &at_time(time), &medium, BG, None);
             shown |= want.chunks(4).any(|p| (p[0] as f64 - BG[0]).abs() > 0.05);
             assert!(
                 got == want,
