@@ -358,6 +358,8 @@ mod imp {
         /// The 95th percentile (nearest rank) and the largest span: the frames the builds land in.
         p95_ms: f64,
         max_ms: f64,
+        /// Every frame's span, in order.
+        spans: Vec<f64>,
         draw_ms: Option<f64>,
         prepare_ms: f64,
         wall_ms: f64,
@@ -366,17 +368,17 @@ mod imp {
     }
 
     fn summary(t: &[Timing]) -> Summary {
-        let span: Vec<f64> = t.iter().map(|f| f.span.unwrap_or(f.wall)).collect();
+        let spans: Vec<f64> = t.iter().map(|f| f.span.unwrap_or(f.wall)).collect();
+        let mut sorted = spans.clone();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
         let draws: Vec<f64> = t.iter().filter_map(|f| f.draw).collect();
         Summary {
-            ms: median(span.clone()),
-            mean_ms: span.iter().sum::<f64>() / span.len() as f64,
-            p95_ms: {
-                let mut s = span.clone();
-                s.sort_by(f64::total_cmp);
-                s[((0.95 * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1]
-            },
-            max_ms: span.iter().copied().fold(f64::NAN, f64::max),
+            ms: sorted[n / 2],
+            mean_ms: spans.iter().sum::<f64>() / n as f64,
+            p95_ms: sorted[((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1],
+            max_ms: sorted[n - 1],
+            spans,
             draw_ms: (!draws.is_empty()).then(|| median(draws)),
             prepare_ms: median(t.iter().map(|f| f.prepare).collect()),
             wall_ms: median(t.iter().map(|f| f.wall).collect()),
@@ -633,8 +635,7 @@ mod imp {
                     "mode": mode_name, "instances": n, "static_ms": st.ms, "playing_ms": pl.ms,
                     "playing_error": error, "playing_mean_ms": pl.mean_ms,
                     "playing_p95_ms": pl.p95_ms, "playing_max_ms": pl.max_ms,
-                    "playing_spans_ms": playing.iter().map(|f| f.span.unwrap_or(f.wall))
-                        .collect::<Vec<f64>>(),
+                    "playing_spans_ms": pl.spans,
                     "static_draw_ms": st.draw_ms, "playing_draw_ms": pl.draw_ms,
                     "static_prepare_ms": st.prepare_ms, "playing_prepare_ms": pl.prepare_ms,
                     "static_wall_ms": st.wall_ms, "playing_wall_ms": pl.wall_ms,

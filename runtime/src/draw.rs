@@ -1232,15 +1232,18 @@ impl VolumeDrawer {
                 // bases hold their indices in `volumes` until `prepare` places them.
                 let grids = [f0, f1]
                     .map(|f| LightGrid::with_levels(meta.content[f], l.light_res, meta.lod().0));
-                // The light volume of frame `f` over `grid`.
+                // The light volume of frame `f` over `grid`, and (only for a volume not listed
+                // yet) its diffusion inputs.
                 let volume = |grid: &LightGrid, f: usize| {
                     let at = FrameAt {
                         asset: inst.asset as u32,
                         frame_root: (f * meta.root_len) as u32,
                         lod: meta.lod(),
                     };
-                    let lp = LightParams::new(grid, &xf, l.light_dir, extinction, medium.unit, at);
-                    let m = (l.ms_model == MsModel::Diffusion).then(|| {
+                    LightParams::new(grid, &xf, l.light_dir, extinction, medium.unit, at)
+                };
+                let inputs = |grid: &LightGrid| {
+                    (l.ms_model == MsModel::Diffusion).then(|| {
                         DiffusionInputs::new(
                             grid,
                             light_dirs(&xf, l.light_dir, medium.unit),
@@ -1249,19 +1252,18 @@ impl VolumeDrawer {
                             (medium.phase_g, medium.phase_w),
                             l.ms_gather,
                         )
-                    });
-                    (lp, m)
+                    })
                 };
                 let mut idx = [0u32; 2];
                 for (n, grid) in grids.iter().enumerate() {
-                    let (lp, m) = volume(grid, [f0, f1][n]);
+                    let lp = volume(grid, [f0, f1][n]);
                     idx[n] = volumes
                         .volumes
                         .iter()
                         .position(|v| *v == lp)
                         .unwrap_or_else(|| {
                             volumes.volumes.push(lp);
-                            volumes.diffusion.push(m);
+                            volumes.diffusion.push(inputs(grid));
                             volumes.volumes.len() - 1
                         }) as u32;
                 }
@@ -1271,10 +1273,10 @@ impl VolumeDrawer {
                 if self.light_ahead > 0 && next != f1 && next != f0 {
                     let grid =
                         LightGrid::with_levels(meta.content[next], l.light_res, meta.lod().0);
-                    let (lp, m) = volume(&grid, next);
+                    let lp = volume(&grid, next);
                     if !ahead.volumes.contains(&lp) {
                         ahead.volumes.push(lp);
-                        ahead.diffusion.push(m);
+                        ahead.diffusion.push(inputs(&grid));
                     }
                 }
                 d.place = LitPlace::new(

@@ -270,10 +270,16 @@ impl LightEntry {
 
     /// Whether it holds the volume `lp` with the diffusion inputs `m` (wherever placed).
     fn holds(&self, lp: &LightParams, m: &Option<DiffusionInputs>) -> bool {
+        self.base_of(lp, m).is_some()
+    }
+
+    /// Where it holds the volume `lp` with the diffusion inputs `m`: its base element.
+    fn base_of(&self, lp: &LightParams, m: &Option<DiffusionInputs>) -> Option<u32> {
         let (vols, solves) = &self.key;
         vols.iter()
             .zip(solves)
-            .any(|(v, d)| v.same_volume(lp) && d == m)
+            .find(|(v, d)| v.same_volume(lp) && *d == m)
+            .map(|(v, _)| v.base)
     }
 }
 
@@ -281,20 +287,25 @@ impl LightEntry {
 /// is read from its build instead of rebuilt.
 const KEPT_BUILDS: usize = 8;
 
+/// The two scratch buffers a build runs through, with their capacities: the density's (cells)
+/// and the diffusion solve's (every level of one volume, f32s).
+#[derive(Default)]
+struct Scratch {
+    density: Option<(wgpu::Buffer, usize)>,
+    ms: Option<(wgpu::Buffer, usize)>,
+}
+
 /// The builds and the scratch they are made through.
 #[derive(Default)]
 struct State {
     /// Most recently used last.
     builds: Vec<Arc<LightEntry>>,
-    /// The density scratch and its capacity in cells.
-    scratch: Option<(wgpu::Buffer, usize)>,
-    /// The diffusion solve's scratch (every level of one volume) and its capacity in f32s.
-    ms_scratch: Option<(wgpu::Buffer, usize)>,
-    /// A build under way ahead of need, and the two scratch buffers of such builds (their own:
+    /// The scratch of the builds `prepare` records at once.
+    scratch: Scratch,
+    /// A build under way ahead of need, and the scratch of such builds (their own:
     /// the builds of `prepare` run between its shares).
     ahead: Option<Ahead>,
-    ahead_scratch: Option<(wgpu::Buffer, usize)>,
-    ahead_ms_scratch: Option<(wgpu::Buffer, usize)>,
+    ahead_scratch: Scratch,
     counts: LightBuilds,
 }
 
@@ -489,51 +500,21 @@ impl LightPass {
             .iter()
             .zip(diffusion)
             .map(|(lp, m)| {
-                state.builds.iter().rev().find_map(|b| {
-                    let (vols, solves) = &b.key;
-                    vols.iter()
-                        .zip(solves)
-                        .find(|(v, d)| v.same_volume(lp) && *d == m)
-                        .map(|(v, _)| (b.clone(), v.base))
-                })
+                let mut kept = state.builds.iter().rev();
+                kept.find_map(|b| b.base_of(lp, m).map(|at| (b.clone(), at)))
             })
             .collect();
         let built: Vec<bool> = sources.iter().map(Option::is_none).collect();
-        // Checked before a kept build is taken over, so that an error loses none.
-        let solves = plan.solves(&built)?;
-        let (pool, ms_pool, cells, ms_cells) = self.destination(device, &mut state, &plan);
-        let scratch = grown(
-            device,
-            &mut state.scratch,
-            plan.largest,
-            "vdbcook light density",
-        );
-        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
-        let ms_scratch = (ms_floats > 0).then(|| {
-            grown(
-                device,
-                &mut state.ms_scratch,
-                ms_floats,
-                "vdbcook light diffusion scratch",
-            )
-        });
-        let mut rec = self.recording(
-            device,
-            volume_group,
-            &plan,
-            (&built, &solves),
-            (&scratch, ms_scratch.as_ref()),
-            (&pool, &ms_pool),
-        );
+        let (mut rec, entry) = self.build(device, &mut state, volume_group, plan, &built, false)?;
         for ((lp, m), src) in placed.iter().zip(diffusion).zip(&sources) {
             if let Some((from, at)) = src {
                 let n = lp.cells() as u64;
                 let (at, to) = (u64::from(*at), u64::from(lp.base));
                 rec.copies
-                    .push((from.pool.clone(), 8 * at, pool.clone(), 8 * to, 8 * n));
+                    .push((from.pool.clone(), 8 * at, entry.pool.clone(), 8 * to, 8 * n));
                 if m.is_some() {
                     let w = MS_OUT_BYTES as u64;
-                    let (src, dst) = (from.ms_pool.clone(), ms_pool.clone());
+                    let (src, dst) = (from.ms_pool.clone(), entry.ms_pool.clone());
                     rec.copies.push((src, w * at, dst, w * to, w * n));
                 }
             }
@@ -547,7 +528,6 @@ impl LightPass {
         drop(sources);
         state.counts.reused += copied;
         state.counts.built += placed.len() as u64 - copied;
-        let entry = LightEntry::new(self, device, key, (pool, ms_pool), (cells, ms_cells));
         Ok(self.keep(&mut state, entry, false))
     }
 
@@ -560,10 +540,10 @@ impl LightPass {
     /// recorded over or under their budgets for the volume under way carried over: `spread`
     /// calls build them all. Volumes a kept build holds are not built again. A completed volume
     /// joins the kept builds, where [`LightPass::prepare`] copies it from; a `prepare` that
-    /// needs the volume under way finishes it at once, and builds those not begun itself. The volume under way is finished
-    /// even when no longer asked for (one volume at most is built in vain). Best effort: volumes
-    /// over the device's limits are left to `prepare` (which reports them). Built ahead, a
-    /// volume is the same bits `prepare` builds.
+    /// needs the volume under way finishes it at once, and builds those not begun itself. The
+    /// volume under way is finished even when no longer asked for (one volume at most is built
+    /// in vain). Best effort: volumes over the device's limits are left to `prepare` (which
+    /// reports them). Built ahead, a volume is the same bits `prepare` builds.
     pub fn ahead(
         &self,
         device: &wgpu::Device,
@@ -644,8 +624,7 @@ impl LightPass {
     pub fn drop_ahead(&self) {
         let mut state = self.state.lock().expect("light state");
         state.ahead = None;
-        state.ahead_scratch = None;
-        state.ahead_ms_scratch = None;
+        state.ahead_scratch = Scratch::default();
     }
 
     /// The build of the one volume `lp` ahead of need (none when it is over the device's
@@ -659,26 +638,10 @@ impl LightPass {
         m: Option<DiffusionInputs>,
     ) -> Option<Ahead> {
         let plan = Plan::new(device, &[lp], &[m]).ok()?;
-        let built = [true];
-        let solves = plan.solves(&built).ok()?;
-        let (pool, ms_pool, cells, ms_cells) = self.destination(device, state, &plan);
-        let label = "vdbcook light density (ahead)";
-        let scratch = grown(device, &mut state.ahead_scratch, plan.largest, label);
-        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
-        let ms_scratch = (ms_floats > 0).then(|| {
-            let label = "vdbcook light diffusion scratch (ahead)";
-            grown(device, &mut state.ahead_ms_scratch, ms_floats, label)
-        });
-        let rec = self.recording(
-            device,
-            volume_group,
-            &plan,
-            (&built, &solves),
-            (&scratch, ms_scratch.as_ref()),
-            (&pool, &ms_pool),
-        );
+        let (rec, entry) = self
+            .build(device, state, volume_group, plan, &[true], true)
+            .ok()?;
         let total = rec.steps.iter().map(|s| s.cost).sum::<f64>();
-        let entry = LightEntry::new(self, device, plan.key, (pool, ms_pool), (cells, ms_cells));
         Some(Ahead {
             entry,
             rec,
@@ -707,6 +670,44 @@ impl LightPass {
             }
         }
         entry
+    }
+
+    /// The build of `plan`'s volumes that `built` marks (the solves' records checked against the
+    /// device's limits first, so that an error loses no kept build), into a destination
+    /// (`destination`) through the scratch of builds recorded at once or, `ahead`, of builds
+    /// made ahead: its dispatches and the entry it becomes.
+    fn build(
+        &self,
+        device: &wgpu::Device,
+        state: &mut State,
+        volume_group: &wgpu::BindGroup,
+        plan: Plan,
+        built: &[bool],
+        ahead: bool,
+    ) -> Result<(Recording, LightEntry), RuntimeError> {
+        let solves = plan.solves(built)?;
+        let (pool, ms_pool, cells, ms_cells) = self.destination(device, state, &plan);
+        let (slot, labels) = if ahead {
+            let labels = ["density (ahead)", "diffusion scratch (ahead)"];
+            (&mut state.ahead_scratch, labels)
+        } else {
+            (&mut state.scratch, ["density", "diffusion scratch"])
+        };
+        let label = |l: &str| format!("vdbcook light {l}");
+        let scratch = grown(device, &mut slot.density, plan.largest, &label(labels[0]));
+        let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
+        let ms_scratch =
+            (ms_floats > 0).then(|| grown(device, &mut slot.ms, ms_floats, &label(labels[1])));
+        let rec = self.recording(
+            device,
+            volume_group,
+            &plan,
+            (built, &solves),
+            (&scratch, ms_scratch.as_ref()),
+            (&pool, &ms_pool),
+        );
+        let entry = LightEntry::new(self, device, plan.key, (pool, ms_pool), (cells, ms_cells));
+        Ok((rec, entry))
     }
 
     /// Where a build goes: the buffers of the oldest kept build no draw holds that is large
