@@ -250,16 +250,23 @@ struct MsParams {
     // Every level of the solve (`child.w` of them): xyz its cells per axis, w its first
     // element in `lv_ms` (the gather reads them all).
     levels: array<vec4<u32>, 8>,
+    // x: this level's index (0: the light volume's cells).
+    level: vec4<u32>,
+    // Per level (four per element), the first element in `lv_ms` of its shared gather paths
+    // (26 per cell, `ms_paths_main`), from level `MS_SHARED_PATHS` up; 0 below.
+    paths: array<vec4<u32>, 2>,
 }
 
 // Per level at `off.x` over n cells: st [0, n), sr [n, 2n), q [2n, 3n), φ A [3n, 5n) and
 // φ B [5n, 7n) (two per cell: sun, sky), the half-cell resistances [7n, 13n) (six per cell:
 // x y z of the sun's field, then of the sky's). Before the solve the gather keeps each level's
 // beam sources in the resistances' place, [7n, 12n) (five per cell:
-// `vdbcook_trace::diffusion`'s `Level::beam`), and level 0's second order in φ A's and φ B's,
-// [3n, 7n) (four per cell); the gathered light of both orders (φ, then J per axis) waits in
-// the first four of the cell's six output words in `lv_ms_out` (`ms_gathered`), which
-// `ms_store_main` reads before it writes them.
+// `vdbcook_trace::diffusion`'s `Level::beam`), level 0's second-order φ in the last
+// resistance's, [12n, 13n), and each level's shared gather paths (`ms_paths_main`, `mp.paths`)
+// in the φ A and φ B place, [3n, 7n), of the level below where they fit (else after the
+// levels); the gathered light of both orders (φ, then J per axis) waits in the first four of
+// the cell's six output words in `lv_ms_out` (`ms_gathered`), which `ms_store_main` reads
+// before it writes them.
 @group(2) @binding(0) var<storage, read_write> lv_ms: array<f32>;
 @group(2) @binding(1) var<uniform> mp: MsParams;
 @group(2) @binding(2) var<storage, read_write> lv_ms_out: array<u32>;
@@ -268,6 +275,8 @@ struct MsParams {
 const MS_VACUUM: f32 = 2.0;
 // `vdbcook_scene::MS_GATHER_MIN_TRANS`.
 const MS_GATHER_MIN_TRANS: f32 = 1e-3;
+// `vdbcook_scene::MS_SHARED_PATHS`.
+const MS_SHARED_PATHS: u32 = 1u;
 // 4π: the sky field's φ outside the medium (`vdbcook_trace::diffusion`'s boundary).
 const MS_FOUR_PI: f32 = 12.566370614359172;
 
@@ -300,23 +309,27 @@ fn ms_source_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_ms[o + 2u * n + i] = albedo * exp(-entry) * (1.0 - exp(-x)) / chord;
 }
 
-// (1 − e^{−x})/x, without f32's cancellation at small x: below 0.05 the series to x³
-// (truncation under 6·10⁻⁸ relative; `1 − e^{−x}` in f32 would lose up to 10⁻⁴ there), above it
-// directly (the CPU's `exp_m1` agrees to f32 rounding).
-fn ms_one_minus_exp_over(x: f32) -> f32 {
+// (1 − e^{−x})/x given `ex` = e^{−x} (one `exp` serves it and the transmittance), without f32's
+// cancellation at small x: below 0.05 the series to x³ (truncation under 6·10⁻⁸ relative;
+// `1 − e^{−x}` in f32 would lose up to 10⁻⁴ there), above it directly (the CPU's `exp_m1`
+// agrees to f32 rounding).
+fn ms_one_minus_over(x: f32, ex: f32) -> f32 {
+    var v = (1.0 - ex) / x;
     if (x < 0.05) {
-        return 1.0 - x * (0.5 - x * (1.0 / 6.0 - x / 24.0));
+        v = 1.0 - x * (0.5 - x * (1.0 / 6.0 - x / 24.0));
     }
-    return (1.0 - exp(-x)) / x;
+    return v;
 }
 
 // Level 0, after `ms_restrict_main` on every coarser level: the sun's light scattered once
 // (parity 0: the sources `ms_source_main` wrote, weights `mp.gather`; into the gathered sum,
 // `ms_gathered`) or twice (parity 1: the sources and beams `ms_second_main` wrote, weights
-// `mp.share`, the beams by the phase; into [3n, 7n) and added to the sum), gathered along the 26
-// directions toward each cell's neighbours, the steps widening through the coarser levels
-// (`vdbcook_trace::diffusion`'s `gather`, which states the method: the same cells in the
-// same order, in integers): φ, and J (that light flows back along each direction).
+// `mp.share`, the beams by the phase; its φ into [12n, 13n), all of it added to the sum),
+// gathered along the 26 directions toward each cell's neighbours, the steps widening through
+// the coarser levels and taking the shared paths' light from level `MS_SHARED_PATHS` on
+// (`ms_paths_main`, run on every level from the coarsest down to that one first;
+// `vdbcook_trace::diffusion`'s `gather`, which states the method: the same cells in the same
+// order, in integers): φ, and J (that light flows back along each direction).
 @compute @workgroup_size(4, 4, 4)
 fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dims = mp.dims.xyz;
@@ -340,51 +353,141 @@ fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let v = vec3<f32>(e) * mp.h.xyz;
             let len = length(v);
             let u = v / len;
-            var r = ms_emit(0u, i, n, u, twice) * 0.5 * len
-                * ms_one_minus_exp_over(0.5 * st0 * len);
-            var t = exp(-0.5 * st0 * len);
-            // Whole cells walked past the own half cell.
-            var m = 0u;
+            let x0 = 0.5 * st0 * len;
+            let t0 = exp(-x0);
+            var r = ms_emit(0u, i, n, u, twice) * 0.5 * len * ms_one_minus_over(x0, t0);
+            var t = t0;
+            // Level by level: two steps on each (from level 0), on the coarsest until the grid
+            // ends, and from level `MS_SHARED_PATHS` the shared path of the cell reached. The
+            // first step of level k starts `m = 2^(k+1) − 2` whole cells past the own half cell
+            // (0 on level 0) and reads the cell of its level that holds its middle, twice of
+            // which in level-0 cells is `2g + 1 + e·(2m + 1 + 2^k)`: a shift by k + 1 finds it
+            // (an arithmetic shift floors: a middle before the grid is a negative cell); the
+            // next step is the next cell along `e`.
+            var k = 0u;
+            var walking = true;
             loop {
-                let lk = min(firstLeadingBit(m + 2u) - 1u, top);
-                let step = 1u << lk;
-                let level = mp.levels[lk];
-                // Twice the step's middle, in level-0 cells.
+                let level = mp.levels[k];
+                let step = 1u << k;
+                let m = select(2u * step - 2u, 0u, k == 0u);
                 let p2 = 2 * vec3<i32>(gid) + vec3<i32>(1) + e * i32(2u * m + 1u + step);
-                if (any(p2 < vec3<i32>(0))) {
-                    break;
-                }
-                let x = vec3<u32>(p2) / (2u * step);
-                if (any(x >= level.xyz)) {
-                    break;
-                }
-                let j = lv_index(x, level.xyz);
-                let st = lv_ms[level.w + j];
-                if (st > 0.0) {
-                    let along = f32(step) * len;
-                    let q = ms_emit(lk, j, ms_cells(level.xyz), u, twice);
-                    r += t * q * along * ms_one_minus_exp_over(st * along);
-                    t *= exp(-st * along);
-                    if (t < MS_GATHER_MIN_TRANS) {
+                var x = p2 >> vec3<u32>(k + 1u);
+                let along = f32(step) * len;
+                var left = select(2u, 0xffffffffu, k == top);
+                loop {
+                    if (any(x < vec3<i32>(0)) || any(vec3<u32>(x) >= level.xyz)) {
+                        walking = false;
                         break;
                     }
+                    let j = lv_index(vec3<u32>(x), level.xyz);
+                    if (k == MS_SHARED_PATHS) {
+                        // The rest is the path from this cell (`ms_paths_main`).
+                        r += t * lv_ms[ms_path_at(k, j) + d];
+                        walking = false;
+                        break;
+                    }
+                    let st = lv_ms[level.w + j];
+                    if (st > 0.0) {
+                        let q = ms_emit(k, j, ms_cells(level.xyz), u, twice);
+                        let xs = st * along;
+                        let ts = exp(-xs);
+                        r += t * q * along * ms_one_minus_over(xs, ts);
+                        t *= ts;
+                    }
+                    if (t < MS_GATHER_MIN_TRANS) {
+                        walking = false;
+                        break;
+                    }
+                    left -= 1u;
+                    if (left == 0u) {
+                        break;
+                    }
+                    x += e;
                 }
-                m += step;
+                if (!walking || k == top) {
+                    break;
+                }
+                k += 1u;
             }
             out += w * r * vec4<f32>(1.0, -u);
         }
     }
     let at = ms_gathered(i);
     if (twice) {
-        let to = o + 3u * n + 4u * i;
+        lv_ms[o + 12u * n + i] = out.x;
         for (var c = 0u; c < 4u; c++) {
-            lv_ms[to + c] = out[c];
             lv_ms_out[at + c] = bitcast<u32>(bitcast<f32>(lv_ms_out[at + c]) + out[c]);
         }
     } else {
         for (var c = 0u; c < 4u; c++) {
             lv_ms_out[at + c] = bitcast<u32>(out[c]);
         }
+    }
+}
+
+// The first of the 26 shared gather paths (one per direction) of cell `j` of level `k`.
+fn ms_path_at(k: u32, j: u32) -> u32 {
+    return mp.paths[k / 4u][k % 4u] + 26u * j;
+}
+
+// Level `mp.level.x` ≥ `MS_SHARED_PATHS`, coarsest first, before `ms_gather_main` of the same
+// parity: per cell and gather direction, the light arriving along the path that starts at the
+// cell's centre (`vdbcook_trace::diffusion`'s `gather`): the cell and the next along `e`, then
+// the path of the coarser level's cell holding the point 2½ cells past this one's centre
+// (`ms_next_cell`: ⌊(2f + 1 + 5e)/4⌋); on the coarsest level, cells along `e` until the grid
+// ends. No transmittance cut-off: a path's light is the same whichever cell's path goes on
+// with it.
+@compute @workgroup_size(4, 4, 4)
+fn ms_paths_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let k = mp.level.x;
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    let twice = mp.dims.w == 1u;
+    let top = mp.child.w - 1u;
+    let at = ms_path_at(k, lv_index(gid, dims));
+    for (var d = 0u; d < 26u; d++) {
+        let e = ms_gather_dir(d);
+        // `mp.h` is this level's cell edge: a step's length.
+        let v = vec3<f32>(e) * mp.h.xyz;
+        let along = length(v);
+        let u = v / along;
+        var x = vec3<i32>(gid);
+        var sum = 0.0;
+        var t = 1.0;
+        var left = select(2u, 0xffffffffu, k == top);
+        var inside = true;
+        loop {
+            let j = lv_index(vec3<u32>(x), dims);
+            let st = lv_ms[o + j];
+            if (st > 0.0) {
+                let q = ms_emit(k, j, n, u, twice);
+                let xs = st * along;
+                let ts = exp(-xs);
+                sum += t * q * along * ms_one_minus_over(xs, ts);
+                t *= ts;
+            }
+            left -= 1u;
+            if (left == 0u) {
+                break;
+            }
+            x += e;
+            if (any(x < vec3<i32>(0)) || any(vec3<u32>(x) >= dims)) {
+                inside = false;
+                break;
+            }
+        }
+        if (inside && k < top) {
+            let g = (2 * vec3<i32>(gid) + vec3<i32>(1) + 5 * e) >> vec3<u32>(2u);
+            let pd = mp.parent.xyz;
+            if (all(g >= vec3<i32>(0)) && all(vec3<u32>(g) < pd)) {
+                sum += t * lv_ms[ms_path_at(k + 1u, lv_index(vec3<u32>(g), pd)) + d];
+            }
+        }
+        lv_ms[at + d] = sum;
     }
 }
 
@@ -456,11 +559,11 @@ fn ms_second_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = lv_index(gid, dims);
     let n = ms_cells(dims);
     let o = mp.off.x;
-    // The order just gathered: the first alone is in the gathered sum, the second in φ A/B.
+    // The order just gathered: the first alone is in the gathered sum; of the second only its
+    // φ is read, which `ms_gather_main` left in the last resistance's place.
     var g = vec4<f32>(0.0);
     if (mp.dims.w == 1u) {
-        let src = o + 3u * n + 4u * i;
-        g = vec4<f32>(lv_ms[src], lv_ms[src + 1u], lv_ms[src + 2u], lv_ms[src + 3u]);
+        g.x = lv_ms[o + 12u * n + i];
     } else {
         let at = ms_gathered(i);
         g = bitcast<vec4<f32>>(vec4<u32>(

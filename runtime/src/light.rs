@@ -25,7 +25,7 @@ use std::sync::{Arc, Mutex};
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
     light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LevelChain, LightGrid,
-    MS_GATHER_WEIGHTS,
+    MS_GATHER_WEIGHTS, MS_SHARED_PATHS,
 };
 use wgpu::util::DeviceExt;
 
@@ -146,6 +146,11 @@ pub(crate) struct MsParams {
     /// Every level (`child.w` of them): xyz its cells per axis, w its first element in the
     /// scratch (the gather reads them all).
     pub levels: [[u32; 4]; 8],
+    /// x: this level's index.
+    pub level: [u32; 4],
+    /// Per level, four per element, the first element of its shared gather paths in the
+    /// scratch (26 per cell, from `MS_SHARED_PATHS` up; 0 below).
+    pub paths: [[u32; 4]; 2],
 }
 
 /// The bytes between two diffusion records in the uniform buffer: the record's size rounded up to
@@ -164,6 +169,20 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
     for &d in &levels {
         offs.push(total as u32);
         total += MS_FLOATS_PER_CELL * cells(d);
+    }
+    // The shared gather paths, 26 per cell of each level from `MS_SHARED_PATHS` (≥ 1) up: in
+    // the φ A and φ B place of the level below, free until the solve, where they fit (4 per
+    // cell of that level: every side of about 14 cells or more), else after the levels.
+    let mut paths = [0u32; 8];
+    for k in MS_SHARED_PATHS.max(1)..levels.len() {
+        let need = 26 * cells(levels[k]);
+        let below = cells(levels[k - 1]);
+        paths[k] = if need <= 4 * below {
+            offs[k - 1] + 3 * below as u32
+        } else {
+            total += need;
+            (total - need) as u32
+        };
     }
     let orders = m.gathered_orders();
     // `MsParams::levels` holds eight: `MAX_LIGHT_RES` (256) makes seven.
@@ -201,6 +220,8 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
                 gather: std::array::from_fn(|k| {
                     std::array::from_fn(|c| m.gather.get(4 * k + c).map_or(0.0, |&w| w as f32))
                 }),
+                level: [k as u32, 0, 0, 0],
+                paths: [0, 1].map(|h| std::array::from_fn(|c| paths[4 * h + c])),
             })
         })
         .collect();
@@ -209,7 +230,8 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
 
 /// f32s of the diffusion solve's scratch per cell of a level (`light_build.wgsl`: st, sr, q,
 /// two fields in φ A and φ B, six resistances; before the solve the gather's beams and second
-/// order use the last two's place, and the gathered light waits in the output's words).
+/// order's φ use the resistances' place, the shared paths of the next coarser level φ A's and
+/// φ B's where they fit, and the gathered light waits in the output's words).
 const MS_FLOATS_PER_CELL: usize = 13;
 /// Bytes of the diffusion model's output per cell (six words: three f32, six 16-bit fluxes).
 const MS_OUT_BYTES: usize = 24;
@@ -313,8 +335,9 @@ struct State {
 pub(crate) struct LightPass {
     /// `light_build.wgsl`'s passes in their order: density, sun, the three axes, sky.
     passes: [wgpu::ComputePipeline; 6],
-    /// The diffusion solve's: source, gather, second, restrict, prolong, limit, update, store.
-    ms_passes: [wgpu::ComputePipeline; 8],
+    /// The diffusion solve's: source, gather, second, restrict, prolong, limit, update, store,
+    /// paths.
+    ms_passes: [wgpu::ComputePipeline; 9],
     build_layout: wgpu::BindGroupLayout,
     ms_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
@@ -394,6 +417,7 @@ impl LightPass {
             "ms_limit_main",
             "ms_update_main",
             "ms_store_main",
+            "ms_paths_main",
         ]
         .map(|entry| {
             // Group 0 (the volume) left out: the solve reads no voxel, and the volume's
@@ -869,8 +893,8 @@ impl LightPass {
                     cost: MS_COST[pass] * f64::from(d[0] * d[1] * d[2]),
                 });
             };
-            let [source, gather, second, restrict, prolong, limit, update, store] =
-                [0, 1, 2, 3, 4, 5, 6, 7];
+            let [source, gather, second, restrict, prolong, limit, update, store, paths] =
+                [0, 1, 2, 3, 4, 5, 6, 7, 8];
             run(source, 0, 0);
             for k in 1..records.len() {
                 run(restrict, k, 0);
@@ -878,6 +902,10 @@ impl LightPass {
             // The light scattered once, then twice (the record's parity), as many orders
             // as the inputs ask.
             for order in 0..records[0][0].parent[3] as usize {
+                // The shared paths, coarsest first, then each cell's own steps.
+                for k in (MS_SHARED_PATHS..records.len()).rev() {
+                    run(paths, k, order);
+                }
                 run(gather, 0, order);
                 run(second, 0, order);
                 for k in 1..records.len() {
@@ -1013,13 +1041,14 @@ impl Plan {
 
 /// Relative cost per cell of the light-volume passes (the sun's per cell and cell of the grid's
 /// longest side; the three axes, sky; the density pass's is `2·sub³`, not measured) and of the
-/// diffusion passes (source, gather, second, restrict, prolong, limit, update, store), by which
-/// [`LightPass::ahead`] shares a build out. Measured on lavapipe, one dispatch per displayed
-/// frame of a 64³ stormscape volume (`vdbcook bench --light-ahead 1000 --fps 0.5`, the spans
-/// less the static frame; a unit ≈ 2.5 ms there): sun 49 ms, axes 0.5–2.7, sky 1.3, source 13,
-/// gather 810–860, second 31 (4.8 after the last order), limit 8, update 22, store 20.
+/// diffusion passes (source, gather, second, restrict, prolong, limit, update, store, paths), by
+/// which [`LightPass::ahead`] shares a build out. Measured on lavapipe, one dispatch per
+/// displayed frame of a 64³ stormscape volume (`vdbcook bench --light-ahead 1000 --fps 0.5`,
+/// the spans less the static frame; a unit ≈ 2.5 ms there): sun 49 ms, axes 0.5–2.7, sky 1.3,
+/// source 13, gather 280–300 (the level-1 paths about 20), second 31 (4.8 after the last
+/// order), limit 8, update 22, store 20.
 const VOLUME_COST: [f64; 6] = [0.0, 0.3, 0.5, 0.5, 0.5, 0.5];
-const MS_COST: [f64; 8] = [5.0, 324.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0];
+const MS_COST: [f64; 9] = [5.0, 112.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0, 60.0];
 
 /// Which pipeline a step runs: `LightPass::passes[k]` or `ms_passes[k]`.
 #[derive(Debug, Clone, Copy)]
@@ -1129,6 +1158,77 @@ mod tests {
         }
     }
 
+    /// The gather's shared paths (26 per cell of each level from `MS_SHARED_PATHS`) lie where
+    /// nothing the gathers read or write is: the φ A and φ B place ([3n, 7n), untouched until the
+    /// solve) of the level below when they fit there, else after the levels; each level's paths
+    /// apart. So a light volume's scratch grows only by its smallest levels' paths (the
+    /// near-field test's 128-cell volume, 109 MB, exceeded the default 128 MiB binding when all
+    /// of them followed the levels).
+    #[test]
+    fn shared_gather_paths_fit_in_the_solve_scratch() {
+        let m = DiffusionInputs {
+            extinction: 1.0,
+            albedo: 0.9,
+            h: [1.0; 3],
+            chord: 1.0,
+            gather: [1.0 / 26.0; 26],
+            phase: ([0.0; 2], 1.0),
+            orders: 2,
+        };
+        let cells = |d: [u32; 3]| d.iter().map(|&v| v as usize).product::<usize>();
+        for dims in [
+            [64, 64, 64],
+            [128, 128, 100],
+            [128, 101, 77],
+            [33, 17, 65],
+            [24, 24, 18],
+            [9, 9, 9],
+            [7, 5, 3],
+        ] {
+            let (records, total) = ms_records(dims, &m);
+            let levels = ms_levels(dims);
+            let offs: Vec<usize> = levels
+                .iter()
+                .scan(0, |at, &d| {
+                    *at += MS_FLOATS_PER_CELL * cells(d);
+                    Some(*at - MS_FLOATS_PER_CELL * cells(d))
+                })
+                .collect();
+            let data: usize = levels.iter().map(|&d| MS_FLOATS_PER_CELL * cells(d)).sum();
+            let mut regions = Vec::new();
+            let mut appended = 0;
+            for k in MS_SHARED_PATHS..levels.len() {
+                let at = records[0][0].paths[k / 4][k % 4] as usize;
+                let end = at + 26 * cells(levels[k]);
+                let below = cells(levels[k - 1]);
+                let free = offs[k - 1] + 3 * below..offs[k - 1] + 7 * below;
+                if at >= data {
+                    appended += 26 * cells(levels[k]);
+                    assert!(end <= total, "{dims:?} level {k}: past the scratch");
+                } else {
+                    assert!(
+                        free.contains(&at) && end <= free.end,
+                        "{dims:?} level {k}: {at}..{end} outside {free:?}"
+                    );
+                }
+                regions.push((at, end));
+            }
+            regions.sort();
+            for w in regions.windows(2) {
+                assert!(w[0].1 <= w[1].0, "{dims:?}: paths overlap");
+            }
+            assert_eq!(total, data + appended, "{dims:?}");
+            // Large grids keep nearly all of them in place.
+            if levels[0].iter().all(|&v| v >= 64) {
+                assert!(appended * 200 < data, "{dims:?}: {appended} of {data}");
+            }
+            assert!(records
+                .iter()
+                .flatten()
+                .all(|r| r.paths == records[0][0].paths));
+        }
+    }
+
     #[test]
     fn light_params_mirror_the_wgsl() {
         assert_mirrors(
@@ -1169,6 +1269,8 @@ mod tests {
                 phase,
                 share,
                 levels,
+                level,
+                paths,
             }),
         );
     }

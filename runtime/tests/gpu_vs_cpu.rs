@@ -1611,9 +1611,13 @@ fn lit_diffusion_matches_the_cpu() {
         assert!(bad * 1000 <= cpu.value.len(), "{bad} pixels; {first}");
     }
     // Fewer gathered orders (`Lighting::ms_gather`: the solve from the first order's light, or
-    // alone): the GPU skips the same passes the CPU skips, and each changes the image.
+    // alone): the GPU skips the same passes the CPU skips, and each changes the image. Then
+    // both orders at `light_res` 64 (levels of 64 to 4 cells: the gather's shared paths,
+    // `ms_paths_main`, on levels 1 to 3 go on to a coarser level's, on level 4 to the grid's
+    // end; at 24, on level 1, and level 2 is the coarsest) and 9 (levels of 9 and 5 cells: the
+    // paths do not fit in level 0's free place and follow the levels).
     let mut prev: Option<Vec<f32>> = None;
-    for ms_gather in [0, 1] {
+    for (ms_gather, light_res) in [(0, 24), (1, 24), (2, 64), (2, 9)] {
         let base = small(Mode::Lit, 1);
         let s = RenderSettings {
             lighting: Lighting {
@@ -1621,6 +1625,7 @@ fn lit_diffusion_matches_the_cpu() {
                 light_color: [6.0; 3],
                 sky: [0.0; 3],
                 ms_gather,
+                light_res,
                 ..base.lighting
             },
             ..base
@@ -1628,13 +1633,15 @@ fn lit_diffusion_matches_the_cpu() {
         let cpu = vdbcook_trace::render(&asset, &cam, &s).unwrap();
         let g = gpu.render(&r, &target, &cam, &s).unwrap();
         let (bad, first, max_diff) = mismatches(&cpu, &g, Mode::Lit);
-        eprintln!("ms_gather {ms_gather}: {bad} differ (max {max_diff:.2e}) {first}");
+        eprintln!(
+            "ms_gather {ms_gather} light_res {light_res}: {bad} differ (max {max_diff:.2e}) {first}"
+        );
         assert!(bad * 1000 <= cpu.value.len(), "{bad} pixels; {first}");
         if let Some(p) = &prev {
             let changed = values_changed(p, &g.rgba);
             assert!(
                 changed > 100,
-                "ms_gather {ms_gather}: {changed} values changed"
+                "ms_gather {ms_gather} light_res {light_res}: {changed} values changed"
             );
         }
         prev = Some(g.rgba);

@@ -37,6 +37,14 @@ pub const MS_GATHER_WEIGHTS: [f64; 3] =
 /// A gather ray stops once its transmittance falls below this (the light it leaves out is at
 /// most this share of what it would add).
 pub const MS_GATHER_MIN_TRANS: f64 = 1e-3;
+/// The first level on which the gather's paths are shared (`vdbcook_trace::diffusion`'s
+/// `gather`): each cell of level 0 walks its own two steps on level 0, then takes the light of
+/// the path from the level-1 cell it reaches, one per cell of level 1 (and up) and direction
+/// (`light_build.wgsl`'s `ms_paths_main`). Walking every cell's path alone (about 11 steps per
+/// direction at light_res 64) made the build take twice as long on lavapipe (2.1 s against 1.05
+/// s); sharing from level 2 kept the images closer to that (within 0.15% against 0.4%) but took
+/// 1.3 s (measured 2026-11-27, `docs/rendering.md`).
+pub const MS_SHARED_PATHS: usize = 1;
 
 /// The 26 gather directions: each cell offset `e ∈ {−1, 0, 1}³ \ 0` (x fastest) with its weight
 /// from [`MS_GATHER_WEIGHTS`] by how many axes it moves along.

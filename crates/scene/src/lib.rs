@@ -27,7 +27,7 @@ pub use content::{content_box, content_box_above, for_each_slot_max, for_each_sl
 pub use diffusion::{
     ms_beam_norm, ms_gather_dirs, ms_gather_steps, ms_gather_weights, ms_levels, ms_stored_flux,
     ms_sweeps, DiffusionInputs, GatherStep, MS_COARSEST, MS_FINE_SWEEPS, MS_FLUX_RATIO,
-    MS_GATHER_MIN_TRANS, MS_GATHER_WEIGHTS, MS_ITERATIONS, MS_VACUUM,
+    MS_GATHER_MIN_TRANS, MS_GATHER_WEIGHTS, MS_ITERATIONS, MS_SHARED_PATHS, MS_VACUUM,
 };
 pub use display::{
     linear_to_srgb8, srgb_decode, srgb_encode, srgb_to_linear, Display, Tonemap,
