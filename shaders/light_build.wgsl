@@ -211,7 +211,8 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // through the boundary: φ = 4π outside the medium). Run after the passes above for the same
 // volume (they leave its cell densities in `lv_density` and τ_sun in `lv_tau`):
 // `ms_source_main` fills level 0 and `ms_restrict_main` each coarser level from the finer one;
-// `ms_gather_main` gathers level 0's once-scattered light through them and `ms_second_main`
+// `ms_paths_main` (from the coarsest level down to `MS_SHARED_PATHS`) and `ms_gather_main`
+// gather level 0's once-scattered light through them and `ms_second_main`
 // makes the light it scatters again the source (and its beams), `ms_restrict_main` each
 // coarser level's again, the same two passes gather the light scattered twice and make its
 // light scattered again the solve's source (the solve carries the light scattered three times

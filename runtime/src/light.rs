@@ -155,7 +155,7 @@ pub(crate) struct MsParams {
 
 /// The bytes between two diffusion records in the uniform buffer: the record's size rounded up to
 /// a multiple of the device's dynamic-offset alignment (a power of two; 64 on NVIDIA, so a
-/// 368-byte record takes 384 — every offset must be a multiple of the alignment).
+/// 416-byte record takes 448 — every offset must be a multiple of the alignment).
 fn ms_record_stride(min_uniform_offset_alignment: u32) -> usize {
     (MS_PARAMS_SIZE as usize).next_multiple_of(min_uniform_offset_alignment.max(1) as usize)
 }
@@ -164,17 +164,21 @@ fn ms_record_stride(min_uniform_offset_alignment: u32) -> usize {
 fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize) {
     let levels = ms_levels(dims);
     let cells = |d: [u32; 3]| d.iter().map(|&v| v as usize).product::<usize>();
+    // `MsParams::levels` and `paths` hold eight: `MAX_LIGHT_RES` (256) makes seven.
+    assert!(levels.len() <= 8, "{} diffusion levels", levels.len());
     let mut offs = Vec::with_capacity(levels.len());
     let mut total = 0usize;
     for &d in &levels {
         offs.push(total as u32);
         total += MS_FLOATS_PER_CELL * cells(d);
     }
+    // Level 0 walks its own steps: its paths would overwrite the level's data.
+    const { assert!(MS_SHARED_PATHS >= 1) };
     // The shared gather paths, 26 per cell of each level from `MS_SHARED_PATHS` (≥ 1) up: in
     // the φ A and φ B place of the level below, free until the solve, where they fit (4 per
     // cell of that level: every side of about 14 cells or more), else after the levels.
     let mut paths = [0u32; 8];
-    for k in MS_SHARED_PATHS.max(1)..levels.len() {
+    for k in MS_SHARED_PATHS..levels.len() {
         let need = 26 * cells(levels[k]);
         let below = cells(levels[k - 1]);
         paths[k] = if need <= 4 * below {
@@ -185,8 +189,6 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
         };
     }
     let orders = m.gathered_orders();
-    // `MsParams::levels` holds eight: `MAX_LIGHT_RES` (256) makes seven.
-    assert!(levels.len() <= 8, "{} diffusion levels", levels.len());
     let records = (0..levels.len())
         .map(|k| {
             let d = levels[k];
@@ -1227,6 +1229,17 @@ mod tests {
                 .flatten()
                 .all(|r| r.paths == records[0][0].paths));
         }
+    }
+
+    /// The shader's copy of `MS_SHARED_PATHS` (where `ms_gather_main` stops walking and reads a
+    /// path) is the one the records place paths for and the CPU's gather shares from.
+    #[test]
+    fn the_shader_shares_paths_from_the_same_level() {
+        let decl = format!("const MS_SHARED_PATHS: u32 = {MS_SHARED_PATHS}u;");
+        assert!(
+            crate::LIGHT_BUILD_WGSL.contains(&decl),
+            "light_build.wgsl lacks `{decl}`"
+        );
     }
 
     #[test]

@@ -287,7 +287,7 @@ pub fn solve(
 /// level reads cell `F` goes on as the path that starts at `F`'s centre (`paths`, per cell of
 /// each level from there up and direction, computed coarsest first: two steps, then the path of
 /// the next level's cell `ms_next_cell`; on the coarsest, steps until the grid ends, with no
-/// transmittance cut-off). Walking each cell's path alone (until 2026-11-28) made the build take
+/// transmittance cut-off). Walking each cell's path alone (until 2026-11-27) made the build take
 /// twice as long; sharing moves a distant step's cell by up to a quarter of it, which one cell alone
 /// may see (a thin ball's cells read up to 8% more or less of its light, their mean as close
 /// as before: `a_thin_ball_holds_the_once_scattered_fluence`), and the images moved by at most
@@ -401,11 +401,12 @@ fn gather(levels: &[Level], weights: &[f64; 26], beam: Option<([f32; 2], f32)>) 
                     }
                     x[a] = (p2 as u64 / (2 * n)) as i64;
                 }
+                let j = index(k, x).expect("inside");
                 if k >= MS_SHARED_PATHS {
-                    r += tr * path(&paths, k, x, d);
+                    r += tr * paths[k][j][d];
                     break;
                 }
-                let (cj, t) = step(k, index(k, x).expect("inside"), d);
+                let (cj, t) = step(k, j, d);
                 r += tr * cj;
                 tr *= t;
                 if tr < MS_GATHER_MIN_TRANS {
@@ -606,7 +607,7 @@ mod tests {
     /// give where little is scattered again (albedo 0.01), here at every third cell of the ball
     /// in each axis (619 cells: the distant steps' coarse cells make one cell alone miss by up to
     /// 8%). Measured: a mean of 0.994 and an RMS deviation of 0.047 with the shared paths; 0.988
-    /// and 0.044 when each cell walked its own path (until 2026-11-28); before the gather the
+    /// and 0.044 when each cell walked its own path (until 2026-11-27); before the gather the
     /// diffusion solve carried this light too and gave 0.59 of it in a thin cube. At albedo 0.9
     /// the light scattered more than once adds to it, a little in a ball this thin (about
     /// `α·σ·R` more, 0.14 at most; measured 1.100).
