@@ -288,10 +288,10 @@ pub fn solve(
 /// each level from there up and direction, computed coarsest first: two steps, then the path of
 /// the next level's cell `ms_next_cell`; on the coarsest, steps until the grid ends, with no
 /// transmittance cut-off). Walking each cell's path alone (until 2026-11-27) made the build take
-/// twice as long; sharing moves a distant step's cell by up to a quarter of it, which one cell alone
-/// may see (a thin ball's cells read up to 8% more or less of its light, their mean as close
-/// as before: `a_thin_ball_holds_the_once_scattered_fluence`), and the images moved by at most
-/// 0.4% on real volumes (docs/rendering.md).
+/// twice as long; sharing moves a distant step's cell by up to a quarter of it, which one cell
+/// alone may see (a thin ball's cells read up to 8% more or less of its light, their mean as
+/// close as before: `a_thin_ball_holds_the_once_scattered_fluence`), and the images moved by at
+/// most 0.4% on real volumes (docs/rendering.md).
 ///
 /// A uniform medium gathers `q/σ` exactly.
 fn gather(levels: &[Level], weights: &[f64; 26], beam: Option<([f32; 2], f32)>) -> Vec<[f64; 4]> {
