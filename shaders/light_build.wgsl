@@ -387,14 +387,9 @@ fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         walking = false;
                         break;
                     }
-                    let st = lv_ms[level.w + j];
-                    if (st > 0.0) {
-                        let q = ms_emit(k, j, ms_cells(level.xyz), u, twice);
-                        let xs = st * along;
-                        let ts = exp(-xs);
-                        r += t * q * along * ms_one_minus_over(xs, ts);
-                        t *= ts;
-                    }
+                    let s = ms_step(k, j, ms_cells(level.xyz), u, along, twice);
+                    r += t * s.x;
+                    t *= s.y;
                     if (t < MS_GATHER_MIN_TRANS) {
                         walking = false;
                         break;
@@ -426,6 +421,21 @@ fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
+// Cell `j` of level `k` (`n` cells) as one gather step of length `along` toward −u: the light
+// it sends to the step's start, `q(1 − e^{−σL})/σ` (before the transmittance to it), and its
+// transmittance `e^{−σL}`; (0, 1) where the cell is empty. One return (lavapipe and early
+// returns: `ms_emit`).
+fn ms_step(k: u32, j: u32, n: u32, u: vec3<f32>, along: f32, twice: bool) -> vec2<f32> {
+    let st = lv_ms[mp.levels[k].w + j];
+    var out = vec2<f32>(0.0, 1.0);
+    if (st > 0.0) {
+        let x = st * along;
+        let t = exp(-x);
+        out = vec2<f32>(ms_emit(k, j, n, u, twice) * along * ms_one_minus_over(x, t), t);
+    }
+    return out;
+}
+
 // The first of the 26 shared gather paths (one per direction) of cell `j` of level `k`.
 fn ms_path_at(k: u32, j: u32) -> u32 {
     return mp.paths[k / 4u][k % 4u] + 26u * j;
@@ -446,7 +456,6 @@ fn ms_paths_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let k = mp.level.x;
     let n = ms_cells(dims);
-    let o = mp.off.x;
     let twice = mp.dims.w == 1u;
     let top = mp.child.w - 1u;
     let at = ms_path_at(k, lv_index(gid, dims));
@@ -462,15 +471,9 @@ fn ms_paths_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         var left = select(2u, 0xffffffffu, k == top);
         var inside = true;
         loop {
-            let j = lv_index(vec3<u32>(x), dims);
-            let st = lv_ms[o + j];
-            if (st > 0.0) {
-                let q = ms_emit(k, j, n, u, twice);
-                let xs = st * along;
-                let ts = exp(-xs);
-                sum += t * q * along * ms_one_minus_over(xs, ts);
-                t *= ts;
-            }
+            let s = ms_step(k, lv_index(vec3<u32>(x), dims), n, u, along, twice);
+            sum += t * s.x;
+            t *= s.y;
             left -= 1u;
             if (left == 0u) {
                 break;

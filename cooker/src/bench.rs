@@ -173,7 +173,12 @@ mod imp {
 
     fn median(mut v: Vec<f64>) -> f64 {
         v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
+        middle(&v)
+    }
+
+    /// The median of values already sorted (the upper middle of an even count).
+    fn middle(sorted: &[f64]) -> f64 {
+        sorted[sorted.len() / 2]
     }
 
     /// One run's scene: the targets, the view, the instances' placements, the depth plane.
@@ -374,7 +379,7 @@ mod imp {
         let n = sorted.len();
         let draws: Vec<f64> = t.iter().filter_map(|f| f.draw).collect();
         Summary {
-            ms: sorted[n / 2],
+            ms: middle(&sorted),
             mean_ms: spans.iter().sum::<f64>() / n as f64,
             p95_ms: sorted[((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1],
             max_ms: sorted[n - 1],
