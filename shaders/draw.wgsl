@@ -138,6 +138,7 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
     let a = inst.box_lo.w;
     // Toward the eye in the diffusion's metric.
     let eye = lv_eye_dir(ray.d, place.axis.xyz);
+    let sun_cos = lit_sun_cos(place, ray, dw);
     let sb = t1 * ray.per_t;
     var k = max(ceil(t0 * ray.per_t / step - jitter), 0.0);
     var trans = 1.0;
@@ -181,7 +182,7 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             // Emission over the step, absorbed as the step attenuates (the tracer's lit march).
             rad += trans * step * lv_phi(x, e) * lit_emission(rho);
         }
-        let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x)) / ray.per_t) * ray.d;
+        let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x, e)) / ray.per_t) * ray.d;
         var pl = place;
         if (dither) {
             pl.lv_lo0 = select(place.lv_lo0, place.lv_lo1, one);
@@ -190,7 +191,7 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             pl.roots.x = select(place.roots.x, place.roots.y, one);
             pl.misc.y = 0.0;
         }
-        let src = lit_scattered(pl, q, rho, trans, eye, &sun_ph, vec3<i32>(-1), VDB_EMPTY);
+        let src = lit_scattered(pl, q, rho, trans, eye, &sun_ph, vec3<f32>(x, e, sun_cos), vec3<i32>(-1), VDB_EMPTY);
         rad += trans * place.axis.w * (1.0 - e) * src;
         trans *= e;
         if (trans < LV_MIN_TRANS) {

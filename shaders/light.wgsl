@@ -38,6 +38,15 @@ fn lv_taps(p: vec3<f32>, lo: vec3<f32>, cell: f32, dims: vec3<u32>) -> LvTaps {
     return t;
 }
 
+// `vdbcook_trace::lit::sun_gain`: the sun's direct light a segment of optical depth `x`
+// (`ex` = e^{−x}) scatters relative to its source read at the mean depth, where the walked
+// depth toward the sun falls along it by `c·x` (`c`: the cosine between the ray and the sun).
+fn lv_sun_gain(x: f32, ex: f32, c: f32) -> f32 {
+    let cc = clamp(c, -1.0, 1.0);
+    let y = x * (1.0 - cc);
+    return exp(-cc * x * lv_mean_depth(x, ex)) * lv_phi(y, exp(-y)) / lv_phi(x, ex);
+}
+
 // `vdbcook_scene::octave_source`: single scattering `ph[0]·e^{−x}` plus octaves i ≥ 1,
 // `a^i·ph[i]·(e^{−b^i·x} − e^{−x})`.
 fn lv_octaves(x: f32, ms: vec3<f32>, octaves: u32, ph: ptr<function, array<f32, 8>>) -> f32 {
@@ -184,11 +193,12 @@ fn lv_jitter(seed: u32, pixel: u32) -> f32 {
 
 // `vdbcook_trace::lit::mean_depth`: where in a step of optical depth x light is scattered on
 // average, as a fraction of the step.
-fn lv_mean_depth(x: f32) -> f32 {
-    // Below ½ the series: the closed form cancels in f32 for thin steps.
+fn lv_mean_depth(x: f32, ex: f32) -> f32 {
+    // Below ½ the series: the closed form cancels in f32 for thin steps. Above it
+    // `1/(eˣ − 1) = e^{−x}/(1 − e^{−x})` from the caller's `ex` = e^{−x} (no overflow either).
     let x2 = x * x;
     let series = 0.5 - x / 12.0 + x * x2 / 720.0 - x * x2 * x2 / 30240.0;
-    return select(1.0 / x - 1.0 / (exp(x) - 1.0), series, x < 0.5);
+    return select(1.0 / x - ex / (1.0 - ex), series, x < 0.5);
 }
 
 fn lv_hg(g: f32, mu: f32) -> f32 {

@@ -1,6 +1,6 @@
 // light_build.wgsl — the lit mode's light-volume passes (`vdbcook_trace::LightVolume::build` on
 // the GPU), in this order: `lv_density_main` box-filters the frame's voxels into the coarse
-// cells; `lv_sun_main` integrates each cell's density toward the sun; `lv_axis{0,1,2}_main` sum
+// cells; `lv_sun_main` walks each cell's centre's voxels toward the sun; `lv_axis{0,1,2}_main` sum
 // it along each axis's columns in both directions into τ_sky's accumulator; `lv_sky_main` turns
 // that into τ_sky. Concatenated after `volume.wgsl` and `light.wgsl`; group 0 is the volume.
 // Run once per frame and light (the renderer and the drawer cache it), each entry one invocation
@@ -25,6 +25,9 @@ struct LightParams {
     level: u32,
     // The asset of the volume set whose density it reads (`vdb_select`).
     asset: u32,
+    // x: the extinction at which the sun pass stops a cell's walk at the opaque depth, 0 for
+    // none (`vdbcook_scene::sun_pass_stop`).
+    stop: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> lp: LightParams;
@@ -33,8 +36,6 @@ struct LightParams {
 
 // Largest sky optical depth kept (`vdbcook_trace::LIT_MAX_SKY_DEPTH`).
 const LV_MAX_SKY_DEPTH: f32 = 80.0;
-// Most slices a sun march crosses (`vdbcook_scene::MAX_LIGHT_RES`).
-const LV_MAX_SLICES: u32 = 256u;
 
 @compute @workgroup_size(4, 4, 4)
 fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -58,39 +59,13 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     lv_density[lv_index(gid, dims)] = sum / f32(sub * sub * sub);
 }
 
-// The density of slice `k` of axis `m` bilinear at `p` (`LightGrid::slice_taps`).
-fn lv_slice_density(p: vec3<f32>, m: u32, k: u32) -> f32 {
-    let dims = lp.dims.xyz;
-    let ua = (m + 1u) % 3u;
-    let va = (m + 2u) % 3u;
-    var i0 = vec3<u32>(k);
-    var i1 = vec3<u32>(k);
-    var f = vec3<f32>(0.0);
-    for (var n = 0u; n < 2u; n++) {
-        let a = select(ua, va, n == 1u);
-        let top = f32(dims[a] - 1u);
-        var u = clamp((p[a] - lp.lo[a]) / lp.lo.w - 0.5, 0.0, top);
-        u = select(u, 0.0, u != u);
-        let base = min(floor(u), max(top - 1.0, 0.0));
-        i0[a] = u32(base);
-        i1[a] = min(u32(base) + 1u, dims[a] - 1u);
-        f[a] = u - base;
-    }
-    var d = 0.0;
-    for (var q = 0u; q < 4u; q++) {
-        var c = i0;
-        var w = 1.0;
-        if ((q & 1u) == 0u) { w *= 1.0 - f[ua]; } else { c[ua] = i1[ua]; w *= f[ua]; }
-        if ((q & 2u) == 0u) { w *= 1.0 - f[va]; } else { c[va] = i1[va]; w *= f[va]; }
-        d += w * lv_density[lv_index(c, dims)];
-    }
-    return d;
-}
-
-// τ_sun per cell (`LightGrid::sun_depth`: the trapezoid rule between the crossings of the next
-// slices' centre planes along the light's major axis); τ_sky's accumulator cleared.
+// τ_sun per cell (`vdbcook_trace::lit::sun_depth_exact`): the exact optical depth from the
+// cell's centre toward the light to the grid's far side, through the voxels of the level the
+// density pass read (`vdb_optical_depth` in that level's cell space, stopping at the opaque
+// depth where `lp.stop.x` says); τ_sky's accumulator cleared.
 @compute @workgroup_size(4, 4, 4)
 fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    vdb_select(lp.asset);
     let dims = lp.dims.xyz;
     if (any(gid >= dims)) {
         return;
@@ -99,15 +74,6 @@ fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let lo = lp.lo.xyz;
     let p = lo + (vec3<f32>(gid) + vec3<f32>(0.5)) * cell;
     let l = lp.sun.xyz;
-    let al = abs(l);
-    // The major axis, the last one on a tie (`LightGrid::sun_depth`'s `max_by`).
-    var m = 0u;
-    if (al.y >= al[m]) {
-        m = 1u;
-    }
-    if (al.z >= al[m]) {
-        m = 2u;
-    }
     // The grid's far side along the light (`LightGrid::exit`).
     let hi = lo + vec3<f32>(dims) * cell;
     var t_exit = 3.0e38;
@@ -119,25 +85,13 @@ fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     t_exit = max(t_exit, 0.0);
-    let seg = cell / al[m];
-    let up = l[m] > 0.0;
-    var tau = 0.0;
-    var prev = lv_density[lv_index(gid, dims)];
-    var t_prev = 0.0;
-    var k = i32(gid[m]);
-    for (var j = 1u; j <= LV_MAX_SLICES; j++) {
-        let t = f32(j) * seg;
-        k += select(-1, 1, up);
-        if (!(t <= t_exit) || k < 0 || k >= i32(dims[m])) {
-            break;
-        }
-        let d = lv_slice_density(p + t * l, m, u32(k));
-        tau += 0.5 * (prev + d) * (t - t_prev);
-        prev = d;
-        t_prev = t;
-    }
-    tau += prev * max(t_exit - t_prev, 0.0);
-    lv_tau[lp.base + lv_index(gid, dims)] = vec2<f32>(tau * lp.sun.w, 0.0);
+    let scale = 1.0 / f32(1u << lp.level);
+    var ray: VdbRay;
+    ray.o = p * scale;
+    ray.d = l * scale;
+    ray.per_t = lp.sun.w;
+    let tau = vdb_optical_depth(lp.frame_root, ray, 0.0, t_exit, lp.stop.x);
+    lv_tau[lp.base + lv_index(gid, dims)] = vec2<f32>(tau, 0.0);
 }
 
 // One column along `axis` (one invocation per cell of the other two axes): the depths toward

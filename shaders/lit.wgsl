@@ -82,6 +82,16 @@ fn lit_lookup(lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> vec2<f32> {
     return out;
 }
 
+// The cosine between a ray (cell-space `ray`, unit world direction `dw`) and the direction
+// toward the sun in the march's metric (`LitMarch::sun_cos`, `lv_sun_gain`): world space, or
+// cell space in voxel units.
+fn lit_sun_cos(P: VdbLitPlace, ray: VdbRay, dw: vec3<f32>) -> f32 {
+    if ({{SHADING}}.voxel_units != 0u) {
+        return dot(normalize(ray.d), normalize(P.sun_cell.xyz));
+    }
+    return dot(dw, {{SHADING}}.sun.xyz);
+}
+
 // The diffusion model's (sun, sky) light of one light volume at `p` toward `eye`
 // (`LightVolume::diffuse_at`).
 fn lit_diffuse(lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, eye: vec3<f32>) -> vec2<f32> {
@@ -141,9 +151,11 @@ fn lit_sun_depth(P: VdbLitPlace, f: u32, q: vec3<f32>, rho: f32, trans: f32, hin
 // The light a lit sample at `q` (density `rho`, the primary ray's transmittance `trans`)
 // scatters toward the eye per unit albedo·(1 − e^{−x}): the sun's and the sky's radiance times
 // their sources (`LitMarch::light`). `eye`: the unit direction toward the eye in the diffusion's
-// metric; `ph`: the sun's phase per octave at the ray's μ. A crossfade lerps the frames' depths
-// and diffusion light (`P.misc.y`).
-fn lit_scattered(P: VdbLitPlace, q: vec3<f32>, rho: f32, trans: f32, eye: vec3<f32>, ph: ptr<function, array<f32, 8>>, hint_leaf: vec3<i32>, hint_ref: u32) -> vec3<f32> {
+// metric; `ph`: the sun's phase per octave at the ray's μ; `seg`: the segment's optical depth
+// x, e^{−x} and the cosine between the ray and the sun (`lit_sun_cos`), for `lv_sun_gain` where
+// the near field was walked. A crossfade lerps the frames' depths and diffusion light
+// (`P.misc.y`).
+fn lit_scattered(P: VdbLitPlace, q: vec3<f32>, rho: f32, trans: f32, eye: vec3<f32>, ph: ptr<function, array<f32, 8>>, seg: vec3<f32>, hint_leaf: vec3<i32>, hint_ref: u32) -> vec3<f32> {
     let ext = P.sun_cell.w;
     let a = P.misc.y;
     let frames = select(1u, 2u, a > 0.0);
@@ -159,6 +171,13 @@ fn lit_scattered(P: VdbLitPlace, q: vec3<f32>, rho: f32, trans: f32, eye: vec3<f
     if (a > 0.0) {
         tau_sun = mix(tau_f[0], tau_f[1], a);
     }
+    // The sun's transmittance at `q`, and its mean over the segment's scattering where the
+    // near field was walked (`LitMarch::light`).
+    let direct = exp(-ext * tau_sun.x);
+    var direct_mean = direct;
+    if (tau_sun.x != tau_sun.y) {
+        direct_mean = direct * lv_sun_gain(seg.x, seg.y, seg.z);
+    }
     var sun = 0.0;
     var sky = 0.0;
     if ({{SHADING}}.octaves == 0u) {
@@ -173,16 +192,16 @@ fn lit_scattered(P: VdbLitPlace, q: vec3<f32>, rho: f32, trans: f32, eye: vec3<f
         if (a > 0.0) {
             diffuse = mix(d[0], d[1], a);
         }
-        let direct = exp(-ext * tau_sun.x);
-        sun = (*ph)[0] * direct
-            + max(diffuse.x + lv_near_scatter({{SHADING}}.sun_color.w, P.axis.w, direct, exp(-ext * tau_sun.y)), 0.0);
+        sun = (*ph)[0] * direct_mean
+            + max(diffuse.x + lv_near_scatter({{SHADING}}.sun_color.w, P.axis.w, direct_mean, exp(-ext * tau_sun.y)), 0.0);
         sky = diffuse.y;
     } else {
         var tau_sky = lit_lookup(P.lv_lo0, P.lv_dims0, q).y;
         if (a > 0.0) {
             tau_sky = mix(tau_sky, lit_lookup(P.lv_lo1, P.lv_dims1, q).y, a);
         }
-        sun = lv_octaves(ext * tau_sun.x, {{SHADING}}.ms.xyz, {{SHADING}}.octaves, ph);
+        sun = lv_octaves(ext * tau_sun.x, {{SHADING}}.ms.xyz, {{SHADING}}.octaves, ph)
+            + (*ph)[0] * (direct_mean - direct);
         sky = lv_sky_source(ext * tau_sky, P.misc.x);
     }
     return {{SHADING}}.sun_color.xyz * sun + {{SHADING}}.sky.xyz * sky;

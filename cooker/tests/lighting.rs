@@ -139,20 +139,24 @@ fn diffusion_is_closer_to_the_reference_than_the_octaves() {
 /// than the cell's mean, the once-scattered light it adds (`near_scatter`, the first flight's
 /// fluence at a surface) brings the image closer to the reference. On the WDAS cloud and
 /// OpenVDB's smoke1 sample (where the samples are present; nothing to walk on the fixtures'
-/// thin smoke): measured at 64×36 against 1024 spp, WDAS 0.113 → 0.093, smoke1 0.083 → 0.074.
+/// thin smoke), at 64×36 against 1024 spp, relative RMSE (mean ratio) without it and with the
+/// default: WDAS 0.121 (0.941) → 0.101 (0.961), asserted clearly closer; smoke1 0.082 (1.031)
+/// → 0.082 (1.034), asserted no farther. (Before the sun pass walked voxels, 2026-11-27, the
+/// cells' shadows were too deep and the term made up for part of that on smoke1 too: WDAS
+/// 0.111 → 0.093, smoke1 0.087 → 0.077.)
 #[test]
 fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
-    let inputs: Vec<String> = [
-        "wdas-cloud/wdas_cloud_sixteenth.vdb",
-        "openvdb-smoke1/smoke.vdb",
+    let inputs: Vec<(String, bool)> = [
+        ("wdas-cloud/wdas_cloud_sixteenth.vdb", true),
+        ("openvdb-smoke1/smoke.vdb", false),
     ]
     .iter()
-    .filter_map(|n| sample(n))
+    .filter_map(|&(n, closer)| sample(n).map(|p| (p, closer)))
     .collect();
     if inputs.is_empty() {
         eprintln!("skipped: the WDAS and smoke1 samples are not present");
     }
-    for input in inputs {
+    for (input, closer) in inputs {
         let (asset, cam, s, truth) = lit_scene(&input);
         let lit = |near_scatter: f32| {
             let s = RenderSettings {
@@ -170,12 +174,13 @@ fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
             "{input}: rel RMSE (mean ratio) against the reference: near_scatter 0 {e_off:.3} \
              ({r_off:.3}), default {e_on:.3} ({r_on:.3})"
         );
+        let bound = if closer { 0.93 } else { 1.02 };
         assert!(
-            e_on < 0.93 * e_off,
-            "{input}: near_scatter {e_on:.3} is not clearly closer than without {e_off:.3}"
+            e_on < bound * e_off,
+            "{input}: near_scatter {e_on:.3} against {e_off:.3} without (bound {bound}×)"
         );
         assert!(
-            e_on < 0.1 && (0.95..1.05).contains(&r_on),
+            e_on < 0.11 && (0.95..1.05).contains(&r_on),
             "{input}: near_scatter {e_on:.3}, mean ratio {r_on:.3}"
         );
     }
@@ -186,8 +191,9 @@ fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
 /// light scattered once and twice (`vdbcook_trace::diffusion`), the diffusion solve carried all
 /// of it and lost 7% on the WDAS cloud (0.930 at 160×90, 8192 spp) and 2–7% on other real
 /// volumes. Measured here at 64×36 (the reference at 1024 spp), mean ratio / relative RMSE:
-/// WDAS 0.997 / 0.049 with the two orders gathered (the default), 0.935 / 0.090 with none
-/// (`ms_gather` 0, asserted worse in both); the smoke5 fixture 0.992 / 0.087 and 0.942 / 0.119.
+/// WDAS 0.993 / 0.051 with the two orders gathered (the default), 0.936 / 0.091 with none
+/// (`ms_gather` 0, asserted worse in both); the smoke5 fixture 0.993 / 0.087 and 0.941 / 0.120
+/// (since the sun pass walks voxels; 0.997 / 0.049 and 0.992 / 0.087 with the gather before).
 #[test]
 fn lit_is_unbiased_in_sunlight() {
     for input in smoke5_and_wdas() {

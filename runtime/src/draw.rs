@@ -1240,7 +1240,14 @@ impl VolumeDrawer {
                         frame_root: (f * meta.root_len) as u32,
                         lod: meta.lod(),
                     };
-                    LightParams::new(grid, &xf, l.light_dir, extinction, medium.unit, at)
+                    LightParams::new(
+                        grid,
+                        &xf,
+                        (l.light_dir, l.ms_model),
+                        extinction,
+                        medium.unit,
+                        at,
+                    )
                 };
                 let inputs = |grid: &LightGrid| {
                     (l.ms_model == MsModel::Diffusion).then(|| {

@@ -24,8 +24,8 @@ use std::sync::{Arc, Mutex};
 
 use bytemuck::{Pod, Zeroable};
 use vdbcook_scene::{
-    light_dirs, ms_levels, ms_sweeps, Affine, DiffusionInputs, LengthUnit, LevelChain, LightGrid,
-    MS_GATHER_WEIGHTS, MS_SHARED_PATHS,
+    light_dirs, ms_levels, ms_sweeps, sun_pass_stop, Affine, DiffusionInputs, LengthUnit,
+    LevelChain, LightGrid, MsModel, MS_GATHER_WEIGHTS, MS_SHARED_PATHS,
 };
 use wgpu::util::DeviceExt;
 
@@ -53,6 +53,9 @@ pub(crate) struct LightParams {
     pub level: u32,
     /// The asset of the volume set whose density it reads.
     pub asset: u32,
+    /// x: the extinction at which the sun pass stops a cell's walk at the opaque depth, 0 for
+    /// none (`vdbcook_scene::sun_pass_stop`); yzw: 0.
+    pub stop: [f32; 4],
 }
 
 /// The frame a light volume reads: its asset in the volume set, its root offset at full
@@ -68,11 +71,12 @@ pub(crate) struct FrameAt {
 impl LightParams {
     /// The pass's uniform for `grid` (`vdbcook_scene::light_dirs` in f64, then f32):
     /// the cell space of `xf`, the world direction `light_dir` toward the light, `extinction`
-    /// per unit density per length `unit`, over the frame `at` names.
+    /// per unit density per length `unit`, the multiple-scattering model `ms_model`, over the
+    /// frame `at` names.
     pub fn new(
         grid: &LightGrid,
         xf: &Affine,
-        light_dir: [f32; 3],
+        (light_dir, ms_model): ([f32; 3], MsModel),
         extinction: f64,
         unit: LengthUnit,
         at: FrameAt,
@@ -93,6 +97,7 @@ impl LightParams {
             base: 0,
             level: shift,
             asset,
+            stop: [sun_pass_stop(ms_model, extinction) as f32, 0.0, 0.0, 0.0],
         }
     }
 
@@ -1261,6 +1266,7 @@ mod tests {
                 base,
                 level,
                 asset,
+                stop,
             }),
         );
         assert_mirrors(

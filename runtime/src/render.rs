@@ -525,7 +525,7 @@ impl Renderer {
             let lp = LightParams::new(
                 &grid,
                 &self.xf,
-                settings.lighting.light_dir,
+                (settings.lighting.light_dir, settings.lighting.ms_model),
                 extinction,
                 settings.medium.unit,
                 FrameAt {

@@ -64,6 +64,18 @@ pub const LIT_NEAR_DEPTH: f64 = 0.25;
 /// light volume alone, as cheaply as before cells this fine walked at all.
 pub const LIT_NEAR_DEPTH_FINE: f64 = 2.0;
 
+/// The extinction at which the light volume's sun pass stops walking a cell's ray, once the
+/// optical depth reaches the density mode's opaque depth (20: a transmittance of 2·10⁻⁹), or 0
+/// for no stop: the diffusion model reads the depth only through `e^{−σ·τ}`; the octaves model
+/// also through `e^{−bⁱ·σ·τ}`, whose `bⁱ` may be near 0 (`RenderSettings::ms`), so it walks
+/// to the grid's far side.
+pub fn sun_pass_stop(ms_model: crate::MsModel, extinction: f64) -> f64 {
+    match ms_model {
+        crate::MsModel::Diffusion => extinction,
+        crate::MsModel::Octaves => 0.0,
+    }
+}
+
 /// The optical depth of one light-volume cell `cell` voxels wide from which `Lit` walks the
 /// near field toward the sun: [`LIT_NEAR_DEPTH`], or [`LIT_NEAR_DEPTH_FINE`] for cells no wider
 /// than a voxel.
@@ -290,68 +302,6 @@ impl LightGrid {
         out
     }
 
-    /// The four elements and weights of the bilinear lookup at `p` within slice `slice` of
-    /// axis `axis` (the cell centres with that index along the axis; `p`'s coordinate along it
-    /// is ignored), clamped to the outermost centres as [`LightGrid::taps`].
-    pub fn slice_taps(&self, p: [f64; 3], axis: usize, slice: u32) -> [(usize, f64); 4] {
-        let (ua, va) = ((axis + 1) % 3, (axis + 2) % 3);
-        let mut i0 = [slice; 3];
-        let mut i1 = [slice; 3];
-        let mut f = [0.0f64; 3];
-        for a in [ua, va] {
-            (i0[a], i1[a], f[a]) = self.axis_lerp(p, a);
-        }
-        let mut out = [(0usize, 0.0f64); 4];
-        for (k, o) in out.iter_mut().enumerate() {
-            let mut c = i0;
-            let mut w = 1.0;
-            for (bit, a) in [ua, va].into_iter().enumerate() {
-                if k >> bit & 1 == 0 {
-                    w *= 1.0 - f[a];
-                } else {
-                    c[a] = i1[a];
-                    w *= f[a];
-                }
-            }
-            *o = (self.index(c), w);
-        }
-        out
-    }
-
-    /// The sun's optical depth from the centre of cell `c` to the grid's far side along unit
-    /// direction `l` (cell units, before the length unit), through `density` (one value per
-    /// cell): the trapezoid rule between the points where the ray crosses the planes of the
-    /// cell centres of the next slices along `l`'s major axis (the density bilinear in each),
-    /// the last value held to the exit. Exact for a constant density, and for an axis-aligned
-    /// `l` on the cells' own values. The GPU's `lv_sun_main` is the same loop.
-    pub fn sun_depth(&self, c: [u32; 3], l: [f64; 3], density: impl Fn(usize) -> f64) -> f64 {
-        let m = (0..3)
-            .max_by(|&a, &b| l[a].abs().total_cmp(&l[b].abs()))
-            .unwrap_or(0);
-        let p = self.centre(c);
-        let t_exit = self.exit(p, l);
-        let seg = self.cell / l[m].abs();
-        let step: i64 = if l[m] > 0.0 { 1 } else { -1 };
-        let (mut tau, mut prev, mut t_prev) = (0.0f64, density(self.index(c)), 0.0f64);
-        let mut k = c[m] as i64;
-        for j in 1..=self.dims[m] as i64 {
-            let t = j as f64 * seg;
-            k += step;
-            if !(t <= t_exit) || k < 0 || k >= self.dims[m] as i64 {
-                break;
-            }
-            let q = [0, 1, 2].map(|a| p[a] + t * l[a]);
-            let d: f64 = self
-                .slice_taps(q, m, k as u32)
-                .iter()
-                .map(|&(i, w)| w * density(i))
-                .sum();
-            tau += 0.5 * (prev + d) * (t - t_prev);
-            (prev, t_prev) = (d, t);
-        }
-        tau + prev * (t_exit - t_prev).max(0.0)
-    }
-
     /// Distance along unit cell-space direction `d` from `p` (inside) to the grid's far side.
     pub fn exit(&self, p: [f64; 3], d: [f64; 3]) -> f64 {
         let mut t = f64::INFINITY;
@@ -369,16 +319,17 @@ impl LightGrid {
 
 /// `Lit`'s diffusion model where the near field toward the sun was walked: the once-scattered
 /// sunlight below the light volume's cells, per unit sun irradiance,
-/// `k·α/4π·(e^{−x} − e^{−x_cells})` (`RenderSettings::near_scatter` `k`, albedo `α`, `x` the
-/// walked optical depth toward the sun and `x_cells` the light volume's at the same point,
-/// both with the extinction). The solve's source is each cell's mean first scattering, so its
-/// light is the cell's; a point of a dense cloud's sunlit skin sees more of the beam than its
+/// `k·α/4π·(t − t_cells)` (`RenderSettings::near_scatter` `k`, albedo `α`, `t = e^{−x}` the
+/// sun's transmittance over the walked optical depth `x`, `t_cells = e^{−x_cells}` over the
+/// light volume's at the same point, both with the extinction; the lit march passes `t` as
+/// its mean over a segment, `vdbcook_trace::lit::sun_gain`). The solve's source is each
+/// cell's mean first scattering, so its light is the cell's; a point of a dense cloud's sunlit skin sees more of the beam than its
 /// cell's mean (`x < x_cells`) and, as light scattered once within a mean free path of it
 /// reaches it before scattering again, more once-scattered light, by the first flight's
 /// fluence of the difference: `α·ΔT` per unit irradiance for a locally uniform source deep
 /// inside, half that on a surface. 0 where no near field was walked (`x = x_cells`).
-pub fn near_scatter_source(k: f64, albedo: f64, x: f64, x_cells: f64) -> f64 {
-    k * albedo / (4.0 * std::f64::consts::PI) * ((-x).exp() - (-x_cells).exp())
+pub fn near_scatter_source(k: f64, albedo: f64, t: f64, t_cells: f64) -> f64 {
+    k * albedo / (4.0 * std::f64::consts::PI) * (t - t_cells)
 }
 
 /// The multiple-scattering source of `Lit` for one light, relative to its single-scattering

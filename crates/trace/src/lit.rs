@@ -10,10 +10,12 @@
 //!      (`cook --lod`): then cells snap to whole voxels of the level `k` with `cell/2^k ≤ 4`
 //!      (`LightGrid::with_levels`) and read it (`LightGrid::density_level`), an exact box filter
 //!      of any cell width;
-//!    - sun pass: `τ_sun` at a cell centre is the integral of `D` toward the light (`l̂`, in
-//!      cell space) to the grid's far side by the trapezoid rule between the crossings of the
-//!      next slices' centre planes along `l̂`'s major axis, `D` bilinear in each
-//!      (`LightGrid::sun_depth`): about `n/2` bilinear reads per cell for `n` slices;
+//!    - sun pass: `τ_sun` at a cell centre is the exact optical depth toward the light (`l̂`,
+//!      in cell space) from the centre to the grid's far side through the voxels of the level
+//!      the density pass read ([`sun_depth_exact`]: the density mode's voxel walk). A sample of
+//!      the depth, not of the cells' mean density: the exponential of a depth through blurred
+//!      densities is too dark on average where the density jumps from voxel to voxel
+//!      (`docs/rendering.md`, "The sun pass walks the voxels");
 //!    - sky pass: the optical depths toward the six axis directions (`cell·(D(c)/2 + Σ D beyond)`,
 //!      exact for the piecewise-constant `D`), combined into the one depth `τ_sky` whose
 //!      transmittance is their mean: `e^{−σ·τ_sky} = ⅙ Σ e^{−σ·τ_axis}` (σ the extinction).
@@ -34,7 +36,8 @@
 //!    per segment of optical depth `x = σ·ρ·len`, energy-conserving: `L += T·α·S·(1 − e^{−x})`,
 //!    `T *= e^{−x}` (exact for a constant source over the segment, so the image does not drift
 //!    with the step size), `S` read where the segment's light is scattered on average
-//!    ([`mean_depth`]); stops once `T < LIT_MIN_TRANS`.
+//!    ([`mean_depth`]), its sun's direct term weighted across the segment where the near field
+//!    was walked ([`sun_gain`]); stops once `T < LIT_MIN_TRANS`.
 //! 3. **Source** `S = sun·… + sky·…` at that point: the sun's depth `τ_sun` from the light
 //!    volume (trilinear), or, within `sun_near` cells where one cell is optically thick
 //!    (`lit_near_depth`) and the ray's `T ≥ LIT_NEAR_TRANS`, walked voxel by voxel and the
@@ -60,15 +63,15 @@ use vdbcook_asset::Asset;
 pub use vdbcook_scene::LIT_NEAR_TRANS;
 use vdbcook_scene::{
     content_box, light_dirs, lit_near_depth, near_scatter_source, normalize, octave_source,
-    sky_diffusion, sky_source, Affine, Filter, LevelChain, LightGrid, MsModel, RenderSettings,
-    MAX_MS_OCTAVES,
+    sky_diffusion, sky_source, sun_pass_stop, Affine, Filter, LevelChain, LightGrid, MsModel,
+    RenderSettings, MAX_MS_OCTAVES,
 };
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
 
 use crate::dda::{ceil_f64, Flow};
 use crate::space::IndexRay;
-use crate::walk::{BrickCache, Holder, SpanSampler, Visitor};
+use crate::walk::{BrickCache, Grid, Holder, SpanSampler, Visitor};
 use crate::Tracer;
 use vdbcook_scene::phase;
 
@@ -141,14 +144,20 @@ impl LightVolume {
         #[cfg(not(feature = "parallel"))]
         density.chunks_mut(slab).enumerate().for_each(fill);
 
-        // Sun pass, per cell (`LightGrid::sun_depth`).
+        // Sun pass, per cell: the exact optical depth toward the light from the cell's centre
+        // to the grid's far side, through the voxels of the level the density pass read (the
+        // density mode's voxel sum, no opaque stop).
         let ((l, sun_len), axis_len) = light_dirs(xf, s.lighting.light_dir, s.medium.unit);
         let mut tau = vec![[0.0f32; 2]; n];
+        let voxels = Grid::new(asset, set);
+        let stop = sun_pass_stop(s.lighting.ms_model, extinction);
         let sun = |(z, out): (usize, &mut [[f32; 2]])| {
+            let mut cache = BrickCache::default();
             for y in 0..ny {
                 for x in 0..nx {
-                    let c = [x as u32, y as u32, z as u32];
-                    let t = grid.sun_depth(c, l, |i| density[i] as f64) * sun_len;
+                    let p = grid.centre([x as u32, y as u32, z as u32]);
+                    let t =
+                        sun_depth_exact(&voxels, &grid, p, (l, sun_len), shift, stop, &mut cache);
                     out[x + nx * y][0] = t as f32;
                 }
             }
@@ -280,6 +289,31 @@ impl LightVolume {
     }
 }
 
+/// The exact optical depth (in the settings' unit) toward the light from cell-space point `p`
+/// to the far side of the light volume's `grid`, through the voxels of `voxels` (a level whose
+/// voxels are `2^shift` wide; `l` the unit cell-space direction toward the light, `sun_len`
+/// the length per cell-space unit along it), stopping once `stop·τ` reaches the opaque depth
+/// (`vdbcook_scene::sun_pass_stop`): the light volume's sun pass.
+pub(crate) fn sun_depth_exact(
+    voxels: &Grid,
+    grid: &LightGrid,
+    p: [f64; 3],
+    (l, sun_len): ([f64; 3], f64),
+    shift: u32,
+    stop: f64,
+    cache: &mut BrickCache,
+) -> f64 {
+    let inv = l.map(|c| if c == 0.0 { f64::INFINITY } else { 1.0 / c });
+    let ray = IndexRay {
+        o: p,
+        d: l,
+        inv,
+        per_t: sun_len,
+    }
+    .scaled(0.5f64.powi(shift as i32));
+    crate::render::optical_depth(voxels, &ray, 0.0, grid.exit(p, l), stop, cache)
+}
+
 /// The depth whose transmittance is the six directions' mean transmittance `t_mean` (their
 /// mean depth `tau_mean` where there is no extinction); at most `LIT_MAX_SKY_DEPTH / σ`.
 pub fn sky_depth(t_mean: f64, tau_mean: f64, extinction: f64) -> f64 {
@@ -303,6 +337,22 @@ pub fn mean_depth(x: f64) -> f64 {
     } else {
         1.0 / x - 1.0 / x.exp_m1()
     }
+}
+
+/// The sun's direct light a segment of optical depth `x` scatters, relative to its source
+/// read at the mean depth ([`mean_depth`]), where the sun's optical depth changes along the
+/// segment by `−c·x` (`c`, in [−1, 1]: the cosine between the ray and the direction toward
+/// the sun in the march's metric; a segment's density is constant, so the walked depth is
+/// linear in the position): with `u` the fraction of the segment and `m̂ = mean_depth(x)`,
+/// `∫₀¹ x·e^{−xu}·e^{−τ(u)} du = e^{−τ(m̂)}·(1 − e^{−x})·gain`,
+/// `gain = e^{−c·x·m̂}·φ(x(1 − c))/φ(x)` (`crate::exact::phi`). 1 for a thin segment or one
+/// across the sun's beam; above 1 where the ray runs away from the sun: the light it scatters
+/// is weighted toward the segment's sunlit entry, where the source read at the mean depth
+/// alone (the exponential's value at its mean, not its mean) is too dark — 8% on a dense
+/// cloud seen with the sun behind the eye. The GPU's `lv_sun_gain`.
+pub fn sun_gain(x: f64, c: f64) -> f64 {
+    let c = c.clamp(-1.0, 1.0);
+    (-c * x * mean_depth(x)).exp() * crate::exact::phi(x * (1.0 - c)) / crate::exact::phi(x)
 }
 
 /// The per-pixel jitter of the primary samples, in `[0, 1)` (24 bits, exact in f32).
@@ -427,6 +477,8 @@ pub(crate) struct LitMarch<'a, 't> {
     pub budget: u64,
     /// The sun's phase per octave at this ray's `μ`.
     pub sun_phase: [f64; MAX_MS_OCTAVES as usize],
+    /// The cosine between the ray and the direction toward the sun ([`sun_gain`]).
+    pub sun_cos: f64,
     /// `k` of the sky's source (`vdbcook_scene::sky_diffusion`).
     pub sky_k: f64,
 }
@@ -447,6 +499,14 @@ impl<'a, 't> LitMarch<'a, 't> {
                 normalize(s.lighting.light_dir.map(|c| c as f64)),
             );
             d[0] * l[0] + d[1] * l[1] + d[2] * l[2]
+        };
+        // The cosine between the ray and the sun in the march's metric (`sun_gain`): world
+        // space, or cell space in voxel units.
+        let sun_cos = if tracer.voxel_units() {
+            let (d, l) = (normalize(ray.d), normalize(tracer.light_ray(ray.o).d));
+            d[0] * l[0] + d[1] * l[1] + d[2] * l[2]
+        } else {
+            mu
         };
         let mut sun_phase = [0.0; MAX_MS_OCTAVES as usize];
         let mut ci = 1.0f32;
@@ -469,6 +529,7 @@ impl<'a, 't> LitMarch<'a, 't> {
             emit: [0.0; 3],
             budget: crate::scatter::MAX_MARCH_SAMPLES,
             sun_phase,
+            sun_cos,
             sky_k: sky_diffusion(
                 tracer.albedo,
                 s.medium.phase_g,
@@ -507,23 +568,32 @@ impl LitMarch<'_, '_> {
         let m = len * mean_depth(x);
         let q = self.ray.at((sa + m) / self.ray.per_t);
         let [ts, ts_cells] = t.sun_depth(self.lv, q, rho, self.trans, self.shadow);
+        // The sun's transmittance at `q`, and its mean over the segment's scattering where
+        // the near field was walked (the light volume's depth alone changes with the cells'
+        // mean density, and is read only where a cell is thin or the ray dark).
+        let direct = (-ext * ts).exp();
+        let direct_mean = if ts != ts_cells {
+            direct * sun_gain(x, self.sun_cos)
+        } else {
+            direct
+        };
         let (sun, sky) = match s.lighting.ms_model {
             MsModel::Octaves => (
                 octave_source(ext * ts, s.lighting.ms, s.lighting.ms_octaves, |i| {
                     self.sun_phase[i as usize]
-                }),
+                }) + self.sun_phase[0] * (direct_mean - direct),
                 sky_source(ext * self.lv.lookup(q)[1], self.sky_k),
             ),
             MsModel::Diffusion => {
                 let [diffuse_sun, diffuse_sky] = self.lv.diffuse_at(q, self.eye);
                 (
-                    self.sun_phase[0] * (-ext * ts).exp()
+                    self.sun_phase[0] * direct_mean
                         + (diffuse_sun
                             + near_scatter_source(
                                 s.lighting.near_scatter as f64,
                                 albedo,
-                                ext * ts,
-                                ext * ts_cells,
+                                direct_mean,
+                                (-ext * ts_cells).exp(),
                             ))
                         .max(0.0),
                     diffuse_sky,

@@ -274,16 +274,7 @@ impl<'a> Tracer<'a> {
         absorb: f64,
         cache: &mut BrickCache,
     ) -> f64 {
-        let mut v = Density {
-            per_t: ray.per_t,
-            absorb,
-            tau: 0.0,
-            steps: 0,
-            emission: None,
-            light: [0.0; 3],
-        };
-        walk(&self.grid, ray, t0, t1, cache, &mut v);
-        v.tau
+        optical_depth(&self.grid, ray, t0, t1, absorb, cache)
     }
 
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
@@ -544,6 +535,29 @@ impl<'a> Tracer<'a> {
             }
         }
     }
+}
+
+/// The `Density` walk's optical depth `τ` of channel 0 in `grid` along `ray` for
+/// `t ∈ [t0, t1]`, stopping once `absorb·τ ≥ OPAQUE_DEPTH` (never with `absorb` 0): the one
+/// exact voxel sum of the density mode, the near field and the light volume's sun pass.
+pub(crate) fn optical_depth(
+    grid: &Grid,
+    ray: &IndexRay,
+    t0: f64,
+    t1: f64,
+    absorb: f64,
+    cache: &mut BrickCache,
+) -> f64 {
+    let mut v = Density {
+        per_t: ray.per_t,
+        absorb,
+        tau: 0.0,
+        steps: 0,
+        emission: None,
+        light: [0.0; 3],
+    };
+    walk(grid, ray, t0, t1, cache, &mut v);
+    v.tau
 }
 
 impl Tracer<'_> {

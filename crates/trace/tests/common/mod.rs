@@ -141,6 +141,53 @@ pub fn boxes(list: &[([i64; 3], [i64; 3], f32)]) -> Asset {
     build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
 }
 
+/// A porous medium on the whole leaves of `[lo, hi)` (multiples of 8): each voxel holds `v`
+/// or nothing, by [`porous_voxel`] (about half of them full), under [`constant_box`]'s
+/// transform, f32 bricks. Its shadows vary from voxel to voxel, which a light volume's cells
+/// see only as samples.
+pub fn porous(lo: [i64; 3], hi: [i64; 3], v: f32) -> Asset {
+    let xf = [
+        [BOX_S, 0.0, 0.0, BOX_T[0]],
+        [0.0, BOX_S, 0.0, BOX_T[1]],
+        [0.0, 0.0, BOX_S, BOX_T[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let mut f = FrameSpec::default();
+    for lz in (lo[2]..hi[2]).step_by(8) {
+        for ly in (lo[1]..hi[1]).step_by(8) {
+            for lx in (lo[0]..hi[0]).step_by(8) {
+                let vals = (0..BRICK_VOXELS)
+                    .map(|i| {
+                        let p = [
+                            lx + (i / 64) as i64,
+                            ly + (i / 8 % 8) as i64,
+                            lz + (i % 8) as i64,
+                        ];
+                        if porous_voxel(p) {
+                            v
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                f.leaves.insert([lx, ly, lz], Leaf::Brick(vals));
+            }
+        }
+    }
+    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+}
+
+/// Whether voxel `p` of [`porous`] is full (a hash of its index).
+pub fn porous_voxel(p: [i64; 3]) -> bool {
+    let mut h = (p[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (p[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ (p[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
+    h ^= h >> 29;
+    h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    h ^= h >> 32;
+    h & 1 == 1
+}
+
 /// Cell point → world under [`constant_box`]'s transform (voxel `i` is the cell `[i, i+1)`,
 /// centred on world `BOX_S·i + BOX_T`).
 pub fn box_world(p: [f64; 3]) -> [f64; 3] {
