@@ -125,20 +125,24 @@ pub fn constant_box(v: f32) -> Asset {
     boxes(&[(BOX_LO, BOX_HI, v)])
 }
 
-/// Constant boxes `[lo, hi)` of value `v` (each in leaves of its own: a later box replaces the
-/// leaves it shares with an earlier one) under [`constant_box`]'s transform, f32.
-pub fn boxes(list: &[([i64; 3], [i64; 3], f32)]) -> Asset {
-    let xf = [
+/// [`constant_box`]'s transform: `index → world = BOX_S · index + BOX_T`.
+pub fn box_xf() -> [[f64; 4]; 4] {
+    [
         [BOX_S, 0.0, 0.0, BOX_T[0]],
         [0.0, BOX_S, 0.0, BOX_T[1]],
         [0.0, 0.0, BOX_S, BOX_T[2]],
         [0.0, 0.0, 0.0, 1.0],
-    ];
+    ]
+}
+
+/// Constant boxes `[lo, hi)` of value `v` (each in leaves of its own: a later box replaces the
+/// leaves it shares with an earlier one) under [`constant_box`]'s transform, f32.
+pub fn boxes(list: &[([i64; 3], [i64; 3], f32)]) -> Asset {
     let mut f = FrameSpec::default();
     for &(lo, hi, v) in list {
         box_leaves(lo, hi, v, &mut f.leaves);
     }
-    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+    build([2, 1, 1], box_xf(), 0.0, &[f], PayloadFormat::F32)
 }
 
 /// A porous medium on the whole leaves of `[lo, hi)` (multiples of 8): each voxel holds `v`
@@ -146,12 +150,6 @@ pub fn boxes(list: &[([i64; 3], [i64; 3], f32)]) -> Asset {
 /// transform, f32 bricks. Its shadows vary from voxel to voxel, which a light volume's cells
 /// see only as samples.
 pub fn porous(lo: [i64; 3], hi: [i64; 3], v: f32) -> Asset {
-    let xf = [
-        [BOX_S, 0.0, 0.0, BOX_T[0]],
-        [0.0, BOX_S, 0.0, BOX_T[1]],
-        [0.0, 0.0, BOX_S, BOX_T[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
     let mut f = FrameSpec::default();
     for lz in (lo[2]..hi[2]).step_by(8) {
         for ly in (lo[1]..hi[1]).step_by(8) {
@@ -174,7 +172,7 @@ pub fn porous(lo: [i64; 3], hi: [i64; 3], v: f32) -> Asset {
             }
         }
     }
-    build([2, 1, 1], xf, 0.0, &[f], PayloadFormat::F32)
+    build([2, 1, 1], box_xf(), 0.0, &[f], PayloadFormat::F32)
 }
 
 /// Whether voxel `p` of [`porous`] is full (a hash of its index).
