@@ -146,7 +146,7 @@ impl LightVolume {
 
         // Sun pass, per cell: the exact optical depth toward the light from the cell's centre
         // to the grid's far side, through the voxels of the level the density pass read (the
-        // density mode's voxel sum, no opaque stop).
+        // density mode's voxel sum; with the diffusion model it stops at the opaque depth).
         let ((l, sun_len), axis_len) = light_dirs(xf, s.lighting.light_dir, s.medium.unit);
         let mut tau = vec![[0.0f32; 2]; n];
         let voxels = Grid::new(asset, set);
