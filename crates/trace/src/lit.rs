@@ -59,7 +59,6 @@
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
-use vdbcook_asset::Asset;
 pub use vdbcook_scene::LIT_NEAR_TRANS;
 use vdbcook_scene::{
     content_box, light_dirs, lit_near_depth, near_scatter_source, normalize, octave_source,
@@ -99,15 +98,16 @@ pub struct LightVolume {
 }
 
 impl LightVolume {
-    /// Builds the light volume of `frame` for the settings' light and medium (`extinction`
-    /// = absorb + scatter).
-    pub fn build(
-        asset: &Asset,
-        frame: usize,
+    /// Builds the light volume of the frame `frame` walks (its `Grid`, which the sun pass
+    /// walks where the density pass reads full resolution) for the settings' light and medium
+    /// (`extinction` = absorb + scatter).
+    pub(crate) fn build(
+        frame: &Grid,
         xf: &Affine,
         s: &RenderSettings,
         extinction: f64,
     ) -> LightVolume {
+        let (asset, walked, frame) = (frame.asset, frame, frame.frame);
         let chain = LevelChain::of(asset);
         let grid = LightGrid::with_levels(content_box(asset, frame), s.lighting.light_res, chain);
         let [nx, ny, _] = grid.dims.map(|d| d as usize);
@@ -149,7 +149,9 @@ impl LightVolume {
         // density mode's voxel sum; with the diffusion model it stops at the opaque depth).
         let ((l, sun_len), axis_len) = light_dirs(xf, s.lighting.light_dir, s.medium.unit);
         let mut tau = vec![[0.0f32; 2]; n];
-        let voxels = Grid::new(asset, set);
+        // A coarser level's own walk grid; full resolution's is the frame's.
+        let coarse = (set != frame).then(|| Grid::new(asset, set));
+        let voxels = coarse.as_ref().unwrap_or(walked);
         let stop = sun_pass_stop(s.lighting.ms_model, extinction);
         let sun = |(z, out): (usize, &mut [[f32; 2]])| {
             let mut cache = BrickCache::default();
@@ -157,7 +159,7 @@ impl LightVolume {
                 for x in 0..nx {
                     let p = grid.centre([x as u32, y as u32, z as u32]);
                     let t =
-                        sun_depth_exact(&voxels, &grid, p, (l, sun_len), shift, stop, &mut cache);
+                        sun_depth_exact(voxels, &grid, p, (l, sun_len), shift, stop, &mut cache);
                     out[x + nx * y][0] = t as f32;
                 }
             }
@@ -416,7 +418,7 @@ impl Tracer<'_> {
         // The whole near field, without the density walk's opaque stop: the octaves read
         // `e^{−bⁱ·σ·τ}` with `bⁱ` down to 0, where a depth cut at the stop would shine through.
         let tau = if t1.min(t_near) > t0 {
-            self.depth_along(&ray, t0, t1.min(t_near), 0.0, cache)
+            crate::render::optical_depth(&self.grid, &ray, t0, t1.min(t_near), 0.0, cache)
         } else {
             0.0
         };
@@ -503,7 +505,7 @@ impl<'a, 't> LitMarch<'a, 't> {
         // The cosine between the ray and the sun in the march's metric (`sun_gain`): world
         // space, or cell space in voxel units.
         let sun_cos = if tracer.voxel_units() {
-            let (d, l) = (normalize(ray.d), normalize(tracer.light_ray(ray.o).d));
+            let (d, l) = (normalize(ray.d), lv.sun);
             d[0] * l[0] + d[1] * l[1] + d[2] * l[2]
         } else {
             mu

@@ -149,8 +149,9 @@ impl<'a> Tracer<'a> {
         let bbox = stored_bbox(asset, settings.output.frame).unwrap_or(([0.0; 3], ext));
         let depth_range = depth_range(&xf, bbox, camera.eye);
         let value_max = asset.frame_range(settings.output.frame, 0)[1];
+        let grid = Grid::new(asset, settings.output.frame);
         let light = (settings.integrator.mode == Mode::Lit)
-            .then(|| LightVolume::build(asset, settings.output.frame, &xf, settings, extinction));
+            .then(|| LightVolume::build(&grid, &xf, settings, extinction));
         let levels = if settings.integrator.mode == Mode::Lit && settings.integrator.primary_lod {
             // Primary rays by footprint read one level per octave: the levels from full
             // resolution on that skip none (none above it in a `--lod-from` asset).
@@ -162,7 +163,7 @@ impl<'a> Tracer<'a> {
         };
         Ok(Tracer {
             march: March::resolve(settings, value_max),
-            grid: Grid::new(asset, settings.output.frame),
+            grid,
             levels,
             pixel_angle: vdbcook_scene::pixel_angle(camera.fov_y_deg, settings.output.height),
             settings: settings.clone(),
@@ -248,7 +249,14 @@ impl<'a> Tracer<'a> {
         match ray.clip(self.extent) {
             Some((t0, t1)) if t1.min(t_max) > t0 => {
                 let absorb = self.settings.medium.absorb as f64;
-                self.depth_along(&ray, t0, t1.min(t_max), absorb, &mut scratch.primary)
+                optical_depth(
+                    &self.grid,
+                    &ray,
+                    t0,
+                    t1.min(t_max),
+                    absorb,
+                    &mut scratch.primary,
+                )
             }
             _ => 0.0,
         }
@@ -262,19 +270,6 @@ impl<'a> Tracer<'a> {
             self.xf.dir_to_index(normalize(dir)),
             self.voxel_units(),
         )
-    }
-
-    /// The `Density` walk's optical depth `τ` of channel 0 along `ray` for `t ∈ [t0, t1]`,
-    /// stopping once `absorb·τ ≥ OPAQUE_DEPTH`.
-    pub(crate) fn depth_along(
-        &self,
-        ray: &IndexRay,
-        t0: f64,
-        t1: f64,
-        absorb: f64,
-        cache: &mut BrickCache,
-    ) -> f64 {
-        optical_depth(&self.grid, ray, t0, t1, absorb, cache)
     }
 
     /// Traces one primary ray from world point `eye` along world direction `dir` (normalized
@@ -323,7 +318,7 @@ impl<'a> Tracer<'a> {
         }
         // Channel 0's optical depth from the extent's entry to the box's.
         let tau = if a > t0 && ext > 0.0 {
-            self.depth_along(ray, t0, a, ext, &mut scratch.primary)
+            optical_depth(&self.grid, ray, t0, a, ext, &mut scratch.primary)
         } else {
             0.0
         };
