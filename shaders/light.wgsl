@@ -161,16 +161,8 @@ fn lv_box_entry(lo: vec4<f32>, dims: vec3<u32>, p: vec3<f32>, l: vec3<f32>) -> f
 }
 
 // Optical depth of one light-volume cell below which a lit march reads the sun's depth from the
-// light volume alone (`vdbcook_trace::LIT_NEAR_DEPTH`).
+// light volume alone, whatever the cells' width (`vdbcook_scene::LIT_NEAR_DEPTH`).
 const LV_NEAR_DEPTH: f32 = 0.25;
-// `vdbcook_trace::LIT_NEAR_DEPTH_FINE`, for cells no wider than a voxel.
-const LV_NEAR_DEPTH_FINE: f32 = 2.0;
-
-// `vdbcook_scene::lit_near_depth`: the optical depth of one cell `cell` voxels wide from which a
-// lit march walks the near field.
-fn lv_near_depth(cell: f32) -> f32 {
-    return select(LV_NEAR_DEPTH_FINE, LV_NEAR_DEPTH, cell > 1.0);
-}
 // The primary ray's transmittance below which it does not walk (`vdbcook_trace::LIT_NEAR_TRANS`).
 const LV_NEAR_TRANS: f32 = 0.05;
 // Longest near field, in voxels (`vdbcook_trace::LIT_NEAR_MAX_VOXELS`).

@@ -140,7 +140,7 @@ fn lit_sun_depth(P: VdbLitPlace, f: u32, q: vec3<f32>, rho: f32, trans: f32, hin
     let dims = select(P.lv_dims0, P.lv_dims1, one);
     let cells = lit_lookup(lo, dims, q).x;
     let near = select(P.near.xy, P.near.zw, one);
-    if (!LIT_NEAR || !(near.x > 0.0) || !(P.sun_cell.w * rho * near.y >= lv_near_depth(lo.w))
+    if (!LIT_NEAR || !(near.x > 0.0) || !(P.sun_cell.w * rho * near.y >= LV_NEAR_DEPTH)
         || !(trans >= LV_NEAR_TRANS)) {
         return vec2<f32>(cells);
     }

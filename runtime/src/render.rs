@@ -7,8 +7,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use vdbcook_scene::{
-    depth_range, lit_near_depth, pixel_angle, Affine, DiffusionInputs, Filter, LightGrid, March,
-    Mode, MsModel, MAX_SIDE,
+    depth_range, pixel_angle, Affine, DiffusionInputs, Filter, LightGrid, March, Mode, MsModel,
+    LIT_NEAR_DEPTH, MAX_SIDE,
 };
 
 use crate::light::{FrameAt, LightParams, LightPass};
@@ -160,7 +160,7 @@ struct LitVariant {
     /// `Filter::Trilinear`.
     trilinear: bool,
     /// The near field toward the sun (`sun_near` > 0 on a frame dense enough for some sample to
-    /// walk it: `vdbcook_scene::lit_near_depth`).
+    /// walk it: `vdbcook_scene::LIT_NEAR_DEPTH`).
     near: bool,
     /// `March::Voxels`.
     voxels: bool,
@@ -558,7 +558,7 @@ impl Renderer {
                 // f32 rounding: a variant with the near field draws the same without it).
                 near: params.place.near[0] > 0.0
                     && params.place.sun_cell[3] * params.value_max * params.place.near[1]
-                        >= lit_near_depth(grid.cell) as f32 * (1.0 - 1e-4),
+                        >= LIT_NEAR_DEPTH as f32 * (1.0 - 1e-4),
                 voxels: March::resolve(settings, self.vol.frame_max[frame]) == March::Voxels,
             }
         } else {

@@ -1783,7 +1783,7 @@ fn lit_near_field_matches_the_cpu() {
     // Cells narrower than a voxel still walk where one is optically thick (a voxel's skin
     // is blurred between cell centres as well): the second frame, the denser blob without a
     // tile, at 128 cells, forty times denser (optical depth up to 160 per voxel: the cells
-    // walk from an optical depth of 2, `LIT_NEAR_DEPTH_FINE`).
+    // walk from an optical depth of 0.25 per cell, `LIT_NEAR_DEPTH`, as any cells do).
     let fine = {
         let base = small(Mode::Lit, 1);
         RenderSettings {

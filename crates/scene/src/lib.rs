@@ -41,9 +41,9 @@ pub use fire::{
 };
 pub use footprint::{level_start, pixel_angle};
 pub use light::{
-    light_dirs, lit_near_depth, near_scatter_source, octave_source, phase, phase_mean_cos,
-    sky_diffusion, sky_source, sun_pass_stop, LevelChain, LightGrid, LIT_NEAR_DEPTH,
-    LIT_NEAR_DEPTH_FINE, LIT_NEAR_MAX_VOXELS, LIT_NEAR_TRANS, MAX_SUB,
+    light_dirs, near_scatter_source, octave_source, phase, phase_mean_cos, sky_diffusion,
+    sky_source, sun_pass_stop, LevelChain, LightGrid, LIT_NEAR_DEPTH, LIT_NEAR_MAX_VOXELS,
+    LIT_NEAR_TRANS, MAX_SUB,
 };
 pub use settings::{
     Filter, Integrator, LengthUnit, Lighting, March, Medium, Mode, MsModel, Output, RenderSettings,

@@ -53,16 +53,15 @@ pub fn phase_mean_cos(g: [f32; 2], w: f32) -> f64 {
 
 /// Optical depth of one light-volume cell below which `Lit` reads the sun's depth from the
 /// light volume alone (`RenderSettings::sun_near`; `vdbcook_trace::Tracer::sun_depth`, the
-/// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell.
+/// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell. The same
+/// for cells of any width: the depth interpolated between cell centres errs within half a cell
+/// of a face where the density jumps, which is what the eye sees of a medium optically thick
+/// per cell, however narrow the cell (and under the trilinear filter a sample in the skin reads
+/// a fraction of the density inside). Until 2026-11-27 cells no wider than a voxel walked only
+/// from an optical depth of 2: a dense 48³ cube under the default 64 cells (1.2 per cell) read
+/// 0.40 of the reference's single scattering, 0.85 walked (docs/rendering.md, "Small dense
+/// effects"); a threshold of 1 walked it with the nearest filter only.
 pub const LIT_NEAR_DEPTH: f64 = 0.25;
-
-/// [`LIT_NEAR_DEPTH`] for cells no wider than a voxel: there the depth interpolated between cell
-/// centres is exact inside a voxel (constant density, a linear depth) and errs only within half
-/// a cell of a face where the density jumps, so `Lit` walks only where that half cell is a mean
-/// free path or more deep (a medium dense as a surface: `Tracer::sun_depth`). Thinner media
-/// (the smoke fixture under cells of a third of a voxel, optical depth 0.55 per cell) read the
-/// light volume alone, as cheaply as before cells this fine walked at all.
-pub const LIT_NEAR_DEPTH_FINE: f64 = 2.0;
 
 /// The extinction at which the light volume's sun pass stops walking a cell's ray, once the
 /// optical depth reaches the density mode's opaque depth (20: a transmittance of 2·10⁻⁹), or 0
@@ -73,17 +72,6 @@ pub fn sun_pass_stop(ms_model: crate::MsModel, extinction: f64) -> f64 {
     match ms_model {
         crate::MsModel::Diffusion => extinction,
         crate::MsModel::Octaves => 0.0,
-    }
-}
-
-/// The optical depth of one light-volume cell `cell` voxels wide from which `Lit` walks the
-/// near field toward the sun: [`LIT_NEAR_DEPTH`], or [`LIT_NEAR_DEPTH_FINE`] for cells no wider
-/// than a voxel.
-pub fn lit_near_depth(cell: f64) -> f64 {
-    if cell > 1.0 {
-        LIT_NEAR_DEPTH
-    } else {
-        LIT_NEAR_DEPTH_FINE
     }
 }
 
@@ -221,8 +209,8 @@ impl LightGrid {
     /// `Lit`'s near field toward the sun in voxels for `sun_near` cells (the CPU's
     /// `Tracer::sun_depth`, the renderer's and the drawer's walks), at most
     /// [`LIT_NEAR_MAX_VOXELS`]; cells narrower than a voxel walk less than one (a voxel dense
-    /// as a surface, optically thick within one cell, still has its skin blurred between cell
-    /// centres: [`LIT_NEAR_DEPTH_FINE`]).
+    /// enough to be optically thick within one cell still has its skin blurred between cell
+    /// centres: [`LIT_NEAR_DEPTH`]).
     pub fn near_voxels(&self, sun_near: f32) -> f64 {
         (sun_near as f64 * self.cell).min(LIT_NEAR_MAX_VOXELS)
     }

@@ -287,7 +287,7 @@ pub struct Lighting {
     /// of the first `sun_near` cells toward the sun are walked exactly (a voxel DDA through
     /// the tree), and only the depth beyond is looked up in the light volume, whose cells blur
     /// a dense cloud's lit skin (`docs/rendering.md`); where one cell is optically thin
-    /// (`crate::lit_near_depth`) or the ray's transmittance is below `LIT_NEAR_TRANS` the
+    /// (`crate::LIT_NEAR_DEPTH`) or the ray's transmittance is below `LIT_NEAR_TRANS` the
     /// light volume alone. 0: the light volume alone everywhere (cheaper).
     pub sun_near: f32,
     /// `MsModel::Diffusion` where the near field was walked: the once-scattered sunlight the

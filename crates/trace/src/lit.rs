@@ -61,9 +61,9 @@
 use rayon::prelude::*;
 pub use vdbcook_scene::LIT_NEAR_TRANS;
 use vdbcook_scene::{
-    content_box, light_dirs, lit_near_depth, near_scatter_source, normalize, octave_source,
-    sky_diffusion, sky_source, sun_pass_stop, Affine, Filter, LevelChain, LightGrid, MsModel,
-    RenderSettings, MAX_MS_OCTAVES,
+    content_box, light_dirs, near_scatter_source, normalize, octave_source, sky_diffusion,
+    sky_source, sun_pass_stop, Affine, Filter, LevelChain, LightGrid, MsModel, RenderSettings,
+    LIT_NEAR_DEPTH, MAX_MS_OCTAVES,
 };
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
@@ -375,8 +375,7 @@ impl Tracer<'_> {
     /// exactly (the density mode's voxel sum), the light volume's depth where that walk ends
     /// beyond (`sun_depth_at`: 0 once the ray has left the grid). The light volume's lookup at
     /// `q` alone where there is no near field (`LightGrid::near_voxels`), where one cell's
-    /// optical depth at density `rho` is below `LIT_NEAR_DEPTH` (`LIT_NEAR_DEPTH_FINE` for cells
-    /// no wider than a voxel: `vdbcook_scene::lit_near_depth`; a medium the cells resolve:
+    /// optical depth at density `rho` is below `LIT_NEAR_DEPTH` (a medium the cells resolve:
     /// its depth changes little across one), or where the primary ray's transmittance `trans`
     /// is below [`LIT_NEAR_TRANS`]. Returns that depth and the light volume's lookup at `q`
     /// (the same where no near field was walked): `[τ, τ_cells]`.
@@ -391,10 +390,7 @@ impl Tracer<'_> {
         let near = lv.grid.near_voxels(self.settings.lighting.sun_near);
         let cell_depth = self.extinction * rho * lv.cell_len;
         let cells = lv.lookup(q)[0];
-        if !(near > 0.0)
-            || !(cell_depth >= lit_near_depth(lv.grid.cell))
-            || !(trans >= LIT_NEAR_TRANS)
-        {
+        if !(near > 0.0) || !(cell_depth >= LIT_NEAR_DEPTH) || !(trans >= LIT_NEAR_TRANS) {
             return [cells, cells];
         }
         [self.near_sun_depth(lv, q, near, cache), cells]
