@@ -138,11 +138,12 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
     let a = inst.box_lo.w;
     // Toward the eye in the diffusion's metric.
     let eye = lv_eye_dir(ray.d, place.axis.xyz);
-    let sun_cos = lit_sun_cos(place, ray, dw);
     let sb = t1 * ray.per_t;
     var k = max(ceil(t0 * ray.per_t / step - jitter), 0.0);
     var trans = 1.0;
     var rad = vec3<f32>(0.0);
+    // The last walked segment's end, depth and frame (`lit_scattered`).
+    var exit = vec3<f32>(0.0, 0.0, -1.0);
     // `LitCrossfade::Dither`: sample k is frame 1's (density and light) where
     // fract(u + k·φ⁻¹) < a (a golden-ratio sequence from a second per-pixel offset: a fraction a
     // of the ray's samples, spread evenly along it), frame 0's elsewhere; the place then names
@@ -182,7 +183,8 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             // Emission over the step, absorbed as the step attenuates (the tracer's lit march).
             rad += trans * step * lv_phi(x, e) * lit_emission(rho);
         }
-        let q = ray.o + ((s - 0.5 * step + step * lv_mean_depth(x, e)) / ray.per_t) * ray.d;
+        let md = lv_mean_depth(x, e);
+        let q = ray.o + ((s - 0.5 * step + step * md) / ray.per_t) * ray.d;
         var pl = place;
         if (dither) {
             pl.lv_lo0 = select(place.lv_lo0, place.lv_lo1, one);
@@ -191,7 +193,9 @@ fn draw_lit(inst: DrawInstance, ray: VdbRay, t0: f32, t1: f32, dw: vec3<f32>, pi
             pl.roots.x = select(place.roots.x, place.roots.y, one);
             pl.misc.y = 0.0;
         }
-        let src = lit_scattered(pl, q, rho, trans, eye, &sun_ph, vec3<f32>(x, e, sun_cos), vec3<i32>(-1), VDB_EMPTY);
+        // A dithered crossfade's samples alternate frames: the tag keeps a walk of one frame's
+        // medium from serving as the next sample's entry in the other's.
+        let src = lit_scattered(pl, ray, s - 0.5 * step, step, q, rho, trans, eye, &sun_ph, vec3<f32>(x, e, md), vec3<i32>(-1), VDB_EMPTY, &exit, select(0.0, 1.0, one));
         rad += trans * place.axis.w * (1.0 - e) * src;
         trans *= e;
         if (trans < LV_MIN_TRANS) {

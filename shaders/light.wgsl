@@ -38,14 +38,27 @@ fn lv_taps(p: vec3<f32>, lo: vec3<f32>, cell: f32, dims: vec3<u32>) -> LvTaps {
     return t;
 }
 
-// `vdbcook_trace::lit::sun_gain`: the sun's direct light a segment of optical depth `x`
-// (`ex` = e^{−x}) scatters relative to its source read at the mean depth, where the walked
-// depth toward the sun falls along it by `c·x` (`c`: the cosine between the ray and the sun).
-fn lv_sun_gain(x: f32, ex: f32, c: f32) -> f32 {
-    let cc = clamp(c, -1.0, 1.0);
-    let y = x * (1.0 - cc);
-    return exp(-cc * x * lv_mean_depth(x, ex)) * lv_phi(y, exp(-y)) / lv_phi(x, ex);
+// `vdbcook_trace::lit::exp_piece`: ∫₀^l e^{−E(v)} dv for E linear from `a` to `b` over `l`
+// (the series of sinh(g/2)/(g/2) where the difference would cancel).
+fn lv_exp_piece(a: f32, b: f32, l: f32) -> f32 {
+    let g = b - a;
+    let series = l * exp(-0.5 * (a + b)) * (1.0 + g * g / 24.0);
+    return select(l * (exp(-a) - exp(-b)) / g, series, abs(g) < 1e-2);
 }
+
+// `vdbcook_trace::lit::segment_sun`: the sun's direct light a segment of optical depth `x`
+// (`ex` = e^{−x}) scatters per unit of its 1 − e^{−x}, from the sun's optical depths `d` walked
+// at its entry, at its mean scattering depth (fraction `m`) and at its exit, linear between.
+fn lv_segment_sun(x: f32, ex: f32, m: f32, d: vec3<f32>) -> f32 {
+    let em = x * m + d.y;
+    return (lv_exp_piece(d.x, em, m) + lv_exp_piece(em, x + d.z, 1.0 - m)) / lv_phi(x, ex);
+}
+
+// `vdbcook_trace::SEGMENT_JOIN`: how close (a fraction of its length) a segment must start to
+// the last one's end to reuse the sun's depth walked there.
+const LV_SEGMENT_JOIN: f32 = 1e-3;
+// `vdbcook_trace::SEGMENT_END`: where a segment's ends are walked, a fraction from each end.
+const LV_SEGMENT_END: f32 = 1e-3;
 
 // `vdbcook_scene::octave_source`: single scattering `ph[0]·e^{−x}` plus octaves i ≥ 1,
 // `a^i·ph[i]·(e^{−b^i·x} − e^{−x})`.

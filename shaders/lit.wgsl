@@ -82,16 +82,6 @@ fn lit_lookup(lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>) -> vec2<f32> {
     return out;
 }
 
-// The cosine between a ray (cell-space `ray`, unit world direction `dw`) and the direction
-// toward the sun in the march's metric (`LitMarch::sun_cos`, `lv_sun_gain`): world space, or
-// cell space in voxel units.
-fn lit_sun_cos(P: VdbLitPlace, ray: VdbRay, dw: vec3<f32>) -> f32 {
-    if ({{SHADING}}.voxel_units != 0u) {
-        return dot(normalize(ray.d), normalize(P.sun_cell.xyz));
-    }
-    return dot(dw, {{SHADING}}.sun.xyz);
-}
-
 // The diffusion model's (sun, sky) light of one light volume at `p` toward `eye`
 // (`LightVolume::diffuse_at`).
 fn lit_diffuse(lo: vec4<f32>, dims: vec4<u32>, p: vec3<f32>, eye: vec3<f32>) -> vec2<f32> {
@@ -131,52 +121,82 @@ fn lit_near_depth(P: VdbLitPlace, root: u32, lo: vec4<f32>, dims: vec4<u32>, q: 
     return tau + lit_lookup(lo, dims, p + te * l).x;
 }
 
-// `Tracer::sun_depth` of frame `f` (0 or 1) at `q` (density `rho`, the primary ray's
-// transmittance `trans`): (the depth with the near field walked where one cell is optically
-// thick and the ray still bright, the light volume's depth alone).
-fn lit_sun_depth(P: VdbLitPlace, f: u32, q: vec3<f32>, rho: f32, trans: f32, hint_leaf: vec3<i32>, hint_ref: u32) -> vec2<f32> {
-    let one = f == 1u;
-    let lo = select(P.lv_lo0, P.lv_lo1, one);
-    let dims = select(P.lv_dims0, P.lv_dims1, one);
-    let cells = lit_lookup(lo, dims, q).x;
-    let near = select(P.near.xy, P.near.zw, one);
-    if (!LIT_NEAR || !(near.x > 0.0) || !(P.sun_cell.w * rho * near.y >= LV_NEAR_DEPTH)
-        || !(trans >= LV_NEAR_TRANS)) {
-        return vec2<f32>(cells);
-    }
-    let root = select(P.roots.x, P.roots.y, one);
-    return vec2<f32>(lit_near_depth(P, root, lo, dims, q, near.x, hint_leaf, hint_ref), cells);
+// `Tracer::sun_depth`'s test for frame `f` (0 or 1) at a sample of density `rho` and primary
+// transmittance `trans`: whether the near field is walked (one cell optically thick, the ray
+// still bright).
+fn lit_walks(P: VdbLitPlace, f: u32, rho: f32, trans: f32) -> bool {
+    let near = select(P.near.xy, P.near.zw, f == 1u);
+    return LIT_NEAR && near.x > 0.0 && P.sun_cell.w * rho * near.y >= LV_NEAR_DEPTH
+        && trans >= LV_NEAR_TRANS;
 }
 
 // The light a lit sample at `q` (density `rho`, the primary ray's transmittance `trans`)
 // scatters toward the eye per unit albedo·(1 − e^{−x}): the sun's and the sky's radiance times
 // their sources (`LitMarch::light`). `eye`: the unit direction toward the eye in the diffusion's
 // metric; `ph`: the sun's phase per octave at the ray's μ; `seg`: the segment's optical depth
-// x, e^{−x} and the cosine between the ray and the sun (`lit_sun_cos`), for `lv_sun_gain` where
-// the near field was walked. A crossfade lerps the frames' depths and diffusion light
+// x, e^{−x} and its mean scattering depth as a fraction; the segment runs along `ray` from
+// length `sa` over `len`, and where the near field is walked (`lit_walks`) the sun's depth is
+// walked at `q` and at the segment's ends (`lv_segment_sun`), the entry's taken from `exit`
+// (the last segment's end, its depth and `tag`, −1 for none) where it starts there; `exit`
+// then holds this segment's. A crossfade lerps the frames' depths and diffusion light
 // (`P.misc.y`).
-fn lit_scattered(P: VdbLitPlace, q: vec3<f32>, rho: f32, trans: f32, eye: vec3<f32>, ph: ptr<function, array<f32, 8>>, seg: vec3<f32>, hint_leaf: vec3<i32>, hint_ref: u32) -> vec3<f32> {
+fn lit_scattered(P: VdbLitPlace, ray: VdbRay, sa: f32, len: f32, q: vec3<f32>, rho: f32, trans: f32, eye: vec3<f32>, ph: ptr<function, array<f32, 8>>, seg: vec3<f32>, hint_leaf: vec3<i32>, hint_ref: u32, exit: ptr<function, vec3<f32>>, tag: f32) -> vec3<f32> {
     let ext = P.sun_cell.w;
     let a = P.misc.y;
     let frames = select(1u, 2u, a > 0.0);
-    // Per frame (walked, cells): one call site (lavapipe inlines each one).
-    var tau_f = array<vec2<f32>, 2>(vec2<f32>(0.0), vec2<f32>(0.0));
+    // The segment's ends, from the mean-depth point (not the ray's origin:
+    // `vdbcook_trace::lit::offset`), just inside it (`vdbcook_trace::SEGMENT_END`).
+    let q0 = q + (len * (LV_SEGMENT_END - seg.z) / ray.per_t) * ray.d;
+    let q1 = q + (len * (1.0 - LV_SEGMENT_END - seg.z) / ray.per_t) * ray.d;
+    let joined = (*exit).z == tag && abs(sa - (*exit).x) <= LV_SEGMENT_JOIN * len;
+    // Per frame the depth at `q`, the light volume's there, whether walked; the depths at the
+    // ends (the one at `q` where that frame does not walk). All walks from one call site
+    // (lavapipe inlines each): `q`, then the exit, then the entry unless joined.
+    var tau_f = array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
+    var ends = array<vec2<f32>, 2>(vec2<f32>(0.0), vec2<f32>(0.0));
     for (var f = 0u; f < frames; f++) {
-        // Only frame 0's walk knows the caller's leaf.
-        let known = f == 0u;
-        tau_f[f] = lit_sun_depth(P, f, q, rho, trans, select(vec3<i32>(-1), hint_leaf, known),
-            select(VDB_EMPTY, hint_ref, known));
+        let one = f == 1u;
+        let lo = select(P.lv_lo0, P.lv_lo1, one);
+        let dims = select(P.lv_dims0, P.lv_dims1, one);
+        let cells = lit_lookup(lo, dims, q).x;
+        tau_f[f] = vec3<f32>(cells, cells, 0.0);
+        ends[f] = vec2<f32>(cells);
+        let walks = select(0u, select(3u, 2u, joined), lit_walks(P, f, rho, trans));
+        let root = select(P.roots.x, P.roots.y, one);
+        let near = select(P.near.x, P.near.z, one);
+        for (var k = 0u; k < walks; k++) {
+            // Only frame 0's walk at `q` knows the caller's leaf.
+            let hinted = k == 0u && f == 0u;
+            let d = lit_near_depth(P, root, lo, dims, select(select(q0, q1, k == 1u), q, k == 0u), near,
+                select(vec3<i32>(-1), hint_leaf, hinted), select(VDB_EMPTY, hint_ref, hinted));
+            if (k == 0u) {
+                tau_f[f] = vec3<f32>(d, cells, 1.0);
+                ends[f] = vec2<f32>(d);
+            } else if (k == 1u) {
+                ends[f].y = d;
+            } else {
+                ends[f].x = d;
+            }
+        }
     }
     var tau_sun = tau_f[0];
+    var end = ends[0];
     if (a > 0.0) {
         tau_sun = mix(tau_f[0], tau_f[1], a);
+        end = mix(ends[0], ends[1], a);
     }
     // The sun's transmittance at `q`, and its mean over the segment's scattering where the
     // near field was walked (`LitMarch::light`).
     let direct = exp(-ext * tau_sun.x);
     var direct_mean = direct;
-    if (tau_sun.x != tau_sun.y) {
-        direct_mean = direct * lv_sun_gain(seg.x, seg.y, seg.z);
+    if (tau_sun.z > 0.0) {
+        if (joined) {
+            end.x = (*exit).y;
+        }
+        *exit = vec3<f32>(sa + len, end.y, tag);
+        direct_mean = lv_segment_sun(seg.x, seg.y, seg.z, ext * vec3<f32>(end.x, tau_sun.x, end.y));
+    } else {
+        *exit = vec3<f32>(0.0, 0.0, -1.0);
     }
     var sun = 0.0;
     var sky = 0.0;

@@ -528,8 +528,9 @@ struct LitState {
     budget: u32,
     ph: array<f32, 8>,
     eye: vec3<f32>,
-    // The cosine between the ray and the sun (`lit_sun_cos`).
-    sun_cos: f32,
+    // The last walked segment's end, the sun's depth there and 0 (−1 for none):
+    // `lit_scattered`'s `exit`.
+    exit: vec3<f32>,
 }
 
 // `LitMarch::light`: the segment of `ray` from length `sa` over `len` of optical depth `x`
@@ -542,9 +543,12 @@ fn lit_light(st: ptr<function, LitState>, ray: VdbRay, sa: f32, len: f32, x: f32
     (*st).budget -= 1u;
     let e = exp(-x);
     let trans = (*st).trans;
-    let q = ray.o + ((sa + len * lv_mean_depth(x, e)) / ray.per_t) * ray.d;
+    let md = lv_mean_depth(x, e);
+    let q = ray.o + ((sa + len * md) / ray.per_t) * ray.d;
     var ph = (*st).ph;
-    let src = lit_scattered(params.place, q, rho, trans, (*st).eye, &ph, vec3<f32>(x, e, (*st).sun_cos), lit_hint_leaf, lit_hint_ref);
+    var exit = (*st).exit;
+    let src = lit_scattered(params.place, ray, sa, len, q, rho, trans, (*st).eye, &ph, vec3<f32>(x, e, md), lit_hint_leaf, lit_hint_ref, &exit, 0.0);
+    (*st).exit = exit;
     (*st).rad += trans * params.place.axis.w * (1.0 - e) * src;
     (*st).trans = trans * e;
     if ((*st).trans < LV_MIN_TRANS) {
@@ -593,7 +597,7 @@ fn lit_primary(ray: VdbRay, dw: vec3<f32>, t0: f32, t1: f32, pixel: u32) -> vec4
     st.stop = false;
     st.budget = MAX_MARCH_SAMPLES;
     st.eye = lv_eye_dir(ray.d, params.place.axis.xyz);
-    st.sun_cos = lit_sun_cos(params.place, ray, dw);
+    st.exit = vec3<f32>(0.0, 0.0, -1.0);
     let jitter = lv_jitter(params.shading.seed, pixel);
     let levels = max(params.lod.x, 1u);
     let grow = bitcast<f32>(params.lod.z) * length(ray.d);

@@ -53,7 +53,7 @@ pub fn phase_mean_cos(g: [f32; 2], w: f32) -> f64 {
 
 /// Optical depth of one light-volume cell below which `Lit` reads the sun's depth from the
 /// light volume alone (`RenderSettings::sun_near`; `vdbcook_trace::Tracer::sun_depth`, the
-/// GPU's `lit_sun_depth`): a medium that thin changes its depth little across a cell. The same
+/// GPU's `lit_walks`): a medium that thin changes its depth little across a cell. The same
 /// for cells of any width: the depth interpolated between cell centres errs within half a cell
 /// of a face where the density jumps, which is what the eye sees of a medium optically thick
 /// per cell, however narrow the cell (and under the trilinear filter a sample in the skin reads
@@ -310,7 +310,7 @@ impl LightGrid {
 /// `k·α/4π·(t − t_cells)` (`RenderSettings::near_scatter` `k`, albedo `α`, `t = e^{−x}` the
 /// sun's transmittance over the walked optical depth `x`, `t_cells = e^{−x_cells}` over the
 /// light volume's at the same point, both with the extinction; the lit march passes `t` as
-/// its mean over a segment, `vdbcook_trace::lit::sun_gain`). The solve's source is each
+/// its mean over a segment, `vdbcook_trace::lit::segment_sun`). The solve's source is each
 /// cell's mean first scattering, so its light is the cell's; a point of a dense cloud's sunlit skin sees more of the beam than its
 /// cell's mean (`x < x_cells`) and, as light scattered once within a mean free path of it
 /// reaches it before scattering again, more once-scattered light, by the first flight's

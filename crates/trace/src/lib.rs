@@ -132,7 +132,10 @@ pub use color::{brick_color, heat, STEPS_FULL_SCALE};
 pub use delta::{MAX_EVENTS, MIN_SHADOW_WEIGHT};
 pub use exact::OPAQUE_DEPTH;
 pub use image::Image;
-pub use lit::{lit_jitter, sky_depth, sun_gain, LightVolume, LIT_MAX_SKY_DEPTH, LIT_MIN_TRANS};
+pub use lit::{
+    exp_piece, lit_jitter, segment_sun, sky_depth, LightVolume, LIT_MAX_SKY_DEPTH, LIT_MIN_TRANS,
+    SEGMENT_END, SEGMENT_JOIN,
+};
 pub use render::{render, Sample, Scratch, Tracer};
 pub use rng::{pcg_hash, Rng, Rng64};
 pub use scatter::MAX_MARCH_SAMPLES;
