@@ -394,17 +394,26 @@ fn skin(density: f32, light_res: u32, step: f32, sun_near: f32) -> (f64, f64, f6
 /// voxel, light volume cells of 10 voxels, the voxel march at 0.1 voxel.
 #[test]
 fn the_near_field_restores_a_dense_skin_the_light_volume_blurs() {
-    let (near, want, cell) = skin(SIGMA, 5, 0.1, 3.0);
+    let cell = assert_near_field_restores(SIGMA, 5, 0.1, 0.7);
     assert!(cell >= 9.0, "coarse cells ({cell} voxels)");
+}
+
+/// Asserts that the near field makes [`skin`]'s radiance (`density`, `light_res` cells, the
+/// voxel march at `step`) the closed form within 2%, and that the light volume alone reads
+/// under `blurred_below` of it; the cells' width in voxels.
+fn assert_near_field_restores(density: f32, light_res: u32, step: f32, blurred_below: f64) -> f64 {
+    let (near, want, cell) = skin(density, light_res, step, 3.0);
     assert!(
         (near / want - 1.0).abs() < 0.02,
-        "near field: {near}, want {want}"
+        "cells of {cell} voxels: near field {near}, want {want}"
     );
-    let (blurred, _, _) = skin(SIGMA, 5, 0.1, 0.0);
+    let (blurred, _, _) = skin(density, light_res, step, 0.0);
     assert!(
-        blurred < 0.7 * want,
-        "the light volume alone should blur the skin: {blurred}, want {want}"
+        blurred < blurred_below * want,
+        "cells of {cell} voxels: the light volume alone should blur the skin: {blurred}, want \
+         {want}"
     );
+    cell
 }
 
 /// The sun's light across one segment of the voxel march (`segment_sun`): with the sun behind
@@ -417,15 +426,21 @@ fn the_near_field_restores_a_dense_skin_the_light_volume_blurs() {
 fn a_dense_segment_takes_the_suns_light_across_it() {
     for step in [1.0, 2.0] {
         let (got, want, _) = skin(SIGMA, 25, step, 3.0);
-        eprintln!(
-            "segments of {step} voxels: {:.4} of the closed form",
-            got / want
-        );
-        assert!(
-            (got / want - 1.0).abs() < 0.01,
-            "step {step}: {got}, want {want}"
-        );
+        assert_segments_match(step, got, want);
     }
+}
+
+/// Asserts a single-scattering radiance `got` with segments of `step` voxels is within 1% of
+/// the closed form `want`.
+fn assert_segments_match(step: f32, got: f64, want: f64) {
+    eprintln!(
+        "segments of {step} voxels: {:.4} of the closed form",
+        got / want
+    );
+    assert!(
+        (got / want - 1.0).abs() < 0.01,
+        "step {step}: {got}, want {want}"
+    );
 }
 
 /// A face lit at a grazing sun (cosine 0.13 to its normal), seen head-on: below the face the
@@ -463,15 +478,7 @@ fn a_face_under_a_grazing_sun_takes_its_light_across_each_segment() {
         let albedo = s.medium.scatter as f64 / (s.medium.absorb + s.medium.scatter) as f64;
         let e = s.lighting.light_color[0] as f64;
         let want = albedo * e / (4.0 * std::f64::consts::PI) * mu_i / (mu_i + 1.0);
-        let got = px.rgba[0] as f64;
-        eprintln!(
-            "segments of {step} voxels: {:.4} of the closed form",
-            got / want
-        );
-        assert!(
-            (got / want - 1.0).abs() < 0.01,
-            "step {step}: {got}, want {want}"
-        );
+        assert_segments_match(step, px.rgba[0] as f64, want);
     }
 }
 
@@ -484,21 +491,12 @@ fn a_face_under_a_grazing_sun_takes_its_light_across_each_segment() {
 /// reference's.
 #[test]
 fn the_near_field_restores_a_skin_under_cells_narrower_than_a_voxel() {
-    let (near, want, cell) = skin(SIGMA, 64, 0.1, 3.0);
+    // The sun behind the camera and the box's face on a cell face make this the mildest case
+    // (0.94 without the walk; a face lit at a grazing sun lost most of its light).
+    let cell = assert_near_field_restores(SIGMA, 64, 0.1, 0.97);
     assert!(
         cell < 1.0 && 1.6 * cell > 1.0,
         "cells of {cell} voxels, optically thick"
-    );
-    assert!(
-        (near / want - 1.0).abs() < 0.02,
-        "near field: {near}, want {want}"
-    );
-    // The sun behind the camera and the box's face on a cell face make this the mildest case
-    // (0.94 without the walk; a face lit at a grazing sun lost most of its light).
-    let (blurred, _, _) = skin(SIGMA, 64, 0.1, 0.0);
-    assert!(
-        blurred < 0.97 * want,
-        "the light volume alone should blur the skin: {blurred}, want {want}"
     );
 }
 
@@ -509,17 +507,8 @@ fn the_near_field_restores_a_skin_under_cells_narrower_than_a_voxel() {
 /// optical depth of 0.16 per part).
 #[test]
 fn the_near_field_resolves_a_skin_inside_one_voxel() {
-    let (near, want, cell) = skin(100.0, 144, 0.001, 3.0);
+    let cell = assert_near_field_restores(100.0, 144, 0.001, 0.5);
     assert!(cell < 0.5, "cells narrower than a voxel ({cell} voxels)");
-    assert!(
-        (near / want - 1.0).abs() < 0.02,
-        "near field: {near}, want {want}"
-    );
-    let (blurred, _, _) = skin(100.0, 144, 0.001, 0.0);
-    assert!(
-        blurred < 0.5 * want,
-        "the light volume alone should black the skin out: {blurred}, want {want}"
-    );
 }
 
 fn hg(g: f64, mu: f64) -> f64 {
