@@ -144,8 +144,9 @@ fn lit_scattered(P: VdbLitPlace, ray: VdbRay, sa: f32, len: f32, q: vec3<f32>, r
     let ext = P.sun_cell.w;
     let a = P.misc.y;
     let frames = select(1u, 2u, a > 0.0);
-    // The segment's ends, from the mean-depth point (not the ray's origin:
-    // `vdbcook_trace::lit::offset`), just inside it (`vdbcook_trace::SEGMENT_END`).
+    // The segment's ends, from the mean-depth point (not the ray's origin, whose f32 distance
+    // would move them by more than a dense skin: `LitMarch::light`), just inside it
+    // (`vdbcook_trace::SEGMENT_END`).
     let q0 = q + (len * (LV_SEGMENT_END - seg.z) / ray.per_t) * ray.d;
     let q1 = q + (len * (1.0 - LV_SEGMENT_END - seg.z) / ray.per_t) * ray.d;
     let joined = (*exit).z == tag && abs(sa - (*exit).x) <= LV_SEGMENT_JOIN * len;

@@ -365,13 +365,6 @@ pub fn segment_sun(x: f64, m: f64, d: [f64; 3]) -> f64 {
 /// walk read 0 where the other read the light volume). The GPU's `LV_SEGMENT_END`.
 pub const SEGMENT_END: f64 = 1e-3;
 
-/// `p + t·d`: a segment's ends from its mean-depth point (not from the ray's origin: in the
-/// GPU's f32 a point far along the ray moves by more than a dense medium's skin, and the ends
-/// must keep their place relative to the read between them).
-fn offset(p: [f64; 3], d: [f64; 3], t: f64) -> [f64; 3] {
-    [0, 1, 2].map(|a| p[a] + t * d[a])
-}
-
 /// How close (a fraction of its length) a segment must start to the last one's end for the
 /// march to reuse the sun's depth walked there as its entry's: contiguous segments meet to
 /// rounding, a skipped gap is a step or more (the GPU's `LV_SEGMENT_JOIN`).
@@ -614,16 +607,16 @@ impl LitMarch<'_, '_> {
         // starts at its end.
         let direct = (-ext * ts).exp();
         let direct_mean = if walked {
-            let per_t = self.ray.per_t;
+            // The ends from the mean-depth point, not from the ray's origin: in the GPU's f32 a
+            // point far along the ray moves by more than a dense medium's skin, and the ends
+            // must keep their place relative to the read between them.
+            let from_q = IndexRay { o: q, ..self.ray };
+            let at = |u: f64| from_q.at((u * len - m) / from_q.per_t);
             let entry = match self.exit {
                 Some((end, tau)) if (sa - end).abs() <= SEGMENT_JOIN * len => tau,
-                _ => {
-                    let to_entry = offset(q, self.ray.d, (SEGMENT_END * len - m) / per_t);
-                    t.walked_sun_depth(self.lv, to_entry, self.shadow)
-                }
+                _ => t.walked_sun_depth(self.lv, at(SEGMENT_END), self.shadow),
             };
-            let to_exit = offset(q, self.ray.d, ((1.0 - SEGMENT_END) * len - m) / per_t);
-            let exit = t.walked_sun_depth(self.lv, to_exit, self.shadow);
+            let exit = t.walked_sun_depth(self.lv, at(1.0 - SEGMENT_END), self.shadow);
             self.exit = Some((sa + len, exit));
             segment_sun(x, md, [entry, ts, exit].map(|v| ext * v))
         } else {
