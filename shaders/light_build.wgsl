@@ -1,7 +1,8 @@
 // light_build.wgsl — the lit mode's light-volume passes (`vdbcook_trace::LightVolume::build` on
 // the GPU), in this order: `lv_density_main` box-filters the frame's voxels into the coarse
-// cells; `lv_sun_main` walks each cell's centre's voxels toward the sun; `lv_axis{0,1,2}_main` sum
-// it along each axis's columns in both directions into τ_sky's accumulator; `lv_sky_main` turns
+// cells (and, after them in the scratch, each cell's transport density for the solve);
+// `lv_sun_main` walks each cell's centre's voxels toward the sun; `lv_axis{0,1,2}_main` sum it
+// along each axis's columns in both directions into τ_sky's accumulator; `lv_sky_main` turns
 // that into τ_sky. Concatenated after `volume.wgsl` and `light.wgsl`; group 0 is the volume.
 // Run once per frame and light (the renderer and the drawer cache it), each entry one invocation
 // per cell.
@@ -46,17 +47,60 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let sub = lp.dims.w;
     let cell = lp.lo.w;
+    var values: array<f32, 64>;
     var sum = 0.0;
     for (var k = 0u; k < sub * sub * sub; k++) {
         let q = vec3<u32>(k % sub, (k / sub) % sub, k / (sub * sub));
         let f = (vec3<f32>(gid) + (vec3<f32>(q) + vec3<f32>(0.5)) / f32(sub)) * cell;
         let a = vec3<i32>(floor(lp.lo.xyz + f)) >> vec3<u32>(lp.level);
-        let v = vdb_value(lp.frame_root, a);
-        if (v > 0.0) {
-            sum += v;
-        }
+        let v = max(vdb_value(lp.frame_root, a), 0.0);
+        values[k] = v;
+        sum += v;
     }
-    lv_density[lv_index(gid, dims)] = sum / f32(sub * sub * sub);
+    let i = lv_index(gid, dims);
+    let mean = sum / f32(sub * sub * sub);
+    lv_density[i] = mean;
+    lv_density[dims.x * dims.y * dims.z + i] = lv_transport(&values, sub, mean);
+}
+
+// `vdbcook_scene::transport_density`: the density of a uniform cell as transparent across
+// itself as the cell's `sub³` samples `values` (mean `mean`) are, the three axes' averaged
+// (the diffusion solve's face resistances take it; `ms_source_main`).
+fn lv_transport(values: ptr<function, array<f32, 64>>, sub: u32, mean: f32) -> f32 {
+    let ext = lp.axis_len.w;
+    if (sub <= 1u || sub > 4u || !(mean > 0.0) || !(ext > 0.0)) {
+        return mean;
+    }
+    var sum = 0.0;
+    for (var a = 0u; a < 3u; a++) {
+        let len = ext * lp.lo.w * lp.axis_len[a];
+        if (!(len > 0.0)) {
+            return mean;
+        }
+        let ua = (a + 1u) % 3u;
+        let va = (a + 2u) % 3u;
+        var taus: array<f32, 16>;
+        var least = 3.0e38;
+        for (var k = 0u; k < sub * sub; k++) {
+            var q = vec3<u32>(0u);
+            q[ua] = k % sub;
+            q[va] = k / sub;
+            var t = 0.0;
+            for (var s = 0u; s < sub; s++) {
+                q[a] = s;
+                t += (*values)[q.x + sub * (q.y + sub * q.z)];
+            }
+            taus[k] = t * len / f32(sub);
+            least = min(least, taus[k]);
+        }
+        var m = 0.0;
+        for (var k = 0u; k < sub * sub; k++) {
+            m += exp(least - taus[k]);
+        }
+        m /= f32(sub * sub);
+        sum += min((least - log(m)) / len, mean);
+    }
+    return sum / 3.0;
 }
 
 // τ_sun per cell (`vdbcook_trace::lit::sun_depth_exact`): the exact optical depth from the
@@ -260,7 +304,9 @@ fn ms_source_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let x = st * chord;
     let entry = max(ext * lv_tau[lp.base + i].x - 0.5 * x, 0.0);
     lv_ms[o + i] = st;
-    lv_ms[o + n + i] = st * (1.0 - mp.medium.x * albedo);
+    // The faces' resistances take the cell's transport density (`lv_transport`).
+    let moves = select(0.0, ext * max(lv_density[n + i], 0.0), st > 0.0);
+    lv_ms[o + n + i] = moves * (1.0 - mp.medium.x * albedo);
     lv_ms[o + 2u * n + i] = albedo * exp(-entry) * (1.0 - exp(-x)) / chord;
 }
 

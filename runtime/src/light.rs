@@ -316,7 +316,8 @@ impl LightEntry {
 /// is read from its build instead of rebuilt.
 const KEPT_BUILDS: usize = 8;
 
-/// The two scratch buffers a build runs through, with their capacities: the density's (cells)
+/// The two scratch buffers a build runs through, with their capacities: the density's (f32s:
+/// two per cell, the cells' mean densities then their transport densities, `lv_density_main`)
 /// and the diffusion solve's (every level of one volume, f32s).
 #[derive(Default)]
 struct Scratch {
@@ -725,7 +726,12 @@ impl LightPass {
             (&mut state.scratch, ["density", "diffusion scratch"])
         };
         let label = |l: &str| format!("vdbcook light {l}");
-        let scratch = grown(device, &mut slot.density, plan.largest, &label(labels[0]));
+        let scratch = grown(
+            device,
+            &mut slot.density,
+            2 * plan.largest,
+            &label(labels[0]),
+        );
         let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);
         let ms_scratch =
             (ms_floats > 0).then(|| grown(device, &mut slot.ms, ms_floats, &label(labels[1])));

@@ -155,6 +155,60 @@ pub fn ms_levels(dims: [u32; 3]) -> Vec<[u32; 3]> {
     out
 }
 
+/// A light-volume cell's **transport density**: the density of a uniform cell as transparent
+/// across itself as the cell's own voxels are, which the diffusion solve's face resistances take
+/// (its absorption and sources keep the mean density). `values` are the density pass's
+/// `sub³` samples (x fastest, at least 0), `h` the cell's edge per axis in length units. Per axis
+/// `a`, each of the `sub²` columns along it has optical depth `τ = σ·Σ v·h_a/sub`, and the axis's
+/// density is `−ln(mean e^{−τ})/(σ·h_a)`; the three axes' are averaged. A uniform cell gives its
+/// density; any other less than its mean (`mean e^{−τ} ≥ e^{−mean τ}`): light crosses a cell
+/// through its thin columns, which the mean density of a cloud's unresolved voxels hides (the
+/// sun pass's reason to walk the voxels, for the light scattered more than once). The mean where
+/// `extinction·h` is not positive. Computed around the smallest column's depth, so nothing
+/// underflows (the GPU's `lv_transport` in `light_build.wgsl` is the same in f32).
+pub fn transport_density(values: &[f64], sub: usize, h: [f64; 3], extinction: f64) -> f64 {
+    let n = values.len().max(1) as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    if sub <= 1
+        || sub > crate::MAX_SUB as usize
+        || !(mean > 0.0)
+        || !(extinction > 0.0)
+        || values.len() != sub * sub * sub
+    {
+        return mean;
+    }
+    let at = |q: [usize; 3]| values[q[0] + sub * (q[1] + sub * q[2])];
+    let mut sum = 0.0;
+    for a in 0..3 {
+        let len = extinction * h[a];
+        if !(len > 0.0) {
+            return mean;
+        }
+        let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+        let mut taus = [0.0f64; MAX_SUB_COLUMNS];
+        for (k, t) in taus.iter_mut().take(sub * sub).enumerate() {
+            let mut q = [0usize; 3];
+            (q[ua], q[va]) = (k % sub, k / sub);
+            *t = (0..sub)
+                .map(|s| {
+                    q[a] = s;
+                    at(q)
+                })
+                .sum::<f64>()
+                * len
+                / sub as f64;
+        }
+        let taus = &taus[..sub * sub];
+        let least = taus.iter().fold(f64::INFINITY, |m, &t| m.min(t));
+        let m = taus.iter().map(|&t| (least - t).exp()).sum::<f64>() / taus.len() as f64;
+        sum += ((least - m.ln()) / len).min(mean);
+    }
+    sum / 3.0
+}
+
+/// Columns per axis of the largest density pass (`crate::MAX_SUB`²).
+const MAX_SUB_COLUMNS: usize = (crate::MAX_SUB * crate::MAX_SUB) as usize;
+
 /// The medium and the sun as the solve sees them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiffusionInputs {
@@ -235,6 +289,74 @@ impl DiffusionInputs {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A cell of `sub³` samples, `v(x, y, z)` each.
+    fn cell_of(sub: usize, v: impl Fn(usize, usize, usize) -> f64) -> Vec<f64> {
+        (0..sub * sub * sub)
+            .map(|k| v(k % sub, (k / sub) % sub, k / (sub * sub)))
+            .collect()
+    }
+
+    #[test]
+    fn a_uniform_cell_moves_light_as_its_density() {
+        for sub in 1..=4 {
+            let values = cell_of(sub, |_, _, _| 0.7);
+            let d = transport_density(&values, sub, [2.0, 3.0, 2.5], 1.3);
+            assert!((d - 0.7).abs() < 1e-12, "sub {sub}: {d}");
+        }
+    }
+
+    /// Half a cell full (the samples with `x < sub/2`): along x every column crosses the full
+    /// half, `τ = σ·v·h/2`, the mean; along y and z half the columns are full and half empty,
+    /// `−ln((1 + e^{−σ·v·h})/2)/(σ·h)`. The three averaged, at depths from thin to opaque (an
+    /// exponential that underflows included: two full halves of different densities, 10⁴ and
+    /// 2·10⁴ per unit, where `e^{−τ}` is 0 in f64 for every column).
+    #[test]
+    fn a_half_empty_cell_moves_light_through_its_empty_half() {
+        let (sub, h, ext) = (4, 2.0, 0.5);
+        for v in [0.01, 1.0, 10.0, 1e4] {
+            let values = cell_of(sub, |x, _, _| if x < sub / 2 { v } else { 0.0 });
+            let across = -((1.0 + (-ext * v * h).exp()) / 2.0).ln() / (ext * h);
+            let want = (v / 2.0 + 2.0 * across) / 3.0;
+            let got = transport_density(&values, sub, [h; 3], ext);
+            assert!(
+                (got - want).abs() <= 1e-9 * want,
+                "v {v}: {got} against {want}"
+            );
+            assert!(got < v / 2.0, "v {v}: {got} not below the mean");
+        }
+        let values = cell_of(sub, |x, _, _| if x < sub / 2 { 1e4 } else { 2e4 });
+        let across = 1e4 + std::f64::consts::LN_2 / (ext * h);
+        let want = (1.5e4 + 2.0 * across) / 3.0;
+        let got = transport_density(&values, sub, [h; 3], ext);
+        assert!((got - want).abs() <= 1e-9 * want, "{got} against {want}");
+    }
+
+    /// Never above the mean nor below 0, on cells of hashed samples; the mean where nothing
+    /// moves the light (no extinction, one sample, no density).
+    #[test]
+    fn the_transport_density_is_at_most_the_mean() {
+        for seed in 0..200u64 {
+            let hash = |k: usize| {
+                let h = (seed * 1000 + k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                if h.is_multiple_of(3) {
+                    0.0
+                } else {
+                    (h % 1000) as f64 / 100.0
+                }
+            };
+            let values = cell_of(3, |x, y, z| hash(x + 3 * (y + 3 * z)));
+            let mean = values.iter().sum::<f64>() / 27.0;
+            let d = transport_density(&values, 3, [1.0, 2.0, 1.5], 0.8);
+            assert!(
+                (0.0..=mean * (1.0 + 1e-12)).contains(&d),
+                "seed {seed}: {d} mean {mean}"
+            );
+            assert_eq!(transport_density(&values, 3, [1.0; 3], 0.0), mean);
+        }
+        assert_eq!(transport_density(&[2.5], 1, [1.0; 3], 1.0), 2.5);
+        assert_eq!(transport_density(&[0.0; 8], 2, [1.0; 3], 1.0), 0.0);
+    }
 
     /// The stored flux is `J` to half a 16-bit step of `8φ` within `±8φ`, clamped beyond, 0
     /// without light; the steps are WGSL's `pack2x16snorm`'s (`⌊0.5 + 32767·e⌋`, `e` clamped

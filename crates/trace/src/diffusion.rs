@@ -24,9 +24,14 @@
 //!   as much as the rest; gathered, the sunlit images are within 1% on WDAS (docs/rendering.md);
 //! - **balance** (finite volumes, Jacobi): `Σ_faces (φᵢ − φⱼ)/(h·R) + σᵢ(1 − α)·φᵢ = qᵢ`, `h` the
 //!   cell edge along the face's axis. A face's resistance is the sum of two half-cell ones,
-//!   `rᵢ = ½h·(3σᵢ(1 − ḡα) + |∇φ|/φ)`: diffusion's `h/(2D)` with the reduced extinction, plus
+//!   `rᵢ = ½h·(3σ'ᵢ(1 − ḡα) + |∇φ|/φ)`: diffusion's `h/(2D)` with the reduced extinction, plus
 //!   Wilson's flux limiter (`|J| ≤ φ`: in optically thin cells diffusion's coefficient
-//!   `1/(3σ)` would move light out faster than it can stream). Toward an empty cell or the
+//!   `1/(3σ)` would move light out faster than it can stream). `σ'ᵢ` is the extinction of the
+//!   cell's transport density (`vdbcook_scene::transport_density`: as transparent across the
+//!   cell as its voxels' columns are), at most `σᵢ`: light crosses a cell through its thin
+//!   columns, which the mean density hides (with the mean, the dense scenes' multiple
+//!   scattering read 5–9% bright under 64 cells; docs/rendering.md). Absorption and sources keep
+//!   the mean. Toward an empty cell or the
 //!   grid's edge the far half is Marshak's vacuum boundary, resistance 2 (the net flux out is
 //!   `(φ − φ_out)/2` at the face), with `φ_out = 0` for the sun's field and `4π` for the sky's
 //!   (a uniform incoming radiance of 1); empty cells hold `φ_out`. At albedo 1 the sky's field
@@ -169,11 +174,13 @@ pub struct Diffusion {
     pub flux: Vec<[[f32; 3]; 2]>,
 }
 
-/// The sun's and the sky's scattered light per cell of `grid`, from the cells' mean densities
-/// and the sun's depth at their centres (`tau_sun(i)`, in length units before the extinction).
+/// The sun's and the sky's scattered light per cell of `grid`, from the cells' mean densities,
+/// their transport densities (`vdbcook_scene::transport_density`: the faces' resistances) and
+/// the sun's depth at their centres (`tau_sun(i)`, in length units before the extinction).
 pub fn solve(
     grid: &LightGrid,
     density: &[f32],
+    transport: &[f32],
     tau_sun: impl Fn(usize) -> f64,
     m: &DiffusionInputs,
 ) -> Diffusion {
@@ -184,7 +191,15 @@ pub fn solve(
         .collect();
     let sr = st
         .iter()
-        .map(|&t| t * (1.0 - m.mean_cos() * m.albedo))
+        .zip(transport)
+        .map(|(&t, &d)| {
+            let moves = if t > 0.0 {
+                m.extinction * d.max(0.0) as f64
+            } else {
+                0.0
+            };
+            moves * (1.0 - m.mean_cos() * m.albedo)
+        })
         .collect();
     let q = (0..n)
         .map(|i| {
@@ -581,7 +596,7 @@ mod tests {
     /// `φ` (not `/4π`) at the centre cell.
     fn centre(side: u32, density: f32, albedo: f64) -> (f64, f64) {
         let (density, m, grid) = cube(side, density, albedo);
-        let phi = solve(&grid, &density, |_| 0.0, &m);
+        let phi = solve(&grid, &density, &density, |_| 0.0, &m);
         let c = side / 2;
         let x = density[0] as f64;
         // The source of a cell entered at depth 0 (every cell's, with the sun's depth 0).
@@ -664,7 +679,7 @@ mod tests {
         let truth: Vec<f64> = targets.iter().map(|&t| exact(t)).collect();
         for (albedo, range, spread) in [(0.01, 0.98..1.03, 0.06), (0.9, 1.02..1.16, 0.08)] {
             let (_, m, _) = cube(side, 0.0, albedo);
-            let out = solve(&grid, &density, |_| 0.0, &m);
+            let out = solve(&grid, &density, &density, |_| 0.0, &m);
             let q = albedo * -(-sigma).exp_m1();
             let ratios: Vec<f64> = targets
                 .iter()
@@ -693,7 +708,7 @@ mod tests {
         for (i, d) in density.iter_mut().enumerate() {
             *d = [0.0, 0.05, 1.0, 7.0][i % 4];
         }
-        let out = solve(&grid, &density, |_| 0.0, &m);
+        let out = solve(&grid, &density, &density, |_| 0.0, &m);
         for (i, (p, j)) in out.phi.iter().zip(&out.flux).enumerate() {
             assert!((p[1] - 1.0).abs() < 1e-6, "cell {i}: sky {}", p[1]);
             assert!(
@@ -704,7 +719,7 @@ mod tests {
         }
         // Not a test that cannot fail: with absorption the sky fades inside.
         let (density, m, grid) = cube(12, 3.0, 0.9);
-        let out = solve(&grid, &density, |_| 0.0, &m);
+        let out = solve(&grid, &density, &density, |_| 0.0, &m);
         let c = grid.index([6, 6, 6]);
         assert!(out.phi[c][1] < 0.1, "sky at the centre {}", out.phi[c][1]);
     }
@@ -722,7 +737,7 @@ mod tests {
             let (density, mut m, grid) = cube(40, 1.0, 0.9);
             m.extinction = 1.0 / h;
             m.h = [h; 3];
-            let out = solve(&grid, &density, |_| 0.0, &m);
+            let out = solve(&grid, &density, &density, |_| 0.0, &m);
             let (sa, st) = (0.1f64, 1.0f64);
             let kappa = (sa + (sa * sa + 12.0 * sa * st).sqrt()) / 2.0;
             let at = |z: u32| out.phi[grid.index([20, 20, z])][1] as f64;

@@ -9,7 +9,8 @@
 //!      alias: large assets at a low `light_res`) unless the asset has levels of detail
 //!      (`cook --lod`): then cells snap to whole voxels of the level `k` with `cell/2^k ≤ 4`
 //!      (`LightGrid::with_levels`) and read it (`LightGrid::density_level`), an exact box filter
-//!      of any cell width;
+//!      of any cell width; with the diffusion model, from the same samples, the cell's transport
+//!      density for the solve's faces (`vdbcook_scene::transport_density`);
 //!    - sun pass: `τ_sun` at a cell centre is the exact optical depth toward the light (`l̂`,
 //!      in cell space) from the centre to the grid's far side through the voxels of the level
 //!      the density pass read ([`sun_depth_exact`]: the density mode's voxel walk). A sample of
@@ -63,8 +64,8 @@ use rayon::prelude::*;
 pub use vdbcook_scene::LIT_NEAR_TRANS;
 use vdbcook_scene::{
     content_box, light_dirs, near_scatter_source, normalize, octave_source, sky_diffusion,
-    sky_source, sun_pass_stop, Affine, Filter, LevelChain, LightGrid, MsModel, RenderSettings,
-    LIT_NEAR_DEPTH, MAX_MS_OCTAVES,
+    sky_source, sun_pass_stop, transport_density, Affine, Filter, LevelChain, LightGrid, MsModel,
+    RenderSettings, LIT_NEAR_DEPTH, MAX_MS_OCTAVES, MAX_SUB,
 };
 
 use crate::diffusion::{self, Diffusion, DiffusionInputs};
@@ -115,35 +116,52 @@ impl LightVolume {
         let slab = nx * ny;
         let n = grid.cells();
 
-        // Density pass, one z slab per task.
+        // Density pass, one z slab per task: each cell's mean density and, for the diffusion
+        // solve, its transport density (`vdbcook_scene::transport_density`).
+        let inputs = DiffusionInputs::of_settings(&grid, xf, s);
+        let solve = s.lighting.ms_model == MsModel::Diffusion;
         let mut density = vec![0.0f32; n];
+        let mut transport = vec![0.0f32; n];
         // With levels of detail, wide cells read the coarser level (`LightGrid::density_level`).
         let (level, shift, sub) = grid.density_level(chain);
         let (sub, set) = (sub as usize, asset.lod_set(frame, level));
-        let fill = |(z, out): (usize, &mut [f32])| {
+        let fill = |(z, (out, moves)): (usize, (&mut [f32], &mut [f32]))| {
+            let mut values = [0.0f64; (MAX_SUB * MAX_SUB * MAX_SUB) as usize];
+            let values = &mut values[..sub * sub * sub];
             for y in 0..ny {
                 for x in 0..nx {
                     let c = [x, y, z];
                     let mut sum = 0.0f64;
-                    for k in 0..sub * sub * sub {
+                    for (k, value) in values.iter_mut().enumerate() {
                         let q = [k % sub, (k / sub) % sub, k / (sub * sub)];
                         let a = [0, 1, 2].map(|i| {
                             let f = (c[i] as f64 + (q[i] as f64 + 0.5) / sub as f64) * grid.cell;
                             ((grid.lo[i] + f).floor() as i64) >> shift
                         });
                         let v = asset.value(set, a);
-                        if v > 0.0 {
-                            sum += v as f64;
-                        }
+                        *value = if v > 0.0 { v as f64 } else { 0.0 };
+                        sum += *value;
                     }
                     out[x + nx * y] = (sum / (sub * sub * sub) as f64) as f32;
+                    if solve {
+                        moves[x + nx * y] =
+                            transport_density(values, sub, inputs.h, extinction) as f32;
+                    }
                 }
             }
         };
         #[cfg(feature = "parallel")]
-        density.par_chunks_mut(slab).enumerate().for_each(fill);
+        density
+            .par_chunks_mut(slab)
+            .zip(transport.par_chunks_mut(slab))
+            .enumerate()
+            .for_each(fill);
         #[cfg(not(feature = "parallel"))]
-        density.chunks_mut(slab).enumerate().for_each(fill);
+        density
+            .chunks_mut(slab)
+            .zip(transport.chunks_mut(slab))
+            .enumerate()
+            .for_each(fill);
 
         // Sun pass, per cell: the exact optical depth toward the light from the cell's centre
         // to the grid's far side, through the voxels of the level the density pass read (the
@@ -202,10 +220,11 @@ impl LightVolume {
         for (i, t) in tau.iter_mut().enumerate() {
             t[1] = sky_depth(t_mean[i], tau_mean[i], extinction) as f32;
         }
-        let inputs = DiffusionInputs::of_settings(&grid, xf, s);
         let diffusion = match s.lighting.ms_model {
             MsModel::Octaves => Diffusion::default(),
-            MsModel::Diffusion => diffusion::solve(&grid, &density, |i| tau[i][0] as f64, &inputs),
+            MsModel::Diffusion => {
+                diffusion::solve(&grid, &density, &transport, |i| tau[i][0] as f64, &inputs)
+            }
         };
         LightVolume {
             grid,
