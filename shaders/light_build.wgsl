@@ -53,7 +53,10 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let q = vec3<u32>(k % sub, (k / sub) % sub, k / (sub * sub));
         let f = (vec3<f32>(gid) + (vec3<f32>(q) + vec3<f32>(0.5)) / f32(sub)) * cell;
         let a = vec3<i32>(floor(lp.lo.xyz + f)) >> vec3<u32>(lp.level);
-        let v = max(vdb_value(lp.frame_root, a), 0.0);
+        var v = vdb_value(lp.frame_root, a);
+        if (!(v > 0.0)) {
+            v = 0.0;
+        }
         values[k] = v;
         sum += v;
     }
