@@ -31,9 +31,9 @@
 //!   cell as its voxels' columns are), at most `σᵢ`: light crosses a cell through its thin
 //!   columns, which the mean density hides (with the mean, the dense scenes' multiple
 //!   scattering read 5–9% bright under 64 cells; docs/rendering.md). Absorption and sources keep
-//!   the mean. Toward an empty cell or the
-//!   grid's edge the far half is Marshak's vacuum boundary, resistance 2 (the net flux out is
-//!   `(φ − φ_out)/2` at the face), with `φ_out = 0` for the sun's field and `4π` for the sky's
+//!   the mean. Toward an empty cell or the grid's edge the far half is Marshak's vacuum
+//!   boundary, resistance 2 (the net flux out is `(φ − φ_out)/2` at the face), with
+//!   `φ_out = 0` for the sun's field and `4π` for the sky's
 //!   (a uniform incoming radiance of 1); empty cells hold `φ_out`. At albedo 1 the sky's field
 //!   is `4π` everywhere, the start and a fixed point of the sweeps: the white furnace holds
 //!   exactly, whatever the geometry.
