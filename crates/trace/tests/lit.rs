@@ -300,6 +300,26 @@ fn the_sun_pass_sums_the_voxels_toward_the_sun() {
     assert!(worst < 2e-3, "worst relative error {worst}");
 }
 
+/// The reference's image of the porous box under `s`'s medium and light: 1024 paths a pixel,
+/// each ending after `bounces` scattering events.
+fn porous_reference(s: &RenderSettings, bounces: u32) -> Image {
+    let s = RenderSettings {
+        integrator: Integrator {
+            mode: Mode::Reference,
+            spp: 1024,
+            bounces,
+            ..s.integrator.clone()
+        },
+        ..s.clone()
+    };
+    render(&porous_box(), &camera(), &s).unwrap()
+}
+
+/// The sum of an image's red radiance (the lights and media here are grey).
+fn red_sum(img: &Image) -> f64 {
+    img.rgba.iter().step_by(4).map(|&v| v as f64).sum()
+}
+
 /// Single scattering on the porous medium against the reference's once-scattered light
 /// (`bounces` 1, 1024 paths a pixel), image means: with the default near field (3 cells walked
 /// from each sample) within 2% (0.994); through the light volume alone (`sun_near` 0), where
@@ -309,28 +329,11 @@ fn the_sun_pass_sums_the_voxels_toward_the_sun() {
 /// 0.886 alone.
 #[test]
 fn single_scattering_on_a_porous_medium_matches_the_reference() {
-    let asset = porous_box();
-    let cam = camera();
-    let base = porous_lit(DEFAULT_SUN_NEAR);
-    let truth = render(
-        &asset,
-        &cam,
-        &RenderSettings {
-            integrator: Integrator {
-                mode: Mode::Reference,
-                spp: 1024,
-                bounces: 1,
-                ..base.integrator.clone()
-            },
-            ..base.clone()
-        },
-    )
-    .unwrap();
-    let mean = |img: &Image| img.rgba.iter().step_by(4).map(|&v| v as f64).sum::<f64>();
-    assert!(mean(&truth) > 0.0);
+    let truth = porous_reference(&porous_lit(DEFAULT_SUN_NEAR), 1);
+    assert!(red_sum(&truth) > 0.0);
     for (sun_near, lo, hi) in [(DEFAULT_SUN_NEAR, 0.98, 1.02), (0.0, 0.9, 1.02)] {
-        let lit = render(&asset, &cam, &porous_lit(sun_near)).unwrap();
-        let ratio = mean(&lit) / mean(&truth);
+        let lit = render(&porous_box(), &camera(), &porous_lit(sun_near)).unwrap();
+        let ratio = red_sum(&lit) / red_sum(&truth);
         eprintln!("porous, sun_near {sun_near}: lit / reference {ratio:.4}");
         assert!(
             (lo..hi).contains(&ratio),
@@ -350,30 +353,15 @@ fn single_scattering_on_a_porous_medium_matches_the_reference() {
 /// sink; docs/rendering.md, "The multiple scattering by cell size".)
 #[test]
 fn multiple_scattering_on_a_porous_medium_matches_the_reference() {
-    let asset = porous_box();
-    let cam = camera();
     let base = porous_lit(DEFAULT_SUN_NEAR);
     let lit = RenderSettings {
         lighting: Lighting {
             ms_model: MsModel::Diffusion,
             ..base.lighting
         },
-        ..base.clone()
+        ..base
     };
-    let truth = render(
-        &asset,
-        &cam,
-        &RenderSettings {
-            integrator: Integrator {
-                mode: Mode::Reference,
-                spp: 1024,
-                ..base.integrator.clone()
-            },
-            ..lit.clone()
-        },
-    )
-    .unwrap();
-    let mean = |img: &Image| img.rgba.iter().step_by(4).map(|&v| v as f64).sum::<f64>();
+    let truth = porous_reference(&lit, Integrator::default().bounces);
     for light_res in [16, 24] {
         let s = RenderSettings {
             lighting: Lighting {
@@ -382,7 +370,7 @@ fn multiple_scattering_on_a_porous_medium_matches_the_reference() {
             },
             ..lit.clone()
         };
-        let ratio = mean(&render(&asset, &cam, &s).unwrap()) / mean(&truth);
+        let ratio = red_sum(&render(&porous_box(), &camera(), &s).unwrap()) / red_sum(&truth);
         eprintln!("porous, multiple scattering, light_res {light_res}: lit / reference {ratio:.4}");
         assert!(
             (0.95..1.05).contains(&ratio),
