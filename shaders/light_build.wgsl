@@ -67,8 +67,8 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // `vdbcook_scene::transport_density`: the density of a uniform cell as transparent across
-// itself as the cell's `sub³` samples `values` (mean `mean`) are, the three axes' averaged
-// (the diffusion solve's face resistances take it; `ms_source_main`).
+// itself as the cell's `sub³` samples `values` (mean `mean`) are, the harmonic mean of the
+// three axes' (the diffusion solve's face resistances take it; `ms_source_main`).
 fn lv_transport(values: ptr<function, array<f32, 64>>, sub: u32, mean: f32) -> f32 {
     let ext = lp.axis_len.w;
     if (sub <= 1u || sub > 4u || !(mean > 0.0) || !(ext > 0.0)) {
@@ -101,9 +101,9 @@ fn lv_transport(values: ptr<function, array<f32, 64>>, sub: u32, mean: f32) -> f
             m += exp(least - taus[k]);
         }
         m /= f32(sub * sub);
-        sum += min((least - log(m)) / len, mean);
+        sum += 1.0 / min((least - log(m)) / len, mean);
     }
-    return sum / 3.0;
+    return 3.0 / sum;
 }
 
 // τ_sun per cell (`vdbcook_trace::lit::sun_depth_exact`): the exact optical depth from the

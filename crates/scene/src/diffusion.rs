@@ -160,8 +160,10 @@ pub fn ms_levels(dims: [u32; 3]) -> Vec<[u32; 3]> {
 /// (its absorption and sources keep the mean density). `values` are the density pass's
 /// `sub³` samples (x fastest, at least 0), `h` the cell's edge per axis in length units. Per axis
 /// `a`, each of the `sub²` columns along it has optical depth `τ = σ·Σ v·h_a/sub`, and the axis's
-/// density is `−ln(mean e^{−τ})/(σ·h_a)`; the three axes' are averaged. A uniform cell gives its
-/// density; any other less than its mean (`mean e^{−τ} ≥ e^{−mean τ}`): light crosses a cell
+/// density is `−ln(mean e^{−τ})/(σ·h_a)`; the cell's is the three axes' harmonic mean (the one
+/// scalar whose diffusion coefficient, `∝ 1/density`, is the mean of the axes'; the solve
+/// keeps one per cell). A uniform cell gives its density; any other less than its mean
+/// (`mean e^{−τ} ≥ e^{−mean τ}`): light crosses a cell
 /// through its thin columns, which the mean density of a cloud's unresolved voxels hides (the
 /// sun pass's reason to walk the voxels, for the light scattered more than once). The mean where
 /// `extinction·h` is not positive. Computed around the smallest column's depth, so nothing
@@ -201,9 +203,9 @@ pub fn transport_density(values: &[f64], sub: usize, h: [f64; 3], extinction: f6
         let taus = &taus[..sub * sub];
         let least = taus.iter().fold(f64::INFINITY, |m, &t| m.min(t));
         let m = taus.iter().map(|&t| (least - t).exp()).sum::<f64>() / taus.len() as f64;
-        sum += ((least - m.ln()) / len).min(mean);
+        sum += 1.0 / ((least - m.ln()) / len).min(mean);
     }
-    sum / 3.0
+    3.0 / sum
 }
 
 /// Columns per axis of the largest density pass (`crate::MAX_SUB`²).
@@ -317,7 +319,7 @@ mod tests {
         for v in [0.01, 1.0, 10.0, 1e4] {
             let values = cell_of(sub, |x, _, _| if x < sub / 2 { v } else { 0.0 });
             let across = -((1.0 + (-ext * v * h).exp()) / 2.0).ln() / (ext * h);
-            let want = (v / 2.0 + 2.0 * across) / 3.0;
+            let want = 3.0 / (2.0 / v + 2.0 / across);
             let got = transport_density(&values, sub, [h; 3], ext);
             assert!(
                 (got - want).abs() <= 1e-9 * want,
@@ -327,7 +329,7 @@ mod tests {
         }
         let values = cell_of(sub, |x, _, _| if x < sub / 2 { 1e4 } else { 2e4 });
         let across = 1e4 + std::f64::consts::LN_2 / (ext * h);
-        let want = (1.5e4 + 2.0 * across) / 3.0;
+        let want = 3.0 / (1.0 / 1.5e4 + 2.0 / across);
         let got = transport_density(&values, sub, [h; 3], ext);
         assert!((got - want).abs() <= 1e-9 * want, "{got} against {want}");
     }
