@@ -1013,7 +1013,7 @@ fn the_voxel_march_is_exact_for_the_voxel_medium() {
 /// not remove: 83% off in one frame, 40% after 16 seeds (more than 0.4 of one frame's, where
 /// noise would keep a quarter; 92% and 59% before the light volume's sun pass walked the voxels
 /// and its solve took the cells' transport densities): there `March::Auto`, the default, follows
-/// the voxels instead, each integrated exactly (`LIT_VOXEL_DEPTH`; 4% off in one frame).
+/// the voxels instead, each integrated exactly (`LIT_VOXEL_DEPTH`; 4.7% off in one frame).
 #[test]
 fn banding_at_large_steps_is_noise_that_frames_average_out() {
     let asset = constant_box(SIGMA);
