@@ -1,8 +1,10 @@
 """Error against cost of the light build's gather (issue 34 item 2): docs/images/gather_cost_error.png.
 
 The figures are measurements from 2026-11-27 (docs/rendering.md, "Shared gather paths", and for
-the last point "The sun pass walks the voxels": the default since then, measured that evening
-against the previous default's 1,100-1,177 ms in the same session): the
+the sixth point "The sun pass walks the voxels", measured that evening against the previous
+default's 1,100-1,177 ms in the same session) and for the last 2026-11-28 (the segment's ends of
+2026-11-27 and the transport density, "The solve's faces take each cell's transport density":
+the default since then, its build alternated with the one before, 1,273-1,283 ms): the
 build's lavapipe ms for a 64^3 stormscape volume (`vdbcook bench storm.vdbc --modes lit --width
 64 --height 36 --blend hold --frames 20 --runs 3 --json --ms-gather N`, build = (playing mean -
 static) / 0.4, the range over the runs), and over the nine sunlit scenes of
@@ -20,7 +22,8 @@ pts = [  # label, build ms (range), bias, rmse
     ("2, shared from level 1", (1032, 1068), 0.0282, 0.0748),
     ("2, shared from level 2", (1270, 1563), 0.0272, 0.0737),
     ("2, each cell's path", (2069, 2172), 0.0267, 0.0733),
-    ("2, shared, exact sun pass (default)", (1280, 1505), 0.0142, 0.0683),
+    ("2, shared, exact sun pass", (1280, 1505), 0.0142, 0.0683),
+    ("+ segment ends, transport density (default)", (1285, 1337), 0.0111, 0.0645),
 ]
 W, H = 1100, 520
 img = Image.new("RGB", (W, H), "white")
@@ -30,7 +33,8 @@ try:
     small = ImageFont.truetype("DejaVuSans.ttf", 12)
 except OSError:
     font = small = ImageFont.load_default()
-cols = [(90, 90, 90), (40, 120, 200), (200, 60, 40), (230, 150, 30), (60, 160, 80), (140, 60, 170)]
+cols = [(90, 90, 90), (40, 120, 200), (200, 60, 40), (230, 150, 30), (60, 160, 80), (140, 60, 170),
+        (20, 170, 170)]
 def panel(x0, title, idx, ymax):
     L, T, R, B = x0 + 60, 50, x0 + 520, 400
     d.text((L, 15), title, fill="black", font=font)
