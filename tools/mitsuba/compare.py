@@ -3,6 +3,7 @@
 
     python3 tools/mitsuba/compare.py A.pfm B.pfm [--one-minus-a] [--downsample-a K]
         [--mask-from X.pfm] [--threshold 1e-3] [--stderr-b ERR.pfm] [--diff D.pfm] [--a2 A2.pfm]
+        [--b2 B2.pfm [--b2-spp-ratio R]]
 
 --one-minus-a   compare 1 - A with B (vdbcook's density mode writes 1 - T; Mitsuba with albedo 0,
                 sky 1 and hide_emitters false renders T).
@@ -15,10 +16,14 @@
 --stderr-b E    per-pixel standard error of B (render_mitsuba.py --stderr-out): reports the
                 RMSE that B's noise alone would give, relative like the RMSE
                 (noise_rel_rmse_b).
+--b2 B2         an independent render of B (another seed), for a B without --stderr-b (vdbcook's
+                `--mode reference`): B's noise is estimated from B - B2, whose variance is B's
+                times (1 + R), R = --b2-spp-ratio (B's samples per pixel over B2's; default 1), so
+                a cheaper B2 serves (R = 8: a 1024-spp B2 for an 8192-spp B). B stays B.
 
 Prints one JSON object: pixels judged, rel_rmse = sqrt(mean((a-b)^2)) / mean(b), max_abs,
 mean_a, mean_b, mean_ratio = mean_a / mean_b (all over the judged pixels and the 3 channels),
-per-channel mean ratios; with --stderr-b and/or --a2 (a second render of A with another
+per-channel mean ratios; with --stderr-b, --b2 and/or --a2 (a second render of A with another
 seed: A is taken as the mean of the two, and half their difference estimates its noise) the
 noise-only rel RMSE of each side and excess_rel_rmse = sqrt(RMSE^2 - noise_a^2 - noise_b^2) /
 mean(b), the part of the difference that noise does not explain.
@@ -52,6 +57,9 @@ def main():
     ap.add_argument("--stderr-b")
     ap.add_argument("--a2", help="a second render of A with another seed: A becomes (A + A2)/2 and"
                     " (A - A2)/2 estimates its noise")
+    ap.add_argument("--b2", help="an independent render of B (another seed): estimates B's noise")
+    ap.add_argument("--b2-spp-ratio", type=float, default=1.0,
+                    help="B's samples per pixel over B2's (default 1)")
     ap.add_argument("--diff", help="write A - B (after the transforms) as a PFM")
     args = ap.parse_args()
 
@@ -106,6 +114,19 @@ def main():
         na2 = float(np.mean(a_half_diff[mask] ** 2))
         out["noise_rel_rmse_a"] = float(np.sqrt(na2) / np.mean(bm))
         noise2 = na2
+    if args.stderr_b and args.b2:
+        sys.exit("--stderr-b and --b2 both estimate B's noise: give one")
+    if args.b2:
+        b2 = read_pfm(args.b2).astype(np.float64)
+        if b2.shape[2] == 1:
+            b2 = np.repeat(b2, 3, axis=2)
+        if b2.shape != b.shape:
+            sys.exit(f"size mismatch: B {b.shape} vs B2 {b2.shape}")
+        if not args.b2_spp_ratio > 0:
+            sys.exit("--b2-spp-ratio must be positive")
+        nb2 = float(np.mean((b - b2)[mask] ** 2)) / (1.0 + args.b2_spp_ratio)
+        out["noise_rel_rmse_b"] = float(np.sqrt(nb2) / np.mean(bm))
+        noise2 = nb2 + (noise2 or 0.0)
     if args.stderr_b:
         e = read_pfm(args.stderr_b).astype(np.float64)
         if e.shape[2] == 1:
