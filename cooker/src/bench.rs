@@ -94,7 +94,8 @@ pub struct Args {
     #[command(flatten)]
     look: crate::look::LookArgs,
     /// Print one JSON document on stdout: `{adapter, width, height, clock, fps, display_fps,
-    /// results: [{mode, instances, static_ms, playing_ms, playing_error}]}`.
+    /// results: [{mode, instances, static_ms, playing_ms, playing_error, light_build_ms, …}]}`
+    /// (every key: docs/cli.md).
     #[arg(long)]
     pub json: bool,
 }
@@ -468,9 +469,10 @@ mod imp {
             );
             println!(
                 "| mode | instances | static ms | playing ms | playing mean ms | playing max ms \
-                 | playing / static | playing draw ms | light builds / frame | playing error |"
+                 | playing / static | playing draw ms | light builds / frame | light build ms \
+                 | playing error |"
             );
-            println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+            println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
         }
         for mode_name in &a.modes {
             let mode = Mode::parse(mode_name).expect("clap checked");
@@ -522,6 +524,20 @@ mod imp {
                     let (t, _) = frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
                     statics.push(t);
                 }
+                // One build of the static frame's light volumes (lit): frame 0 drawn again after
+                // the kept volumes are dropped, its span less the static frame's, median of
+                // `runs` (what a displayed frame pays when the flip-book reaches a frame whose
+                // light is not built; a crossfade's pair builds its second volume too).
+                let rebuilds = if shading.lighting.is_some() {
+                    let mut t = Vec::new();
+                    for _ in 0..a.runs {
+                        drawer.invalidate_light_volumes();
+                        t.push(frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?.0);
+                    }
+                    Some(summary(&t))
+                } else {
+                    None
+                };
                 // Playing: one draw per displayed frame, the flip-book time advancing by
                 // fps / display_fps frames each (wrapping), light built as pairs change; the
                 // image kept at three checkpoints.
@@ -623,17 +639,19 @@ mod imp {
                     None
                 };
                 let (st, pl) = (summary(&statics), summary(&playing));
-                walls += st.walls + pl.walls;
+                walls += st.walls + pl.walls + rebuilds.as_ref().map_or(0, |r| r.walls);
+                let light_build_ms = rebuilds.map(|r| r.ms - st.ms);
                 if !a.json {
                     println!(
                         "| {mode_name} | {n} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | \
-                         {builds:.2} | {error:.1e} |",
+                         {builds:.2} | {} | {error:.1e} |",
                         st.ms,
                         pl.ms,
                         pl.mean_ms,
                         pl.max_ms,
                         pl.ms / st.ms,
                         pl.draw_ms.map_or("–".into(), |d| format!("{d:.2}")),
+                        light_build_ms.map_or("–".into(), |d| format!("{d:.2}")),
                     );
                 }
                 results.push(json!({
@@ -644,7 +662,7 @@ mod imp {
                     "static_draw_ms": st.draw_ms, "playing_draw_ms": pl.draw_ms,
                     "static_prepare_ms": st.prepare_ms, "playing_prepare_ms": pl.prepare_ms,
                     "static_wall_ms": st.wall_ms, "playing_wall_ms": pl.wall_ms,
-                    "playing_light_builds": builds,
+                    "playing_light_builds": builds, "light_build_ms": light_build_ms,
                     "resolution_error": resolution_error,
                     "crossfade_error": crossfade_error,
                 }));

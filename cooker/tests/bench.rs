@@ -21,7 +21,8 @@ fn bench_json(args: &[&str]) -> Option<Value> {
 
 /// The JSON keys are there, every time is a positive number, the playing path (which builds
 /// every light volume exactly) draws what a fresh drawer draws for the same time, up to f16
-/// rounding, and a dithered lit crossfade states its grain.
+/// rounding, a lit frame states what its light volumes' build costs, and a dithered lit
+/// crossfade states its grain.
 #[test]
 fn bench_reports_static_and_playing_costs_and_the_playing_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -88,6 +89,14 @@ fn bench_reports_static_and_playing_costs_and_the_playing_error() {
         }
         let e = r["playing_error"].as_f64().unwrap();
         assert!((0.0..1e-3).contains(&e), "playing error {e}: {r}");
+        // A lit frame's light volumes take time to build (dozens of dispatches over the light
+        // volume's cells on any GPU); a flat one has none to build.
+        if r["mode"] == "lit" {
+            let b = r["light_build_ms"].as_f64().unwrap_or(f64::NAN);
+            assert!(b > 0.0 && b.is_finite(), "light_build_ms = {b}: {r}");
+        } else {
+            assert!(r["light_build_ms"].is_null(), "{r}");
+        }
         // The playing times checked (0.8, 1.6 and 2.4 of the 5-frame smoke) fall between
         // frames: a lit draw dithers them (`--lit-crossfade dither`) and states the grain against the lerp
         // (not 0: it dithered; a part of the light, not all of it — this fixture's frames jump,
