@@ -43,6 +43,6 @@ grep -v '^\s*#' "$scenes" | grep -v '^\s*$' | while read -r name asset frame abs
   start=$(date +%s.%N)
   "$bin" render "$asset" -o "$lit" --mode lit "${common[@]}" "$@" >/dev/null
   wall=$(echo "$(date +%s.%N) - $start" | bc)
-  /usr/bin/python3 "$here/tools/mitsuba/compare.py" "$lit" "$ref" --mask-from "$ref" "${noise[@]}" |
+  /usr/bin/python3 "$here/tools/mitsuba/compare.py" "$lit" "$ref" --mask-from "$ref" ${noise[@]+"${noise[@]}"} |
     /usr/bin/python3 -c "import json, sys; d = json.load(sys.stdin); n = f\", reference noise {d['noise_rel_rmse_b']:.4f}, excess RMSE {d['excess_rel_rmse']:.4f}\" if 'excess_rel_rmse' in d else ''; print(f\"$name: mean ratio {d['mean_ratio']:.4f}, rel RMSE {d['rel_rmse']:.4f}{n}, lit wall {float('$wall'):.2f} s\")"
 done
