@@ -37,6 +37,11 @@ struct LightParams {
 
 // Largest sky optical depth kept (`vdbcook_trace::LIT_MAX_SKY_DEPTH`).
 const LV_MAX_SKY_DEPTH: f32 = 80.0;
+// `vdbcook_scene::MAX_SUB`: density samples per cell axis at most, their count per cell and per
+// axis's columns (the density pass keeps a cell's samples for `lv_transport`).
+const LV_MAX_SUB: u32 = 4u;
+const LV_MAX_SUB_SAMPLES: u32 = 64u;
+const LV_MAX_SUB_COLUMNS: u32 = 16u;
 
 @compute @workgroup_size(4, 4, 4)
 fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -47,7 +52,7 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let sub = lp.dims.w;
     let cell = lp.lo.w;
-    var values: array<f32, 64>;
+    var values: array<f32, LV_MAX_SUB_SAMPLES>;
     var sum = 0.0;
     for (var k = 0u; k < sub * sub * sub; k++) {
         let q = vec3<u32>(k % sub, (k / sub) % sub, k / (sub * sub));
@@ -69,9 +74,9 @@ fn lv_density_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // `vdbcook_scene::transport_density`: the density of a uniform cell as transparent across
 // itself as the cell's `sub³` samples `values` (mean `mean`) are, the harmonic mean of the
 // three axes' (the diffusion solve's face resistances take it; `ms_source_main`).
-fn lv_transport(values: ptr<function, array<f32, 64>>, sub: u32, mean: f32) -> f32 {
+fn lv_transport(values: ptr<function, array<f32, LV_MAX_SUB_SAMPLES>>, sub: u32, mean: f32) -> f32 {
     let ext = lp.axis_len.w;
-    if (sub <= 1u || sub > 4u || !(mean > 0.0) || !(ext > 0.0)) {
+    if (sub <= 1u || sub > LV_MAX_SUB || !(mean > 0.0) || !(ext > 0.0)) {
         return mean;
     }
     var sum = 0.0;
@@ -82,7 +87,7 @@ fn lv_transport(values: ptr<function, array<f32, 64>>, sub: u32, mean: f32) -> f
         }
         let ua = (a + 1u) % 3u;
         let va = (a + 2u) % 3u;
-        var taus: array<f32, 16>;
+        var taus: array<f32, LV_MAX_SUB_COLUMNS>;
         var least = 3.0e38;
         for (var k = 0u; k < sub * sub; k++) {
             var q = vec3<u32>(0u);

@@ -1253,6 +1253,23 @@ mod tests {
         );
     }
 
+    /// The shader's copies of `MAX_SUB` (the density pass keeps a cell's samples in arrays of
+    /// that size for the transport density) are the scene crate's.
+    #[test]
+    fn the_shader_keeps_as_many_density_samples_as_a_cell_has() {
+        let m = vdbcook_scene::MAX_SUB;
+        for decl in [
+            format!("const LV_MAX_SUB: u32 = {m}u;"),
+            format!("const LV_MAX_SUB_SAMPLES: u32 = {}u;", m * m * m),
+            format!("const LV_MAX_SUB_COLUMNS: u32 = {}u;", m * m),
+        ] {
+            assert!(
+                crate::LIGHT_BUILD_WGSL.contains(&decl),
+                "light_build.wgsl lacks `{decl}`"
+            );
+        }
+    }
+
     #[test]
     fn light_params_mirror_the_wgsl() {
         assert_mirrors(
