@@ -1,7 +1,8 @@
 // light_build.wgsl — the lit mode's light-volume passes (`vdbcook_trace::LightVolume::build` on
 // the GPU), in this order: `lv_density_main` box-filters the frame's voxels into the coarse
 // cells (and, after them in the scratch, each cell's transport density for the solve);
-// `lv_sun_main` walks each cell's centre's voxels toward the sun; `lv_axis{0,1,2}_main` sum it
+// `lv_sun_main` walks each cell's centre's voxels toward the sun (and, third in the scratch,
+// keeps the depth where that walk leaves the cell); `lv_axis{0,1,2}_main` sum it
 // along each axis's columns in both directions into τ_sky's accumulator; `lv_sky_main` turns
 // that into τ_sky. Concatenated after `volume.wgsl` and `light.wgsl`; group 0 is the volume.
 // Run once per frame and light (the renderer and the drawer cache it), each entry one invocation
@@ -114,7 +115,10 @@ fn lv_transport(values: ptr<function, array<f32, LV_MAX_SUB_SAMPLES>>, sub: u32,
 // τ_sun per cell (`vdbcook_trace::lit::sun_depth_exact`): the exact optical depth from the
 // cell's centre toward the light to the grid's far side, through the voxels of the level the
 // density pass read (`vdb_optical_depth` in that level's cell space, stopping at the opaque
-// depth where `lp.stop.x` says); τ_sky's accumulator cleared.
+// depth where `lp.stop.x` says); τ_sky's accumulator cleared. The walk is split where
+// the ray leaves the cell (`LightGrid::centre_exit`): the depth from there, where the sun's beam
+// enters the cell, goes after the transport densities in the density scratch for
+// `ms_source_main`.
 @compute @workgroup_size(4, 4, 4)
 fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     vdb_select(lp.asset);
@@ -142,8 +146,19 @@ fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     ray.o = p * scale;
     ray.d = l * scale;
     ray.per_t = lp.sun.w;
-    let tau = vdb_optical_depth(lp.frame_root, ray, 0.0, t_exit, lp.stop.x);
-    lv_tau[lp.base + lv_index(gid, dims)] = vec2<f32>(tau, 0.0);
+    var split = 3.0e38;
+    for (var a = 0; a < 3; a++) {
+        if (l[a] != 0.0) {
+            split = min(split, 0.5 * cell / abs(l[a]));
+        }
+    }
+    split = min(split, t_exit);
+    let entry = vdb_optical_depth(lp.frame_root, ray, split, t_exit, lp.stop.x);
+    // Within the cell (a few voxels): the flat walk, no opaque stop.
+    let tau = vdb_optical_depth_near(lp.frame_root, ray, 0.0, split, 0.0) + entry;
+    let i = lv_index(gid, dims);
+    lv_tau[lp.base + i] = vec2<f32>(tau, 0.0);
+    lv_density[2u * dims.x * dims.y * dims.z + i] = entry;
 }
 
 // One column along `axis` (one invocation per cell of the other two axes): the depths toward
@@ -310,7 +325,8 @@ fn ms_source_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ext = mp.medium.z;
     let st = ext * max(lv_density[i], 0.0);
     let x = st * chord;
-    let entry = max(ext * lv_tau[lp.base + i].x - 0.5 * x, 0.0);
+    // The sun's depth where its beam enters the cell (`lv_sun_main`).
+    let entry = ext * lv_density[2u * n + i];
     lv_ms[o + i] = st;
     // The faces' resistances take the cell's transport density (`lv_transport`).
     let moves = select(0.0, ext * max(lv_density[n + i], 0.0), st > 0.0);

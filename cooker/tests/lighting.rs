@@ -140,8 +140,10 @@ fn diffusion_is_closer_to_the_reference_than_the_octaves() {
 /// fluence at a surface) brings the image closer to the reference. On the WDAS cloud and
 /// OpenVDB's smoke1 sample (where the samples are present; nothing to walk on the fixtures'
 /// thin smoke), at 64×36 against 1024 spp, relative RMSE (mean ratio) without it and with the
-/// default: WDAS 0.121 (0.941) → 0.101 (0.961), asserted clearly closer; smoke1 0.082 (1.031)
-/// → 0.082 (1.034), asserted no farther. (Before the sun pass walked voxels, 2026-11-27, the
+/// default: WDAS 0.109 (0.953) → 0.093 (0.974), asserted clearly closer; smoke1 0.085 (0.999)
+/// → 0.078 (1.003), asserted no farther. (Before the solve's source took the depth where the
+/// beam enters each cell, 2026-11-28: WDAS 0.121 (0.941) → 0.101 (0.961), smoke1 0.082 (1.031)
+/// → 0.082 (1.034).) (Before the sun pass walked voxels, 2026-11-27, the
 /// cells' shadows were too deep and the term made up for part of that on smoke1 too: WDAS
 /// 0.111 → 0.093, smoke1 0.087 → 0.077.)
 #[test]
@@ -191,7 +193,7 @@ fn near_scatter_brings_dense_clouds_closer_to_the_reference() {
 /// light scattered once and twice (`vdbcook_trace::diffusion`), the diffusion solve carried all
 /// of it and lost 7% on the WDAS cloud (0.930 at 160×90, 8192 spp) and 2–7% on other real
 /// volumes. Measured here at 64×36 (the reference at 1024 spp), mean ratio / relative RMSE:
-/// WDAS 0.993 / 0.051 with the two orders gathered (the default), 0.936 / 0.091 with none
+/// WDAS 0.995 / 0.050 with the two orders gathered (the default), 0.936 / 0.091 with none
 /// (`ms_gather` 0, asserted worse in both); the smoke5 fixture 0.993 / 0.087 and 0.941 / 0.120
 /// (since the sun pass walks voxels; 0.997 / 0.049 and 0.992 / 0.087 with the gather before).
 #[test]

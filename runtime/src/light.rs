@@ -317,7 +317,8 @@ impl LightEntry {
 const KEPT_BUILDS: usize = 8;
 
 /// The two scratch buffers a build runs through, with their capacities: the density's (f32s:
-/// two per cell, the cells' mean densities then their transport densities, `lv_density_main`)
+/// three per cell, the cells' mean densities then their transport densities, `lv_density_main`,
+/// then the sun's depth where its beam enters each cell, `lv_sun_main`)
 /// and the diffusion solve's (every level of one volume, f32s).
 #[derive(Default)]
 struct Scratch {
@@ -729,7 +730,7 @@ impl LightPass {
         let scratch = grown(
             device,
             &mut slot.density,
-            2 * plan.largest,
+            3 * plan.largest,
             &label(labels[0]),
         );
         let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);

@@ -290,6 +290,17 @@ impl LightGrid {
         out
     }
 
+    /// How far a ray along `d` (cell space) from a cell's centre runs before it leaves the
+    /// cell: `min_a ½·cell/|d_a|`. The light volume's sun pass splits its walk there, so that
+    /// the diffusion solve's source takes the sun's depth where the beam enters the cell
+    /// (`vdbcook_trace::diffusion::solve`; the GPU's `lv_sun_main`).
+    pub fn centre_exit(&self, d: [f64; 3]) -> f64 {
+        d.iter()
+            .filter(|c| **c != 0.0)
+            .map(|c| 0.5 * self.cell / c.abs())
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Distance along unit cell-space direction `d` from `p` (inside) to the grid's far side.
     pub fn exit(&self, p: [f64; 3], d: [f64; 3]) -> f64 {
         let mut t = f64::INFINITY;

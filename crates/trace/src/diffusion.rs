@@ -10,10 +10,14 @@
 //! length, albedo `α`, the phase's mean cosine `ḡ`), two fields of fluence `φ`: the sun's
 //! scattered light per unit sun irradiance, and all the sky's light per unit sky radiance.
 //! - **source** of the sun's field: what the beam loses to scattering in the cell, per unit
-//!   volume: the beam enters at optical depth `e = max(σ·τ_sun − x/2, 0)` (`τ_sun` at the
-//!   centre, `x = σᵢ·c` the cell's depth along the chord `c` the sun's ray crosses per cell slab
-//!   along its major axis) and `qᵢ = α·e^{−e}·(1 − e^{−x})/c`. The sky's field has no source:
-//!   its light comes in through the boundary;
+//!   volume: the beam enters at optical depth `e = σ·τ_entry` (`τ_entry` walked from where the
+//!   ray from the cell's centre toward the sun leaves the cell, `LightGrid::centre_exit`),
+//!   `x = σᵢ·c` is the cell's depth along the chord `c` the sun's ray crosses per cell slab
+//!   along its major axis, and `qᵢ = α·e^{−e}·(1 − e^{−x})/c`. The entry walked, not taken
+//!   as the centre's depth less `x/2`: where the centre's own half path is denser or thinner
+//!   than the cell's mean (a dense cell's sunlit skin) that guess put the beam's loss at the
+//!   wrong depth (smoke1 1.033 → 1.004 of the reference's sunlit image; docs/rendering.md).
+//!   The sky's field has no source: its light comes in through the boundary;
 //! - **gathered orders**: the sun's light scattered once and twice is not diffused but
 //!   gathered (`gather`: along 26 directions, the steps widening through the coarser levels like
 //!   the cone each direction stands for, the sun's phase in the first order's weights and the
@@ -176,12 +180,14 @@ pub struct Diffusion {
 
 /// The sun's and the sky's scattered light per cell of `grid`, from the cells' mean densities,
 /// their transport densities (`vdbcook_scene::transport_density`: the faces' resistances) and
-/// the sun's depth at their centres (`tau_sun(i)`, in length units before the extinction).
+/// the sun's depth where its beam enters them (`sun_entry(i)`, in length units before the
+/// extinction: from where the ray from the cell's centre toward the sun leaves the cell,
+/// `LightGrid::centre_exit`).
 pub fn solve(
     grid: &LightGrid,
     density: &[f32],
     transport: &[f32],
-    tau_sun: impl Fn(usize) -> f64,
+    sun_entry: impl Fn(usize) -> f64,
     m: &DiffusionInputs,
 ) -> Diffusion {
     let n = grid.cells();
@@ -204,8 +210,7 @@ pub fn solve(
     let q = (0..n)
         .map(|i| {
             let x = st[i] * m.chord;
-            let entry = (m.extinction * tau_sun(i) - 0.5 * x).max(0.0);
-            m.albedo * (-entry).exp() * -(-x).exp_m1() / m.chord
+            m.albedo * (-m.extinction * sun_entry(i)).exp() * -(-x).exp_m1() / m.chord
         })
         .collect();
     let dims = ms_levels(grid.dims);

@@ -16,7 +16,9 @@
 //!      the density pass read ([`sun_depth_exact`]: the density mode's voxel walk). A sample of
 //!      the depth, not of the cells' mean density: the exponential of a depth through blurred
 //!      densities is too dark on average where the density jumps from voxel to voxel
-//!      (`docs/rendering.md`, "The sun pass walks the voxels");
+//!      (`docs/rendering.md`, "The sun pass walks the voxels"). The walk is split where the
+//!      ray leaves the cell: the depth from there is where the sun's beam enters the cell, the
+//!      diffusion solve's source;
 //!    - sky pass: the optical depths toward the six axis directions (`cell·(D(c)/2 + Σ D beyond)`,
 //!      exact for the piecewise-constant `D`), combined into the one depth `τ_sky` whose
 //!      transmittance is their mean: `e^{−σ·τ_sky} = ⅙ Σ e^{−σ·τ_axis}` (σ the extinction).
@@ -85,6 +87,10 @@ pub struct LightVolume {
     pub grid: LightGrid,
     pub density: Vec<f32>,
     pub tau: Vec<[f32; 2]>,
+    /// Per cell the sun's optical depth where its beam enters the cell (length units): from
+    /// where the ray from the centre toward the sun leaves it (`LightGrid::centre_exit`), the
+    /// diffusion solve's source.
+    pub sun_entry: Vec<f32>,
     /// `MsModel::Diffusion`: per cell the sun's scattered light and the sky's light, `φ/4π`
     /// and the flux `J/4π` (`crate::diffusion::solve`); empty for the octaves model.
     pub diffusion: Diffusion,
@@ -168,25 +174,34 @@ impl LightVolume {
         // density mode's voxel sum; with the diffusion model it stops at the opaque depth).
         let ((l, sun_len), axis_len) = light_dirs(xf, s.lighting.light_dir, s.medium.unit);
         let mut tau = vec![[0.0f32; 2]; n];
+        // τ_sun where the sun's beam enters each cell (the solve's source).
+        let mut entry = vec![0.0f32; n];
         // A coarser level's own walk grid; full resolution's is the frame's.
         let coarse = (set != frame).then(|| Grid::new(asset, set));
         let voxels = coarse.as_ref().unwrap_or(walked);
         let stop = sun_pass_stop(s.lighting.ms_model, extinction);
-        let sun = |(z, out): (usize, &mut [[f32; 2]])| {
+        let sun = |(z, (out, entry)): (usize, (&mut [[f32; 2]], &mut [f32]))| {
             let mut cache = BrickCache::default();
             for y in 0..ny {
                 for x in 0..nx {
                     let p = grid.centre([x as u32, y as u32, z as u32]);
-                    let t =
+                    let [t, e] =
                         sun_depth_exact(voxels, &grid, p, (l, sun_len), shift, stop, &mut cache);
                     out[x + nx * y][0] = t as f32;
+                    entry[x + nx * y] = e as f32;
                 }
             }
         };
         #[cfg(feature = "parallel")]
-        tau.par_chunks_mut(slab).enumerate().for_each(sun);
+        tau.par_chunks_mut(slab)
+            .zip(entry.par_chunks_mut(slab))
+            .enumerate()
+            .for_each(sun);
         #[cfg(not(feature = "parallel"))]
-        tau.chunks_mut(slab).enumerate().for_each(sun);
+        tau.chunks_mut(slab)
+            .zip(entry.chunks_mut(slab))
+            .enumerate()
+            .for_each(sun);
 
         // Sky: the depths toward the six axis directions, half the cell's own density plus the
         // cells beyond, from running sums along each axis.
@@ -223,13 +238,14 @@ impl LightVolume {
         let diffusion = match s.lighting.ms_model {
             MsModel::Octaves => Diffusion::default(),
             MsModel::Diffusion => {
-                diffusion::solve(&grid, &density, &transport, |i| tau[i][0] as f64, &inputs)
+                diffusion::solve(&grid, &density, &transport, |i| entry[i] as f64, &inputs)
             }
         };
         LightVolume {
             grid,
             density,
             tau,
+            sun_entry: entry,
             diffusion,
             axis_len,
             mean_cos: inputs.mean_cos(),
@@ -311,11 +327,15 @@ impl LightVolume {
     }
 }
 
-/// The exact optical depth (in the settings' unit) toward the light from cell-space point `p`
-/// to the far side of the light volume's `grid`, through the voxels of `voxels` (a level whose
-/// voxels are `2^shift` wide; `l` the unit cell-space direction toward the light, `sun_len`
-/// the length per cell-space unit along it), stopping once `stop·τ` reaches the opaque depth
-/// (`vdbcook_scene::sun_pass_stop`): the light volume's sun pass.
+/// The exact optical depths (in the settings' unit) toward the light from cell-space point `p`
+/// (a cell's centre) to the far side of the light volume's `grid`, through the voxels of
+/// `voxels` (a level whose voxels are `2^shift` wide; `l` the unit cell-space direction toward
+/// the light, `sun_len` the length per cell-space unit along it): the light volume's sun pass.
+/// `[τ, τ_entry]`: from `p`, and from where the ray leaves `p`'s cell
+/// (`LightGrid::centre_exit`: where the sun's beam enters the cell, the diffusion solve's
+/// source); one walk split there, `τ` the two pieces' sum. The walk beyond the cell stops once
+/// `stop·τ` reaches the opaque depth (`vdbcook_scene::sun_pass_stop`); the cell's own few
+/// voxels are summed whole.
 pub(crate) fn sun_depth_exact(
     voxels: &Grid,
     grid: &LightGrid,
@@ -324,7 +344,7 @@ pub(crate) fn sun_depth_exact(
     shift: u32,
     stop: f64,
     cache: &mut BrickCache,
-) -> f64 {
+) -> [f64; 2] {
     let inv = l.map(|c| if c == 0.0 { f64::INFINITY } else { 1.0 / c });
     let ray = IndexRay {
         o: p,
@@ -333,7 +353,11 @@ pub(crate) fn sun_depth_exact(
         per_t: sun_len,
     }
     .scaled(0.5f64.powi(shift as i32));
-    crate::render::optical_depth(voxels, &ray, 0.0, grid.exit(p, l), stop, cache)
+    let exit = grid.exit(p, l);
+    let split = grid.centre_exit(l).min(exit);
+    let entry = crate::render::optical_depth(voxels, &ray, split, exit, stop, cache);
+    let own = crate::render::optical_depth(voxels, &ray, 0.0, split, 0.0, cache);
+    [own + entry, entry]
 }
 
 /// The depth whose transmittance is the six directions' mean transmittance `t_mean` (their
