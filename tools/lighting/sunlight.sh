@@ -6,7 +6,9 @@
 # independent reference at an eighth of the samples (seed 2, also kept) measures the
 # reference's own per-pixel noise, which the RMSE contains: each line also gives that noise
 # and the excess RMSE, sqrt(RMSE² − noise²), the lit image's error against a converged
-# reference (NOISE_SPP=0 skips it; NOISE_SPP=N picks its samples).
+# reference (NOISE_SPP=0 skips it; NOISE_SPP=N picks its samples). SCENE_FLAGS adds flags to
+# every render, references included (another light: SCENE_FLAGS="--light 0.3,0.3,0 --up y"; the
+# references are kept by scene name, so give each set of flags its own OUT).
 #
 #   tools/lighting/sunlight.sh BIN SCENES OUT [SPP] [-- extra lit flags]
 #
@@ -15,6 +17,8 @@
 # refs/NAME_SPP.pfm, lit/NAME.pfm and one line per scene on stdout. Example (the scenes of
 # docs/rendering.md, "The light scattered once and twice, gathered"):
 #   tools/lighting/sunlight.sh target/release/vdbcook tools/lighting/sunlight_scenes.txt /tmp/sun 8192
+# and under a sun from the side (docs/rendering.md, "The source's entry depth, built"):
+#   SCENE_FLAGS="--light 0.3,0.3,0 --up y" tools/lighting/sunlight.sh BIN SCENES /tmp/side 1024
 set -euo pipefail
 bin=$1; scenes=$2; out=$3; spp=${4:-8192}
 noise_spp=${NOISE_SPP:-$(( spp / 8 ))}
@@ -27,6 +31,8 @@ grep -v '^\s*#' "$scenes" | grep -v '^\s*$' | while read -r name asset frame abs
   common=(--frame "$frame" --backend cpu --sky=0,0,0 --phase="$phase" --units "$units"
           --absorb "$absorb" --scatter "$scatter" --width 160 --height 90 --transparent
           --emission off)
+  # shellcheck disable=SC2206  # SCENE_FLAGS is a list of flags, split on purpose.
+  [ -n "${SCENE_FLAGS:-}" ] && common+=(${SCENE_FLAGS})
   ref="$out/refs/${name}_${spp}.pfm"
   if [ ! -f "$ref" ]; then
     "$bin" render "$asset" -o "$ref" --mode reference --spp "$spp" --seed 1 "${common[@]}" >/dev/null
