@@ -115,10 +115,10 @@ fn lv_transport(values: ptr<function, array<f32, LV_MAX_SUB_SAMPLES>>, sub: u32,
 // τ_sun per cell (`vdbcook_trace::lit::sun_depth_exact`): the exact optical depth from the
 // cell's centre toward the light to the grid's far side, through the voxels of the level the
 // density pass read (`vdb_optical_depth` in that level's cell space, stopping at the opaque
-// depth where `lp.stop.x` says); τ_sky's accumulator cleared. The walk is split where
-// the ray leaves the cell (`LightGrid::centre_exit`): the depth from there, where the sun's beam
-// enters the cell, goes after the transport densities in the density scratch for
-// `ms_source_main`.
+// depth where `lp.stop.x` says); τ_sky's accumulator cleared. For a volume that solves
+// the diffusion model (`lp.stop.y`) the walk is split where the ray leaves the cell
+// (`LightGrid::centre_exit`): the depth from there, where the sun's beam enters the cell, goes
+// after the transport densities in the density scratch for `ms_source_main`.
 @compute @workgroup_size(4, 4, 4)
 fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     vdb_select(lp.asset);
@@ -146,6 +146,11 @@ fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     ray.o = p * scale;
     ray.d = l * scale;
     ray.per_t = lp.sun.w;
+    let i = lv_index(gid, dims);
+    if (lp.stop.y == 0.0) {
+        lv_tau[lp.base + i] = vec2<f32>(vdb_optical_depth(lp.frame_root, ray, 0.0, t_exit, lp.stop.x), 0.0);
+        return;
+    }
     var split = 3.0e38;
     for (var a = 0; a < 3; a++) {
         if (l[a] != 0.0) {
@@ -156,7 +161,6 @@ fn lv_sun_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let entry = vdb_optical_depth(lp.frame_root, ray, split, t_exit, lp.stop.x);
     // Within the cell (a few voxels): the flat walk, no opaque stop.
     let tau = vdb_optical_depth_near(lp.frame_root, ray, 0.0, split, 0.0) + entry;
-    let i = lv_index(gid, dims);
     lv_tau[lp.base + i] = vec2<f32>(tau, 0.0);
     lv_density[2u * dims.x * dims.y * dims.z + i] = entry;
 }
@@ -230,7 +234,8 @@ fn lv_sky_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // Two fields per cell: the sun's scattered light (source: the beam's first scattering, nothing
 // comes in from outside) and the sky's light (no source, a uniform radiance of 1 comes in
 // through the boundary: φ = 4π outside the medium). Run after the passes above for the same
-// volume (they leave its cell densities in `lv_density` and τ_sun in `lv_tau`):
+// volume (they leave its cell densities, transport densities and the sun's entry depths in
+// `lv_density`, τ_sun and τ_sky in `lv_tau`):
 // `ms_source_main` fills level 0 and `ms_restrict_main` each coarser level from the finer one;
 // `ms_paths_main` (from the coarsest level down to `MS_SHARED_PATHS`) and `ms_gather_main`
 // gather level 0's once-scattered light through them and `ms_second_main`

@@ -54,7 +54,9 @@ pub(crate) struct LightParams {
     /// The asset of the volume set whose density it reads.
     pub asset: u32,
     /// x: the extinction at which the sun pass stops a cell's walk at the opaque depth, 0 for
-    /// none (`vdbcook_scene::sun_pass_stop`); yzw: 0.
+    /// none (`vdbcook_scene::sun_pass_stop`); y: 1 where the volume solves the diffusion model
+    /// (the sun pass then keeps each cell's entry depth for the solve's source, third in the
+    /// density scratch), else 0; zw: 0.
     pub stop: [f32; 4],
 }
 
@@ -97,7 +99,12 @@ impl LightParams {
             base: 0,
             level: shift,
             asset,
-            stop: [sun_pass_stop(ms_model, extinction) as f32, 0.0, 0.0, 0.0],
+            stop: [
+                sun_pass_stop(ms_model, extinction) as f32,
+                f32::from(u8::from(ms_model == MsModel::Diffusion)),
+                0.0,
+                0.0,
+            ],
         }
     }
 
@@ -317,8 +324,9 @@ impl LightEntry {
 const KEPT_BUILDS: usize = 8;
 
 /// The two scratch buffers a build runs through, with their capacities: the density's (f32s:
-/// three per cell, the cells' mean densities then their transport densities, `lv_density_main`,
-/// then the sun's depth where its beam enters each cell, `lv_sun_main`)
+/// two per cell, the cells' mean densities then their transport densities, `lv_density_main`,
+/// and, where a volume solves the diffusion model, a third, the sun's depth where its beam
+/// enters each cell, `lv_sun_main`: within the `MS_OUT_BYTES` a cell `Plan::new` checks)
 /// and the diffusion solve's (every level of one volume, f32s).
 #[derive(Default)]
 struct Scratch {
@@ -730,7 +738,11 @@ impl LightPass {
         let scratch = grown(
             device,
             &mut slot.density,
-            3 * plan.largest,
+            if plan.key.1.iter().any(Option::is_some) {
+                3 * plan.largest
+            } else {
+                2 * plan.largest
+            },
             &label(labels[0]),
         );
         let ms_floats = solves.iter().flatten().map(|s| s.1).max().unwrap_or(0);

@@ -89,7 +89,7 @@ pub struct LightVolume {
     pub tau: Vec<[f32; 2]>,
     /// Per cell the sun's optical depth where its beam enters the cell (length units): from
     /// where the ray from the centre toward the sun leaves it (`LightGrid::centre_exit`), the
-    /// diffusion solve's source.
+    /// diffusion solve's source (0 under `MsModel::Octaves`, which has none).
     pub sun_entry: Vec<f32>,
     /// `MsModel::Diffusion`: per cell the sun's scattered light and the sky's light, `φ/4π`
     /// and the flux `J/4π` (`crate::diffusion::solve`); empty for the octaves model.
@@ -185,8 +185,15 @@ impl LightVolume {
             for y in 0..ny {
                 for x in 0..nx {
                     let p = grid.centre([x as u32, y as u32, z as u32]);
-                    let [t, e] =
-                        sun_depth_exact(voxels, &grid, p, (l, sun_len), shift, stop, &mut cache);
+                    let [t, e] = sun_depth_exact(
+                        voxels,
+                        &grid,
+                        p,
+                        (l, sun_len),
+                        shift,
+                        (stop, solve),
+                        &mut cache,
+                    );
                     out[x + nx * y][0] = t as f32;
                     entry[x + nx * y] = e as f32;
                 }
@@ -335,14 +342,15 @@ impl LightVolume {
 /// (`LightGrid::centre_exit`: where the sun's beam enters the cell, the diffusion solve's
 /// source); one walk split there, `τ` the two pieces' sum. The walk beyond the cell stops once
 /// `stop·τ` reaches the opaque depth (`vdbcook_scene::sun_pass_stop`); the cell's own few
-/// voxels are summed whole.
+/// voxels are summed whole. Without `split` (the octaves model, which has no source) one walk
+/// from `p` and `τ_entry` 0, as the GPU's `lv_sun_main` does.
 pub(crate) fn sun_depth_exact(
     voxels: &Grid,
     grid: &LightGrid,
     p: [f64; 3],
     (l, sun_len): ([f64; 3], f64),
     shift: u32,
-    stop: f64,
+    (stop, split): (f64, bool),
     cache: &mut BrickCache,
 ) -> [f64; 2] {
     let inv = l.map(|c| if c == 0.0 { f64::INFINITY } else { 1.0 / c });
@@ -354,9 +362,15 @@ pub(crate) fn sun_depth_exact(
     }
     .scaled(0.5f64.powi(shift as i32));
     let exit = grid.exit(p, l);
-    let split = grid.centre_exit(l).min(exit);
-    let entry = crate::render::optical_depth(voxels, &ray, split, exit, stop, cache);
-    let own = crate::render::optical_depth(voxels, &ray, 0.0, split, 0.0, cache);
+    if !split {
+        return [
+            crate::render::optical_depth(voxels, &ray, 0.0, exit, stop, cache),
+            0.0,
+        ];
+    }
+    let at = grid.centre_exit(l).min(exit);
+    let entry = crate::render::optical_depth(voxels, &ray, at, exit, stop, cache);
+    let own = crate::render::optical_depth(voxels, &ray, 0.0, at, 0.0, cache);
     [own + entry, entry]
 }
 

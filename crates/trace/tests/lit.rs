@@ -266,9 +266,24 @@ fn porous_lit(sun_near: f32) -> RenderSettings {
 /// ~1.5 voxels of a 3-voxel cell) were it the centre's.
 #[test]
 fn the_sun_pass_sums_the_voxels_toward_the_sun() {
+    for ms_model in [MsModel::Octaves, MsModel::Diffusion] {
+        let base = porous_lit(3.0);
+        let s = RenderSettings {
+            lighting: Lighting {
+                ms_model,
+                ..base.lighting
+            },
+            ..base
+        };
+        assert_sun_pass_sums_the_voxels(&s, ms_model == MsModel::Diffusion);
+    }
+}
+
+/// [`the_sun_pass_sums_the_voxels_toward_the_sun`] under `s`; the entry depth where the model
+/// solves the diffusion (`entry`), none kept under the octaves.
+fn assert_sun_pass_sums_the_voxels(s: &RenderSettings, entry: bool) {
     let asset = porous_box();
-    let s = porous_lit(3.0);
-    let t = Tracer::new(&asset, &camera(), &s).unwrap();
+    let t = Tracer::new(&asset, &camera(), s).unwrap();
     let lv = t.light_volume().unwrap();
     let g = &lv.grid;
     assert!((g.cell - 3.0).abs() < 1e-9, "cells of {} voxels", g.cell);
@@ -313,6 +328,13 @@ fn the_sun_pass_sums_the_voxels_toward_the_sun() {
     }
     assert!(checked >= 100, "{checked} cells");
     assert!(worst < 2e-3, "worst relative error {worst}");
+    if !entry {
+        assert!(
+            lv.sun_entry.iter().all(|&e| e == 0.0),
+            "octaves: no entry depth"
+        );
+        return;
+    }
     assert!(
         own_share > 1.0,
         "the cells' own depth is at most {own_share}: the check is blind"
