@@ -31,8 +31,9 @@ grep -v '^\s*#' "$scenes" | grep -v '^\s*$' | while read -r name asset frame abs
   common=(--frame "$frame" --backend cpu --sky=0,0,0 --phase="$phase" --units "$units"
           --absorb "$absorb" --scatter "$scatter" --width 160 --height 90 --transparent
           --emission off)
-  # shellcheck disable=SC2206  # SCENE_FLAGS is a list of flags, split on purpose.
-  [ -n "${SCENE_FLAGS:-}" ] && common+=(${SCENE_FLAGS})
+  # SCENE_FLAGS split on whitespace only (no glob expansion).
+  read -ra extra <<< "${SCENE_FLAGS:-}"
+  common+=(${extra[@]+"${extra[@]}"})
   ref="$out/refs/${name}_${spp}.pfm"
   if [ ! -f "$ref" ]; then
     "$bin" render "$asset" -o "$ref" --mode reference --spp "$spp" --seed 1 "${common[@]}" >/dev/null
