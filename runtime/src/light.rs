@@ -738,7 +738,8 @@ impl LightPass {
         let scratch = grown(
             device,
             &mut slot.density,
-            if plan.key.1.iter().any(Option::is_some) {
+            // A third f32 a cell where a volume solves the diffusion model (`ms_total > 0`).
+            if plan.ms_total > 0 {
                 3 * plan.largest
             } else {
                 2 * plan.largest
