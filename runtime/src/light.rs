@@ -1073,8 +1073,10 @@ impl Plan {
 /// displayed frame of a 64³ stormscape volume (`vdbcook bench --light-ahead 1000 --fps 0.5`,
 /// the spans less the static frame; a unit ≈ 2.5 ms there): sun 49 ms, axes 0.5–2.7, sky 1.3,
 /// source 13, gather 280–300 (the level-1 paths about 20), second 31 (4.8 after the last
-/// order), limit 8, update 22, store 20.
-const VOLUME_COST: [f64; 6] = [0.0, 0.3, 0.5, 0.5, 0.5, 0.5];
+/// order), limit 8, update 22, store 20. The sun's pass walks the voxels since 2026-11-27
+/// (`lv_sun_main`): re-measured 2026-11-28, 263–271 ms against gathers of 297–350 ms (and
+/// 448–482 against 382–539 in a slower stretch), about 0.9 of a gather at 64 cells: 1.6.
+const VOLUME_COST: [f64; 6] = [0.0, 1.6, 0.5, 0.5, 0.5, 0.5];
 const MS_COST: [f64; 9] = [5.0, 112.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0, 60.0];
 
 /// Which pipeline a step runs: `LightPass::passes[k]` or `ms_passes[k]`.
