@@ -14,7 +14,8 @@
 #
 # SCENES: one scene per line, `name asset frame absorb scatter phase [units]` (phase as
 # `--phase` takes it; units voxel or world, default world); `#` starts a comment. OUT gets
-# refs/NAME_SPP.pfm, lit/NAME.pfm and one line per scene on stdout. Example (the scenes of
+# refs/NAME_SPP.pfm, lit/NAME.pfm and one line per scene on stdout, then one for all of them (mean
+# |1 − ratio|, mean relative RMSE, how many within 2% and within 0.05 excess RMSE). Example (the scenes of
 # docs/rendering.md, "The light scattered once and twice, gathered"):
 #   tools/lighting/sunlight.sh target/release/vdbcook tools/lighting/sunlight_scenes.txt /tmp/sun 8192
 # and under a sun from the side (docs/rendering.md, "The source's entry depth, built"):
@@ -26,6 +27,8 @@ shift $(( $# < 4 ? $# : 4 ))
 [ "${1:-}" = "--" ] && shift
 here=$(cd "$(dirname "$0")/../.." && pwd)
 mkdir -p "$out/refs" "$out/lit"
+results=$(mktemp)
+trap 'rm -f "$results"' EXIT
 grep -v '^\s*#' "$scenes" | grep -v '^\s*$' | while read -r name asset frame absorb scatter phase units; do
   units=${units:-world}
   common=(--frame "$frame" --backend cpu --sky=0,0,0 --phase="$phase" --units "$units"
@@ -51,5 +54,24 @@ grep -v '^\s*#' "$scenes" | grep -v '^\s*$' | while read -r name asset frame abs
   "$bin" render "$asset" -o "$lit" --mode lit "${common[@]}" "$@" >/dev/null
   wall=$(echo "$(date +%s.%N) - $start" | bc)
   /usr/bin/python3 "$here/tools/mitsuba/compare.py" "$lit" "$ref" --mask-from "$ref" ${noise[@]+"${noise[@]}"} |
-    /usr/bin/python3 -c "import json, sys; d = json.load(sys.stdin); n = f\", reference noise {d['noise_rel_rmse_b']:.4f}, excess RMSE {d['excess_rel_rmse']:.4f}\" if 'excess_rel_rmse' in d else ''; print(f\"$name: mean ratio {d['mean_ratio']:.4f}, rel RMSE {d['rel_rmse']:.4f}{n}, lit wall {float('$wall'):.2f} s\")"
+    /usr/bin/python3 -c "import json, sys; d = json.load(sys.stdin); n = f\", reference noise {d['noise_rel_rmse_b']:.4f}, excess RMSE {d['excess_rel_rmse']:.4f}\" if 'excess_rel_rmse' in d else ''; print(f\"$name: mean ratio {d['mean_ratio']:.4f}, rel RMSE {d['rel_rmse']:.4f}{n}, lit wall {float('$wall'):.2f} s\")" |
+    tee -a "$results"
 done
+# The scenes together: what issue 34 item 4 judges (mean ratio within 0.98–1.02, relative RMSE
+# at most 0.05; the excess RMSE takes the reference's own noise out).
+/usr/bin/python3 - "$results" <<'PY'
+import re, sys
+rows = [re.search(r"mean ratio ([\d.]+), rel RMSE ([\d.]+)(?:.*excess RMSE ([\d.]+))?", l)
+        for l in open(sys.argv[1])]
+rows = [(float(m[1]), float(m[2]), m[3] and float(m[3])) for m in rows if m]
+if rows:
+    n = len(rows)
+    bias = sum(abs(1 - r) for r, _, _ in rows) / n
+    rmse = sum(e for _, e, _ in rows) / n
+    within = sum(abs(1 - r) <= 0.02 for r, _, _ in rows)
+    excess = [x for _, _, x in rows if x is not None]
+    line = f"all {n}: mean |1 - ratio| {bias:.4f}, mean rel RMSE {rmse:.4f}, within 2%: {within} of {n}"
+    if len(excess) == n:
+        line += f", excess RMSE <= 0.05: {sum(x <= 0.05 for x in excess)} of {n}"
+    print(line)
+PY
