@@ -892,8 +892,12 @@ impl LightPass {
             for (k, size) in sizes.into_iter().enumerate() {
                 let per_cell = match k {
                     0 => 2.0 * f64::from(sub).powi(3),
-                    // The sun's pass walks the grid toward the sun from every cell.
-                    1 => VOLUME_COST[1] * f64::from(x.max(y).max(z)),
+                    // The sun's pass walks the voxels toward the sun from every cell: as many
+                    // as the longest side holds of the level the density pass reads.
+                    1 => {
+                        let voxels_per_cell = f64::from(lp.lo[3]) / f64::from(1u32 << lp.level);
+                        VOLUME_COST[1] * f64::from(x.max(y).max(z)) * voxels_per_cell
+                    }
                     _ => VOLUME_COST[k],
                 };
                 rec.steps.push(Step {
@@ -1066,8 +1070,9 @@ impl Plan {
     }
 }
 
-/// Relative cost per cell of the light-volume passes (the sun's per cell and cell of the grid's
-/// longest side; the three axes, sky; the density pass's is `2·sub³`, not measured) and of the
+/// Relative cost per cell of the light-volume passes (the sun's per cell and voxel of the grid's
+/// longest side, in the level the density pass reads; the three axes, sky; the density pass's is
+/// `2·sub³`, not measured) and of the
 /// diffusion passes (source, gather, second, restrict, prolong, limit, update, store, paths), by
 /// which [`LightPass::ahead`] shares a build out. Measured on lavapipe, one dispatch per
 /// displayed frame of a 64³ stormscape volume (`vdbcook bench --light-ahead 1000 --fps 0.5`,
@@ -1075,8 +1080,12 @@ impl Plan {
 /// source 13, gather 280–300 (the level-1 paths about 20), second 31 (4.8 after the last
 /// order), limit 8, update 22, store 20. The sun's pass walks the voxels since 2026-11-27
 /// (`lv_sun_main`): re-measured 2026-11-28, 263–271 ms against gathers of 297–350 ms (and
-/// 448–482 against 382–539 in a slower stretch), about 0.9 of a gather at 64 cells: 1.6.
-const VOLUME_COST: [f64; 6] = [0.0, 1.6, 0.5, 0.5, 0.5, 0.5];
+/// 448–482 against 382–539 in a slower stretch), about 0.9 of a gather on that volume's 72
+/// voxels a side (1.125 a cell): 1.4 per voxel. Its walk's length is in voxels, not cells, so
+/// the estimate follows `light_res` only as far as the cells are wider than a voxel. The same
+/// profile read the fine level's update at 32 ms and the gathers a little above the figures
+/// here; the MS estimates are relative to each other and were left as they are.
+const VOLUME_COST: [f64; 6] = [0.0, 1.4, 0.5, 0.5, 0.5, 0.5];
 const MS_COST: [f64; 9] = [5.0, 112.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0, 60.0];
 
 /// Which pipeline a step runs: `LightPass::passes[k]` or `ms_passes[k]`.
