@@ -9,6 +9,9 @@ writes, grid `density`, voxel size 1, voxels 0..47 on each axis:
   cube.vdb  density 1 everywhere: flat faces, one lit at a grazing sun under the default light.
   ball.vdb  density 1 inside radius 23 of the centre, 0 outside: a hard, voxelized surface.
   soft.vdb  density 1 − (r/23)², 0 beyond: a smooth edge, as simulated smoke has.
+  slab.vdb  density 1 over 96 × 96 × 24 voxels: a half-space seen from straight above (the
+            diffusion solve's boundary against the cells' width in mean free paths; docs/
+            rendering.md, "A uniform half-space").
 
 Needs Debian's python3-openvdb (`pyopenvdb`). Cook each with `vdbcook cook X.vdb -o X.vdbc
 --format f32`.
@@ -41,6 +44,7 @@ def main():
     write(out_dir, "cube", np.ones((N, N, N)))
     write(out_dir, "ball", (r < radius).astype(np.float64))
     write(out_dir, "soft", np.clip(1.0 - (r / radius) ** 2, 0.0, None))
+    write(out_dir, "slab", np.ones((96, 96, 24)))
 
 
 if __name__ == "__main__":
