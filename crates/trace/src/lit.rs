@@ -8,8 +8,8 @@
 //!      up to cells of 4 voxels where a cell is a whole number of voxels (otherwise some voxels
 //!      are read twice and others once: an aliasing the images move with, `docs/rendering.md`,
 //!      "what the density pass's aliasing hides"); wider cells read one voxel in every `cell/4`
-//!      per axis (they alias: large assets at a low `light_res`) unless the asset has levels of detail
-//!      (`cook --lod`): then cells snap to whole voxels of the level `k` with `cell/2^k ≤ 4`
+//!      per axis (they alias: large assets at a low `light_res`) unless the asset has levels of
+//!      detail (`cook --lod`): then cells snap to whole voxels of the level `k` with `cell/2^k ≤ 4`
 //!      (`LightGrid::with_levels`) and read it (`LightGrid::density_level`), an exact box filter
 //!      of any cell width; with the diffusion model, from the same samples, the cell's transport
 //!      density for the solve's faces (`vdbcook_scene::transport_density`);
