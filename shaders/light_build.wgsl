@@ -300,6 +300,9 @@ struct MsParams {
 
 // `vdbcook_trace::diffusion::MS_VACUUM`.
 const MS_VACUUM: f32 = 2.0;
+// `vdbcook_scene::MS_VACUUM_MAX_X`, `MS_VACUUM_MAX_Y`.
+const MS_VACUUM_MAX_X: f32 = 40.0;
+const MS_VACUUM_MAX_Y: f32 = 4.0;
 // `vdbcook_scene::MS_GATHER_MIN_TRANS`.
 const MS_GATHER_MIN_TRANS: f32 = 1e-3;
 // `vdbcook_scene::MS_SHARED_PATHS`.
@@ -734,16 +737,82 @@ fn ms_face(i: u32, c: vec3<i32>, a: u32, s: u32, f: u32) -> vec2<f32> {
     e[a] = select(-1, 1, s == 1u);
     let cj = c + e;
     let hi = lv_ms[o + 7u * n + 6u * i + 3u * f + a];
-    var r = hi + MS_VACUUM;
-    var pj = ms_boundary(f);
     if (all(cj >= vec3<i32>(0)) && all(vec3<u32>(cj) < dims)) {
         let j = lv_index(vec3<u32>(cj), dims);
         if (lv_ms[o + j] > 0.0) {
-            r = hi + lv_ms[o + 7u * n + 6u * j + 3u * f + a];
-            pj = ms_phi(cj, f);
+            let r = hi + lv_ms[o + 7u * n + 6u * j + 3u * f + a];
+            return vec2<f32>(1.0 / (mp.h[a] * r), ms_phi(cj, f));
         }
     }
-    return vec2<f32>(1.0 / (mp.h[a] * r), pj);
+    if (f == 1u) {
+        return vec2<f32>(1.0 / (mp.h[a] * (hi + MS_VACUUM)), ms_boundary(f));
+    }
+    // The sun's field through the half cell's own diffusion problem, its source exponential
+    // in depth from this cell's and the next inward cell's (`ms_vacuum_face`).
+    let ci = c - e;
+    var q_in = -1.0;
+    if (all(ci >= vec3<i32>(0)) && all(vec3<u32>(ci) < dims)) {
+        let k = lv_index(vec3<u32>(ci), dims);
+        if (lv_ms[o + k] > 0.0) {
+            q_in = lv_ms[o + 2u * n + k];
+        }
+    }
+    let h = mp.h[a];
+    let sr = lv_ms[o + n + i];
+    let v = ms_vacuum_face(h, lv_ms[o + i], sr, lv_ms[o + 2u * n + i], q_in, hi - 1.5 * h * sr);
+    return vec2<f32>(1.0 / (h * v.x), v.y);
+}
+
+// `sinh(x)/x` (`vdbcook_scene`'s `sinhc`).
+fn ms_sinhc(x: f32) -> f32 {
+    if (abs(x) < 0.1) {
+        let t = x * x;
+        return 1.0 + t / 6.0 + t * t / 120.0;
+    }
+    return sinh(x) / x;
+}
+
+// `vdbcook_scene::ms_vacuum_shape`.
+fn ms_vacuum_shape(x: f32, y: f32) -> f32 {
+    let t1 = x * x;
+    let t2 = y * y;
+    var dd: f32;
+    if (max(t1, t2) < 1.0) {
+        let sq = t1 * t1 + t1 * t2 + t2 * t2;
+        dd = 1.0 / 6.0 + (t1 + t2) / 120.0 + sq / 5040.0 + (t1 + t2) * (t1 * t1 + t2 * t2) / 362880.0;
+    } else if (abs(t1 - t2) > 0.05 * max(t1, t2)) {
+        dd = (ms_sinhc(x) - ms_sinhc(y)) / (t1 - t2);
+    } else {
+        let m = 0.5 * (t1 + t2);
+        let r = sqrt(m);
+        dd = (cosh(r) - ms_sinhc(r)) / (2.0 * m);
+    }
+    return 0.5 * ms_sinhc(0.5 * (x + y)) * ms_sinhc(0.5 * (x - y)) - y * dd;
+}
+
+// `vdbcook_scene::ms_vacuum_face` for the sun's field (albedo `mp.h.w`; `q_in` < 0: no next
+// cell inward): the face's resistance R and the far side's φ.
+fn ms_vacuum_face(h: f32, st: f32, sr_in: f32, q0: f32, q_in: f32, lim_r: f32) -> vec2<f32> {
+    let sa = max(st * (1.0 - mp.h.w), 0.0);
+    let sr = max(sr_in, 0.0);
+    let x = min(0.5 * h * sqrt(3.0 * sr * sa), MS_VACUUM_MAX_X);
+    let inv_g = 2.0 * cosh(x) + 1.5 * h * sr * ms_sinhc(x);
+    if (!(q0 > 0.0) || !(sr > 0.0)) {
+        return vec2<f32>(inv_g + lim_r, 0.0);
+    }
+    var y = 0.0;
+    if (q_in > 0.0) {
+        y = 0.5 * log(q0 / q_in);
+    } else if (q_in == 0.0) {
+        y = MS_VACUUM_MAX_Y;
+    }
+    y = clamp(y, -MS_VACUUM_MAX_Y, MS_VACUUM_MAX_Y);
+    var q_face = q0 * (1.0 + y);
+    if (abs(y) >= 1e-3) {
+        q_face = q0 * 2.0 * y / (1.0 - exp(-2.0 * y));
+    }
+    let s = q_face * 0.75 * h * h * sr * ms_vacuum_shape(x, y);
+    return vec2<f32>(inv_g + lim_r, -s);
 }
 
 // One Jacobi sweep of the balance per field: φ ← (q + Σ φ_j/(h·R)) / (σ(1 − α) + Σ 1/(h·R)).
