@@ -40,7 +40,13 @@
 //!   `φ_out = 0` for the sun's field and `4π` for the sky's
 //!   (a uniform incoming radiance of 1); empty cells hold `φ_out`. At albedo 1 the sky's field
 //!   is `4π` everywhere, the start and a fixed point of the sweeps: the white furnace holds
-//!   exactly, whatever the geometry.
+//!   exactly, whatever the geometry. The sun's field, whose source lies near the faces it
+//!   leaves by, crosses the half cell toward an open face by that half cell's own 1D diffusion
+//!   problem instead (`vdbcook_scene::ms_vacuum_face`, `Level::face`: Marshak at the face, the
+//!   source exponential in depth from this cell's and the next inward cell's): the plain face
+//!   treated a thick cell's sunlit skin as half a cell deep and let out too little of its light
+//!   (a uniform half-space's fourth-and-up orders 1.21 / 1.54 / 1.79 at 1 / 2 / 4 mean free paths
+//!   a cell; now 1.07 / 1.23 / 1.24, docs/rendering.md).
 //! - **solver**: the grid is coarsened by 2 (means of 8 cells, missing ones empty) until no
 //!   side exceeds [`MS_COARSEST`] cells; from the coarsest (starting at `φ_out`) each level runs
 //!   [`MS_ITERATIONS`] Jacobi sweeps ([`MS_FINE_SWEEPS`] on the light volume's own cells; the
