@@ -303,6 +303,8 @@ const MS_VACUUM: f32 = 2.0;
 // `vdbcook_scene::MS_VACUUM_MAX_X`, `MS_VACUUM_MAX_Y`.
 const MS_VACUUM_MAX_X: f32 = 40.0;
 const MS_VACUUM_MAX_Y: f32 = 4.0;
+// `vdbcook_scene::MS_VACUUM_FAR_X`.
+const MS_VACUUM_FAR_X: f32 = 20.0;
 // `vdbcook_scene::MS_GATHER_MIN_TRANS`.
 const MS_GATHER_MIN_TRANS: f32 = 1e-3;
 // `vdbcook_scene::MS_SHARED_PATHS`.
@@ -780,7 +782,7 @@ fn ms_vacuum_shape(x: f32, y: f32) -> f32 {
     if (max(t1, t2) < 1.0) {
         let sq = t1 * t1 + t1 * t2 + t2 * t2;
         dd = 1.0 / 6.0 + (t1 + t2) / 120.0 + sq / 5040.0 + (t1 + t2) * (t1 * t1 + t2 * t2) / 362880.0;
-    } else if (abs(t1 - t2) > 0.05 * max(t1, t2)) {
+    } else if (abs(t1 - t2) > 0.01 * max(t1, t2)) {
         dd = (ms_sinhc(x) - ms_sinhc(y)) / (t1 - t2);
     } else {
         let m = 0.5 * (t1 + t2);
@@ -795,8 +797,9 @@ fn ms_vacuum_shape(x: f32, y: f32) -> f32 {
 fn ms_vacuum_face(h: f32, st: f32, sr_in: f32, q0: f32, q_in: f32, lim_r: f32) -> vec2<f32> {
     let sa = max(st * (1.0 - mp.h.w), 0.0);
     let sr = max(sr_in, 0.0);
-    let x = min(0.5 * h * sqrt(3.0 * sr * sa), MS_VACUUM_MAX_X);
-    let inv_g = 2.0 * cosh(x) + 1.5 * h * sr * ms_sinhc(x);
+    let x = 0.5 * h * sqrt(3.0 * sr * sa);
+    let xc = min(x, MS_VACUUM_MAX_X);
+    let inv_g = 2.0 * cosh(xc) + 1.5 * h * sr * ms_sinhc(xc);
     if (!(q0 > 0.0) || !(sr > 0.0)) {
         return vec2<f32>(inv_g + lim_r, 0.0);
     }
@@ -811,7 +814,10 @@ fn ms_vacuum_face(h: f32, st: f32, sr_in: f32, q0: f32, q_in: f32, lim_r: f32) -
     if (abs(y) >= 1e-3) {
         q_face = q0 * 2.0 * y / (1.0 - exp(-2.0 * y));
     }
-    let s = q_face * 0.75 * h * h * sr * ms_vacuum_shape(x, y);
+    var s = q_face * 0.75 * h * h * sr / ((x + y) * (2.0 * x + 1.5 * h * sr)) * inv_g;
+    if (x <= MS_VACUUM_FAR_X) {
+        s = q_face * 0.75 * h * h * sr * ms_vacuum_shape(x, y);
+    }
     return vec2<f32>(inv_g + lim_r, -s);
 }
 

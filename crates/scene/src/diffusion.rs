@@ -24,7 +24,8 @@ pub fn ms_sweeps(level: usize) -> usize {
 /// The coarsest level has no side longer than this (cells).
 pub const MS_COARSEST: u32 = 6;
 /// Resistance of the half-face toward empty space or the grid's edge (Marshak's vacuum
-/// boundary: the net flux out is half the fluence).
+/// boundary: the net flux out is half the fluence) for the sky's field; the sun's crosses the
+/// half cell by [`ms_vacuum_face`].
 pub const MS_VACUUM: f64 = 2.0;
 
 /// The sun's field's face toward empty space (a neighbour without medium, or the grid's edge),
@@ -34,7 +35,7 @@ pub const MS_VACUUM: f64 = 2.0;
 /// Where the cell is thick in transport mean free paths and its source lies near its open face
 /// (a dense cloud's sunlit skin), the light leaves through the face from a shallower depth than
 /// the centre: the plain vacuum face (`R = r + 2`, `φ_j = 0`) lets too little of it out, so the
-/// cell holds too much (a uniform half-space at albedo 0.94 seen from above read 1.22 / 1.54 /
+/// cell holds too much (a uniform half-space at albedo 0.94 seen from above read 1.21 / 1.54 /
 /// 1.79 for the solve's orders at 1 / 2 / 4 mean free paths a cell; docs/rendering.md).
 ///
 /// Here the half cell between the centre and the face is solved as diffusion's 1D problem
@@ -59,8 +60,9 @@ pub fn ms_vacuum_face(
 ) -> (f64, f64) {
     let sa = (st * (1.0 - albedo)).max(0.0);
     let sr = sr.max(0.0);
-    let x = (0.5 * h * (3.0 * sr * sa).sqrt()).min(MS_VACUUM_MAX_X);
-    let inv_g = 2.0 * x.cosh() + 1.5 * h * sr * sinhc(x);
+    let x = 0.5 * h * (3.0 * sr * sa).sqrt();
+    let xc = x.min(MS_VACUUM_MAX_X);
+    let inv_g = 2.0 * xc.cosh() + 1.5 * h * sr * sinhc(xc);
     if !(q0 > 0.0) || !(sr > 0.0) {
         return (inv_g + lim_r, 0.0);
     }
@@ -76,11 +78,23 @@ pub fn ms_vacuum_face(
         } else {
             2.0 * y / -(-2.0 * y).exp_m1()
         };
-    let s = q_face * 0.75 * h * h * sr * ms_vacuum_shape(x, y);
+    let s = if x <= MS_VACUUM_FAR_X {
+        q_face * 0.75 * h * h * sr * ms_vacuum_shape(x, y)
+    } else {
+        // Far into the thick limit cosh and sinh are e^x/2 (their rest and e^{−y} below 10⁻⁷
+        // of it): the source's share over the face's resistance, `q·¾h²σ_r/((x + y)(2x +
+        // 1.5hσ_r))`, scaled back by the (clamped) resistance the face is given.
+        q_face * 0.75 * h * h * sr / ((x + y) * (2.0 * x + 1.5 * h * sr)) * inv_g
+    };
     (inv_g + lim_r, -s)
 }
 
-/// The largest half-cell optical width `x` [`ms_vacuum_face`] takes (beyond it the face passes
+/// Above this half-cell optical width `x` [`ms_vacuum_face`] takes the source's share from its
+/// thick limit (exact to 10⁻⁷ there), so that clamping `x` for the resistance
+/// ([`MS_VACUUM_MAX_X`]) does not change how much of the source leaves.
+pub const MS_VACUUM_FAR_X: f64 = 20.0;
+
+/// The largest half-cell optical width `x` [`ms_vacuum_face`]'s resistance takes (beyond it the face passes
 /// nothing of the centre's light either way; f32's `cosh` stays finite on the GPU).
 pub const MS_VACUUM_MAX_X: f64 = 40.0;
 /// The largest `|y| = |κ|·h/2` of [`ms_vacuum_face`]'s exponential source.
@@ -106,7 +120,7 @@ pub fn ms_vacuum_shape(x: f64, y: f64) -> f64 {
         // The series of s(t) = Σ tⁿ/(2n+1)!, divided term by term.
         let sq = t1 * t1 + t1 * t2 + t2 * t2;
         1.0 / 6.0 + (t1 + t2) / 120.0 + sq / 5040.0 + (t1 + t2) * (t1 * t1 + t2 * t2) / 362880.0
-    } else if (t1 - t2).abs() > 0.05 * t1.max(t2) {
+    } else if (t1 - t2).abs() > 0.01 * t1.max(t2) {
         (sinhc(x) - sinhc(y)) / (t1 - t2)
     } else {
         // s'(t) at the middle: (cosh √t − sinhc √t)/(2t).
@@ -615,6 +629,9 @@ mod tests {
             (3.0, 2.0, 1.5, 0.5, 1.0, None),
             (2.0, 1.0, 1.0, 1.0, 0.5, Some(0.25)),
             (8.0, 3.0, 3.0, 0.99, 0.2, Some(0.19)),
+            // Past the thick limit's switch (x ≈ 31 and 61) and the resistance's clamp.
+            (100.0, 1.0, 1.0, 0.9, 0.4, Some(0.1)),
+            (100.0, 1.0, 1.0, 0.5, 0.4, None),
         ];
         for (h, st, sr, albedo, q0, q_in) in cases {
             let (r, pj) = ms_vacuum_face(h, st, sr, albedo, q0, q_in, 0.0);
@@ -685,7 +702,7 @@ mod tests {
         for (x, y) in [
             (1.0, 0.2),
             (0.2, 1.0),
-            (2.0, 2.0 * 0.975f64.sqrt()),
+            (2.0, 2.0 * 0.99f64.sqrt()),
             (1.5, 1.5),
             (1.5, -1.5),
         ] {

@@ -694,7 +694,7 @@ mod tests {
                 .sum();
             got.push(0.06 * rho as f64 * phi / want);
         }
-        assert!(got.iter().all(|g| (g - 1.0).abs() < 0.1), "{got:?}");
+        assert!(got.iter().all(|g| (0.95..1.12).contains(g)), "{got:?}");
     }
 
     /// Deep inside a thick medium light neither arrives nor leaves: the fluence balances the
