@@ -356,6 +356,17 @@ fn ms_one_minus_over(x: f32, ex: f32) -> f32 {
     return v;
 }
 
+// `vdbcook_scene::ms_own_cell`: the own cell's light per unit source and length and the
+// transmittance to the next step, both averaged over the cell's points along the direction.
+fn ms_own_cell(x: f32) -> vec2<f32> {
+    if (x < 0.05) {
+        let own = 0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0));
+        return vec2<f32>(own, 1.0 - x * own);
+    }
+    let t = (1.0 - exp(-x)) / x;
+    return vec2<f32>((1.0 - t) / x, t);
+}
+
 // Level 0, after `ms_restrict_main` on every coarser level: the sun's light scattered once
 // (parity 0: the sources `ms_source_main` wrote, weights `mp.gather`; into the gathered sum,
 // `ms_gathered`) or twice (parity 1: the sources and beams `ms_second_main` wrote, weights
@@ -388,10 +399,9 @@ fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let v = vec3<f32>(e) * mp.h.xyz;
             let len = length(v);
             let u = v / len;
-            let x0 = 0.5 * st0 * len;
-            let t0 = exp(-x0);
-            var r = ms_emit(0u, i, n, u, twice) * 0.5 * len * ms_one_minus_over(x0, t0);
-            var t = t0;
+            let own = ms_own_cell(st0 * len);
+            var r = ms_emit(0u, i, n, u, twice) * len * own.x;
+            var t = own.y;
             // Level by level: two steps on each (from level 0), on the coarsest until the grid
             // ends, and from level `MS_SHARED_PATHS` the shared path of the cell reached. The
             // first step of level k starts `m = 2^(k+1) − 2` whole cells past the own half cell

@@ -150,6 +150,27 @@ pub const MS_GATHER_MIN_TRANS: f64 = 1e-3;
 /// 1.3 s (measured 2026-11-27, `docs/rendering.md`).
 pub const MS_SHARED_PATHS: usize = 1;
 
+/// The gather's own cell along one direction as a mean over the cell (`vdbcook_trace::diffusion`'s
+/// `gather`, `light_build.wgsl`'s `ms_gather_main`), for `x = σ·L`, `L` the step's length:
+/// `(own, T)` with `own·L·q` the light the cell's own source `q` sends along the direction, and `T`
+/// the transmittance to the next step, both averaged over the points of a segment of length `L`
+/// (`T = (1 − e^{−x})/x`, `own = (1 − T)/x`). The gather's value stands for the cell's mean
+/// fluence (it is the next order's and the solve's source, a cell mean); the centre's own half
+/// cell, `(1 − e^{−x/2})/x` and `e^{−x/2}`, made a thick cell's sunlit skin light its far half
+/// (a uniform half-space at 4 mean free paths a cell: the solve's orders 1.24 → 1.17 of the
+/// reference with the mean; docs/rendering.md). Both pairs sum to the exact `q/σ` in a uniform
+/// medium; as `x → 0` they agree to first order.
+pub fn ms_own_cell(x: f64) -> (f64, f64) {
+    if x < 0.05 {
+        // The series of (1 − T)/x and T.
+        let own = 0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0));
+        (own, 1.0 - x * own)
+    } else {
+        let t = -(-x).exp_m1() / x;
+        ((1.0 - t) / x, t)
+    }
+}
+
 /// The 26 gather directions: each cell offset `e ∈ {−1, 0, 1}³ \ 0` (x fastest) with its weight
 /// from [`MS_GATHER_WEIGHTS`] by how many axes it moves along.
 pub fn ms_gather_dirs() -> impl Iterator<Item = ([i32; 3], f64)> {

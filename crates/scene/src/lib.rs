@@ -25,9 +25,9 @@ mod space;
 pub use camera::{from_up_frame, source_up, stored_bbox, stored_boxes, up_frame, Basis, Camera};
 pub use content::{content_box, content_box_above, for_each_slot_max, for_each_slot_max_c};
 pub use diffusion::{
-    ms_beam_norm, ms_gather_dirs, ms_gather_steps, ms_gather_weights, ms_levels, ms_stored_flux,
-    ms_sweeps, ms_vacuum_face, ms_vacuum_shape, transport_density, DiffusionInputs, GatherStep,
-    MS_COARSEST, MS_FINE_SWEEPS, MS_FLUX_RATIO, MS_GATHER_MIN_TRANS, MS_GATHER_WEIGHTS,
+    ms_beam_norm, ms_gather_dirs, ms_gather_steps, ms_gather_weights, ms_levels, ms_own_cell,
+    ms_stored_flux, ms_sweeps, ms_vacuum_face, ms_vacuum_shape, transport_density, DiffusionInputs,
+    GatherStep, MS_COARSEST, MS_FINE_SWEEPS, MS_FLUX_RATIO, MS_GATHER_MIN_TRANS, MS_GATHER_WEIGHTS,
     MS_ITERATIONS, MS_SHARED_PATHS, MS_VACUUM,
 };
 pub use display::{
