@@ -404,7 +404,7 @@ fn ms_gather_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             var t = own.y;
             // Level by level: two steps on each (from level 0), on the coarsest until the grid
             // ends, and from level `MS_SHARED_PATHS` the shared path of the cell reached. The
-            // first step of level k starts `m = 2^(k+1) − 2` whole cells past the own half cell
+            // first step of level k starts `m = 2^(k+1) − 2` whole cells past the own cell
             // (0 on level 0) and reads the cell of its level that holds its middle, twice of
             // which in level-0 cells is `2g + 1 + e·(2m + 1 + 2^k)`: a shift by k + 1 finds it
             // (an arithmetic shift floors: a middle before the grid is a negative cell); the

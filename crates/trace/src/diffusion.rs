@@ -337,12 +337,12 @@ pub fn solve(
 /// neighbours (`vdbcook_scene::ms_gather_dirs`, weighted by `DiffusionInputs::gather`: each
 /// direction's share of the sphere times the phase toward it). Along direction `e` (length
 /// `L` per cell step) the light arriving at the cell is `q₀·L·own` from its own cell, then from
-/// each step `s` of `n` cells `T_s·q_s(1 − e^{−σ_s·nL})/σ_s`, `T_s` the transmittance to it (from
-/// the own cell `T₀`; `own` and `T₀` averaged over the cell's points along the direction,
-/// `vdbcook_scene::ms_own_cell`: the gather's value is the cell's mean fluence) (a constant source and extinction per step, integrated exactly),
-/// until the grid ends; that light flows back along `−e`. The steps widen with the distance,
+/// each step `s` of `n` cells `T_s·q_s(1 − e^{−σ_s·nL})/σ_s` (a constant source and extinction
+/// per step, integrated exactly), `T_s` the transmittance to it (out of the own cell `T₀`; `own`
+/// and `T₀` are means over the cell's points along the direction, `vdbcook_scene::ms_own_cell`:
+/// the gather's value is the cell's mean fluence), until the grid ends; that light flows back along `−e`. The steps widen with the distance,
 /// as the cone of directions `e` stands for (26 of them: a half-angle of about 23°) does: `m`
-/// cells past the own half cell a step reads level `k = ⌊log₂(m + 2)⌋ − 1` (at most the
+/// cells past the own cell a step reads level `k = ⌊log₂(m + 2)⌋ − 1` (at most the
 /// coarsest) and is `2^k` cells long — two steps of one cell, two of two cells on level 1, two
 /// of four on level 2, … — reading the cell of its level that holds the step's middle (the
 /// levels' means of extinction and source; integer arithmetic, so the GPU's `ms_gather_main`
@@ -451,7 +451,7 @@ fn gather(levels: &[Level], weights: &[f64; 26], beam: Option<([f32; 2], f32)>) 
             let (e, len, u) = (s.e, s.len, s.unit);
             let (own, mut tr) = vdbcook_scene::ms_own_cell(st * len);
             let mut r = emit(l.q[i], &l.beam[i], u) * own * len;
-            // Whole cells walked past the own half cell.
+            // Whole cells walked past the own cell.
             let mut m = 0u64;
             'walk: loop {
                 let k = ((m + 2).ilog2() as usize - 1).min(top);
