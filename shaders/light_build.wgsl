@@ -359,8 +359,9 @@ fn ms_one_minus_over(x: f32, ex: f32) -> f32 {
 // `vdbcook_scene::ms_own_cell`: the own cell's light per unit source and length and the
 // transmittance to the next step, both averaged over the cell's points along the direction.
 fn ms_own_cell(x: f32) -> vec2<f32> {
-    if (x < 0.05) {
-        let own = 0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0));
+    if (x < 0.5) {
+        let own = 0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x * (1.0 / 120.0
+            - x * (1.0 / 720.0 - x * (1.0 / 5040.0 - x / 40320.0)))));
         return vec2<f32>(own, 1.0 - x * own);
     }
     let t = (1.0 - exp(-x)) / x;

@@ -340,11 +340,11 @@ pub fn solve(
 /// each step `s` of `n` cells `T_s·q_s(1 − e^{−σ_s·nL})/σ_s` (a constant source and extinction
 /// per step, integrated exactly), `T_s` the transmittance to it (out of the own cell `T₀`; `own`
 /// and `T₀` are means over the cell's points along the direction, `vdbcook_scene::ms_own_cell`:
-/// the gather's value is the cell's mean fluence), until the grid ends; that light flows back along `−e`. The steps widen with the distance,
-/// as the cone of directions `e` stands for (26 of them: a half-angle of about 23°) does: `m`
-/// cells past the own cell a step reads level `k = ⌊log₂(m + 2)⌋ − 1` (at most the
-/// coarsest) and is `2^k` cells long — two steps of one cell, two of two cells on level 1, two
-/// of four on level 2, … — reading the cell of its level that holds the step's middle (the
+/// the gather's value is the cell's mean fluence), until the grid ends; that light flows back
+/// along `−e`. The steps widen with the distance, as the cone of directions `e` stands for (26
+/// of them: a half-angle of about 23°) does: `m` cells past the own cell a step reads level
+/// `k = ⌊log₂(m + 2)⌋ − 1` (at most the coarsest) and is `2^k` cells long — two steps of one
+/// cell, two of two cells on level 1, two of four on level 2, … — reading the cell of its level that holds the step's middle (the
 /// levels' means of extinction and source; integer arithmetic, so the GPU's `ms_gather_main`
 /// reads the same cells), until `T` falls below `MS_GATHER_MIN_TRANS`.
 ///
@@ -713,8 +713,9 @@ mod tests {
     /// (a sum over 4³ points per cell within 3 cells of it, 2³ further), which the gather must
     /// give where little is scattered again (albedo 0.01), here at every third cell of the ball
     /// in each axis (619 cells: the distant steps' coarse cells make one cell alone miss by up to
-    /// 8%). Measured: a mean of 0.994 and an RMS deviation of 0.047 with the shared paths; 0.988
-    /// and 0.044 when each cell walked its own path (until 2026-11-27); before the gather the
+    /// 8%). Measured: a mean of 0.994 and an RMS deviation of 0.047 with the shared paths (the
+    /// same with the own cell as a mean over it, 2026-11-28: second order in a cell this thin);
+    /// 0.988 and 0.044 when each cell walked its own path (until 2026-11-27); before the gather the
     /// diffusion solve carried this light too and gave 0.59 of it in a thin cube. At albedo 0.9
     /// the light scattered more than once adds to it, a little in a ball this thin (about
     /// `α·σ·R` more, 0.14 at most; measured 1.100).
