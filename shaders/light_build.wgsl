@@ -364,7 +364,7 @@ fn ms_own_cell(x: f32) -> vec2<f32> {
             - x * (1.0 / 720.0 - x * (1.0 / 5040.0 - x / 40320.0)))));
         return vec2<f32>(own, 1.0 - x * own);
     }
-    let t = (1.0 - exp(-x)) / x;
+    let t = ms_one_minus_over(x, exp(-x));
     return vec2<f32>((1.0 - t) / x, t);
 }
 
@@ -825,9 +825,12 @@ fn ms_vacuum_face(h: f32, st: f32, sr_in: f32, q0: f32, q_in: f32, lim_r: f32) -
     if (abs(y) >= 1e-3) {
         q_face = q0 * 2.0 * y / (1.0 - exp(-2.0 * y));
     }
-    var s = q_face * 0.75 * h * h * sr / ((x + y) * (2.0 * x + 1.5 * h * sr)) * inv_g;
+    let scale = q_face * 0.75 * h * h * sr;
+    var s: f32;
     if (x <= MS_VACUUM_FAR_X) {
-        s = q_face * 0.75 * h * h * sr * ms_vacuum_shape(x, y);
+        s = scale * ms_vacuum_shape(x, y);
+    } else {
+        s = scale / ((x + y) * (2.0 * x + 1.5 * h * sr)) * inv_g;
     }
     return vec2<f32>(inv_g + lim_r, -s);
 }
