@@ -285,8 +285,10 @@ struct MsParams {
 }
 
 // Per level at `off.x` over n cells: st [0, n), sr [n, 2n), q [2n, 3n), φ A [3n, 5n) and
-// φ B [5n, 7n) (two per cell: sun, sky), the half-cell resistances [7n, 13n) (six per cell:
-// x y z of the sun's field, then of the sky's). Before the solve the gather keeps each level's
+// φ B [5n, 7n) (two per cell: sun, sky), the half-cell resistances [7n, 9n) (two per cell, one
+// per field: `3·sr + |∇φ|/φ`, the resistance along axis a being ½·h_a times it), the sun's
+// open faces [9n, 15n) (`ms_vacuum_main`: per axis the face's resistance less the cell's half
+// and the far side's φ, six per cell). Before the solve the gather keeps each level's
 // beam sources in the resistances' place, [7n, 12n) (five per cell:
 // `vdbcook_trace::diffusion`'s `Level::beam`), level 0's second-order φ in the last
 // resistance's, [12n, 13n), and each level's shared gather paths (`ms_paths_main`, `mp.paths`)
@@ -733,10 +735,68 @@ fn ms_limit_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (phi > 0.0) {
             lim = sqrt(g2) / phi;
         }
-        for (var a = 0u; a < 3u; a++) {
-            lv_ms[o + 7u * n + 6u * i + 3u * f + a] = 0.5 * mp.h[a] * (3.0 * sr + lim);
+        lv_ms[o + 7u * n + 2u * i + f] = 3.0 * sr + lim;
+    }
+}
+
+// Cell `i`'s half-cell resistance along axis `a` for field `f` (`ms_limit_main`'s).
+fn ms_half_r(i: u32, a: u32, f: u32) -> f32 {
+    return 0.5 * mp.h[a] * lv_ms[mp.off.x + 7u * ms_cells(mp.dims.xyz) + 2u * i + f];
+}
+
+// Once per level before its sweeps (the sources are final then, and the gather's use of the
+// resistances' place is over): per filled cell and axis with an open face, the sun's field
+// through the half cell's diffusion problem (`ms_vacuum_face`, without the flux limiter's
+// share, which `ms_face` adds each sweep): the face's resistance less the cell's plain half
+// and the far side's φ. Both faces of an axis open means no inward cell for either, so one
+// pair serves the axis. Nothing in it changes between sweeps: computed here, it costs one
+// pass instead of a share of every sweep's.
+@compute @workgroup_size(4, 4, 4)
+fn ms_vacuum_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = mp.dims.xyz;
+    if (any(gid >= dims)) {
+        return;
+    }
+    let i = lv_index(gid, dims);
+    let n = ms_cells(dims);
+    let o = mp.off.x;
+    let st = lv_ms[o + i];
+    if (!(st > 0.0)) {
+        return;
+    }
+    let c = vec3<i32>(gid);
+    let sr = lv_ms[o + n + i];
+    for (var a = 0u; a < 3u; a++) {
+        var e = vec3<i32>(0);
+        e[a] = 1;
+        let up = ms_filled(c + e);
+        let down = ms_filled(c - e);
+        var v = vec2<f32>(0.0);
+        if (!(up.filled && down.filled)) {
+            // The inward cell of the open face (none when both are open).
+            var q_in = -1.0;
+            if (up.filled != down.filled) {
+                q_in = select(down.q, up.q, up.filled);
+            }
+            let h = mp.h[a];
+            v = ms_vacuum_face(h, st, sr, lv_ms[o + 2u * n + i], q_in, -1.5 * h * sr);
+        }
+        lv_ms[o + 9u * n + 6u * i + 2u * a] = v.x;
+        lv_ms[o + 9u * n + 6u * i + 2u * a + 1u] = v.y;
+    }
+}
+
+// Whether cell `c` lies in the level and is filled, and its source q (−1 when not).
+fn ms_filled(c: vec3<i32>) -> MsFilled {
+    let dims = mp.dims.xyz;
+    if (all(c >= vec3<i32>(0)) && all(vec3<u32>(c) < dims)) {
+        let n = ms_cells(dims);
+        let k = lv_index(vec3<u32>(c), dims);
+        if (lv_ms[mp.off.x + k] > 0.0) {
+            return MsFilled(true, lv_ms[mp.off.x + 2u * n + k]);
         }
     }
+    return MsFilled(false, -1.0);
 }
 
 // Cell `i`'s (at `c`) neighbour along axis `a` on side `s` (1: +1) for field `f`: the face's
@@ -749,11 +809,11 @@ fn ms_face(i: u32, c: vec3<i32>, a: u32, s: u32, f: u32) -> vec2<f32> {
     var e = vec3<i32>(0);
     e[a] = select(-1, 1, s == 1u);
     let cj = c + e;
-    let hi = lv_ms[o + 7u * n + 6u * i + 3u * f + a];
+    let hi = ms_half_r(i, a, f);
     if (all(cj >= vec3<i32>(0)) && all(vec3<u32>(cj) < dims)) {
         let j = lv_index(vec3<u32>(cj), dims);
         if (lv_ms[o + j] > 0.0) {
-            let r = hi + lv_ms[o + 7u * n + 6u * j + 3u * f + a];
+            let r = hi + ms_half_r(j, a, f);
             return vec2<f32>(1.0 / (mp.h[a] * r), ms_phi(cj, f));
         }
     }
@@ -761,19 +821,17 @@ fn ms_face(i: u32, c: vec3<i32>, a: u32, s: u32, f: u32) -> vec2<f32> {
         return vec2<f32>(1.0 / (mp.h[a] * (hi + MS_VACUUM)), ms_boundary(f));
     }
     // The sun's field through the half cell's own diffusion problem, its source exponential
-    // in depth from this cell's and the next inward cell's (`ms_vacuum_face`).
-    let ci = c - e;
-    var q_in = -1.0;
-    if (all(ci >= vec3<i32>(0)) && all(vec3<u32>(ci) < dims)) {
-        let k = lv_index(vec3<u32>(ci), dims);
-        if (lv_ms[o + k] > 0.0) {
-            q_in = lv_ms[o + 2u * n + k];
-        }
-    }
-    let h = mp.h[a];
-    let sr = lv_ms[o + n + i];
-    let v = ms_vacuum_face(h, lv_ms[o + i], sr, lv_ms[o + 2u * n + i], q_in, hi - 1.5 * h * sr);
-    return vec2<f32>(1.0 / (h * v.x), v.y);
+    // in depth from this cell's and the next inward cell's (`ms_vacuum_face`, computed once
+    // by `ms_vacuum_main`; the flux limiter's share, `hi` less the plain half, added here).
+    let v = o + 9u * n + 6u * i + 2u * a;
+    let r = lv_ms[v] + hi;
+    return vec2<f32>(1.0 / (mp.h[a] * r), lv_ms[v + 1u]);
+}
+
+// `ms_filled`'s answer.
+struct MsFilled {
+    filled: bool,
+    q: f32,
 }
 
 // `sinh(x)/x` (`vdbcook_scene`'s `sinhc`).

@@ -243,10 +243,11 @@ fn ms_records(dims: [u32; 3], m: &DiffusionInputs) -> (Vec<[MsParams; 2]>, usize
 }
 
 /// f32s of the diffusion solve's scratch per cell of a level (`light_build.wgsl`: st, sr, q,
-/// two fields in φ A and φ B, six resistances; before the solve the gather's beams and second
-/// order's φ use the resistances' place, the shared paths of the next coarser level φ A's and
-/// φ B's where they fit, and the gathered light waits in the output's words).
-const MS_FLOATS_PER_CELL: usize = 13;
+/// two fields in φ A and φ B, two resistances, the sun's open faces' six; before the solve the
+/// gather's beams and second order's φ use the resistances' and open faces' place, the shared
+/// paths of the next coarser level φ A's and φ B's where they fit, and the gathered light waits
+/// in the output's words).
+const MS_FLOATS_PER_CELL: usize = 15;
 /// Bytes of the diffusion model's output per cell (six words: three f32, six 16-bit fluxes).
 const MS_OUT_BYTES: usize = 24;
 
@@ -354,7 +355,7 @@ pub(crate) struct LightPass {
     passes: [wgpu::ComputePipeline; 6],
     /// The diffusion solve's: source, gather, second, restrict, prolong, limit, update, store,
     /// paths.
-    ms_passes: [wgpu::ComputePipeline; 9],
+    ms_passes: [wgpu::ComputePipeline; 10],
     build_layout: wgpu::BindGroupLayout,
     ms_layout: wgpu::BindGroupLayout,
     pub read_layout: wgpu::BindGroupLayout,
@@ -435,6 +436,7 @@ impl LightPass {
             "ms_update_main",
             "ms_store_main",
             "ms_paths_main",
+            "ms_vacuum_main",
         ]
         .map(|entry| {
             // Group 0 (the volume) left out: the solve reads no voxel, and the volume's
@@ -924,8 +926,8 @@ impl LightPass {
                     cost: MS_COST[pass] * f64::from(d[0] * d[1] * d[2]),
                 });
             };
-            let [source, gather, second, restrict, prolong, limit, update, store, paths] =
-                [0, 1, 2, 3, 4, 5, 6, 7, 8];
+            let [source, gather, second, restrict, prolong, limit, update, store, paths, vacuum] =
+                [0, 1, 2, 3, 4, 5, 6, 7, 8, 9];
             run(source, 0, 0);
             for k in 1..records.len() {
                 run(restrict, k, 0);
@@ -944,6 +946,8 @@ impl LightPass {
                 }
             }
             for k in (0..records.len()).rev() {
+                // The sun's open faces, once per level (its sources are final here).
+                run(vacuum, k, 0);
                 run(prolong, k, 0);
                 for sweep in 0..ms_sweeps(k) {
                     run(limit, k, sweep % 2);
@@ -1086,7 +1090,7 @@ impl Plan {
 /// profile read the fine level's update at 32 ms and the gathers a little above the figures
 /// here; the MS estimates are relative to each other and were left as they are.
 const VOLUME_COST: [f64; 6] = [0.0, 1.4, 0.5, 0.5, 0.5, 0.5];
-const MS_COST: [f64; 9] = [5.0, 112.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0, 60.0];
+const MS_COST: [f64; 10] = [5.0, 112.0, 12.0, 10.0, 1.0, 3.0, 9.0, 8.0, 60.0, 9.0];
 
 /// Which pipeline a step runs: `LightPass::passes[k]` or `ms_passes[k]`.
 #[derive(Debug, Clone, Copy)]
