@@ -204,13 +204,17 @@ fn lit_scattered(P: VdbLitPlace, ray: VdbRay, sa: f32, len: f32, q: vec3<f32>, r
     if ({{SHADING}}.octaves == 0u) {
         // The diffusion model: single scattering plus the solve's sun (with the once-scattered
         // light below its cells where the near field was walked); the solve's sky.
+        // Two frames lit by one light volume (a light stride's span: `Instance::light_stride`)
+        // read it once: the lerp of a value with itself.
+        let one_light = all(P.lv_dims0 == P.lv_dims1) && all(P.lv_lo0 == P.lv_lo1);
+        let reads = select(frames, 1u, one_light);
         var d = array<vec2<f32>, 2>(vec2<f32>(0.0), vec2<f32>(0.0));
-        for (var f = 0u; f < frames; f++) {
+        for (var f = 0u; f < reads; f++) {
             let one = f == 1u;
             d[f] = lit_diffuse(select(P.lv_lo0, P.lv_lo1, one), select(P.lv_dims0, P.lv_dims1, one), q, eye);
         }
         var diffuse = d[0];
-        if (a > 0.0) {
+        if (a > 0.0 && reads == 2u) {
             diffuse = mix(d[0], d[1], a);
         }
         sun = (*ph)[0] * direct_mean

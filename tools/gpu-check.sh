@@ -91,6 +91,12 @@ for name in "${assets[@]}"; do
             --light-ahead 2 --instances "$COUNTS" --frames 60 --runs 10 --json \
             >"$OUT/$name-ahead2-full.json" || exit 1
         runs+=("$name-ahead2-full")
+        # One light volume per two flip-book frames while playing (`--light-stride 2`): half
+        # the builds, its playing error against each frame's exact light.
+        "$VDBCOOK" bench "$OUT/$name.vdbc" --width "$W" --height "$H" --modes lit \
+            --light-stride 2 --instances "$COUNTS" --frames 60 --runs 10 --json \
+            >"$OUT/$name-stride2-full.json" || exit 1
+        runs+=("$name-stride2-full")
     fi
 done
 python3 - "$OUT" "${runs[@]}" <<'PY'
@@ -101,7 +107,7 @@ adapter = next(iter(docs.values()))["adapter"]
 slug = re.sub(r"[^a-z0-9]+", "-", adapter.lower()).strip("-")[:60]
 clocks = sorted({d["clock"] for d in docs.values()})
 lines = [f"# `vdbcook bench` on {adapter}", "",
-         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp. The `-gather0` rows build light volumes without the gathered orders (`--ms-gather 0`): their playing mean against the default's is what the gather costs (0.4 builds per displayed frame). The `-ahead2` rows build each next frame's light volume over the two displayed frames before it (`--light-ahead 2`): compare their playing max (the worst displayed frame) with the default's. Light build: what building the static frame's light volumes adds to a displayed frame (lit; every instance's volume).", "",
+         f"{datetime.date.today()}, `just gpu-check` (tools/gpu-check.sh); clock: {', '.join(clocks)}. GPU ms per displayed frame (the timestamp span from before the drawer's prepare to after its passes: light-volume builds included), median; the mean while playing is the amortized cost; draw: the drawer's passes alone. Playing: the flip-book at 24 fps shown at 60 fps. Error: the playing path against a fresh drawer (largest relative RMSE of three frames). March: full (a ray per pixel), half or quarter (a ray per 2×2 or 4×4 block away from depth edges, upsampled; `MarchResolution`), with its static frame's relative RMSE against the full march. Lit crossfades lerp both frames per sample (the default) except in the `-dither` rows (`--lit-crossfade dither`: one frame per sample), whose crossfade error is their playing frames' relative RMSE against the lerp. The `-gather0` rows build light volumes without the gathered orders (`--ms-gather 0`): their playing mean against the default's is what the gather costs (0.4 builds per displayed frame). The `-ahead2` rows build each next frame's light volume over the two displayed frames before it (`--light-ahead 2`): compare their playing max (the worst displayed frame) with the default's. The `-stride2` rows light the playing flip-book by one light volume per two frames (`--light-stride 2`): half the builds, their playing error against each frame's exact light. Light build: what building the static frame's light volumes adds to a displayed frame (lit; every instance's volume).", "",
          "| asset | size | march | mode | instances | static ms | playing ms | playing mean ms | playing max ms | playing draw ms | playing / static | light build ms | playing error | vs full march | crossfade error |",
          "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
 def num(v, f=".2f"):

@@ -13,9 +13,11 @@
 //!   frame): median and mean (the amortized cost).
 //!
 //! and the image error of the playing path: three displayed frames (a third, two thirds and the
-//! end of the run) against the same view and time drawn by a fresh drawer (no light volume or
-//! pipeline carried over), the largest relative RMSE over RGB: what any shortcut of the playing
-//! path costs (today's builds every light volume exactly: 0 up to f16 rounding).
+//! end of the run; with `--light-stride N`, also the N − 1 flip-book frames after each) against
+//! the same view and time drawn by a fresh drawer (no light volume or pipeline carried over)
+//! with each frame's own light, the largest relative RMSE over RGB: what
+//! any shortcut of the playing path costs (0 up to f16 rounding when every light volume is
+//! built exactly; `--light-stride N`'s light of every N-th frame is such a shortcut).
 
 use std::path::PathBuf;
 
@@ -67,6 +69,13 @@ pub struct Args {
     /// (compare `playing_max_ms`). 2 suits 24 fps under 60.
     #[arg(long, default_value_t = 0, value_name = "N")]
     light_ahead: u32,
+    /// While playing, light the flip-book's frames in spans of N, one light volume a span built
+    /// from its middle frame (`Instance::light_stride`; 1, the default: every frame its own
+    /// light): N times fewer light builds, for light up to N/2 frames off. `playing_error` is
+    /// then the playing frames' relative RMSE against each frame's exact light; the static
+    /// frames (a paused effect) keep their exact light.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    light_stride: u32,
     /// Rays the drawer marches: full (one per pixel), half or quarter (one per 2×2 or 4×4 block
     /// away from depth edges, upsampled: `MarchResolution`); with half or quarter,
     /// `resolution_error` is the static frame's relative RMSE against the full-resolution draw.
@@ -124,6 +133,9 @@ fn check(a: &Args) -> Result<(), CliError> {
     }
     if a.light_ahead > 1000 {
         return usage(format!("--light-ahead {}: 0..=1000", a.light_ahead));
+    }
+    if !(1..=1000).contains(&a.light_stride) {
+        return usage(format!("--light-stride {}: 1..=1000", a.light_stride));
     }
     if !(1..=100_000).contains(&a.frames) || !(1..=100_000).contains(&a.runs) {
         return usage(format!(
@@ -288,7 +300,7 @@ mod imp {
         drawer: &mut VolumeDrawer,
         clocks: Option<&Clocks>,
         s: &Scene,
-        time: f32,
+        (time, light_stride): (f32, u32),
         shading: &Shading,
         read: bool,
     ) -> Result<(Timing, Option<Vec<f32>>), CliError> {
@@ -299,6 +311,7 @@ mod imp {
             .iter()
             .map(|&p| Instance {
                 time,
+                light_stride,
                 ..Instance::at(p)
             })
             .collect();
@@ -511,17 +524,17 @@ mod imp {
                 // up: with the compile inside the warm-up, an H100 showed each mode's first
                 // configuration up to 3.8 times slower static than playing the same frame).
                 let c = clocks.as_ref();
-                frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
+                frame(&gpu, &mut drawer, c, &s, (0.0, 1), &shading, false)?;
                 let warm = std::time::Instant::now();
                 loop {
-                    frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
+                    frame(&gpu, &mut drawer, c, &s, (0.0, 1), &shading, false)?;
                     if warm.elapsed() >= WARM_UP {
                         break;
                     }
                 }
                 let mut statics = Vec::new();
                 for _ in 0..a.runs {
-                    let (t, _) = frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?;
+                    let (t, _) = frame(&gpu, &mut drawer, c, &s, (0.0, 1), &shading, false)?;
                     statics.push(t);
                 }
                 // One build of the static frame's light volumes (lit): frame 0 drawn again after
@@ -532,7 +545,7 @@ mod imp {
                     let mut t = Vec::new();
                     for _ in 0..a.runs {
                         drawer.invalidate_light_volumes();
-                        t.push(frame(&gpu, &mut drawer, c, &s, 0.0, &shading, false)?.0);
+                        t.push(frame(&gpu, &mut drawer, c, &s, (0.0, 1), &shading, false)?.0);
                     }
                     Some(summary(&t))
                 } else {
@@ -564,7 +577,15 @@ mod imp {
                         builds_before = drawer.light_builds().built;
                     }
                     let read = k > 0 && checks.contains(&k);
-                    let (timing, img) = frame(&gpu, &mut drawer, c, &s, t, &shading, read)?;
+                    let (timing, img) = frame(
+                        &gpu,
+                        &mut drawer,
+                        c,
+                        &s,
+                        (t, a.light_stride),
+                        &shading,
+                        read,
+                    )?;
                     if k > 0 {
                         playing.push(timing);
                     }
@@ -574,12 +595,31 @@ mod imp {
                 }
                 // Light volumes built per timed displayed frame (the rest were reused or copied).
                 let builds = (drawer.light_builds().built - builds_before) as f64 / a.frames as f64;
-                // The same views and times drawn from nothing: a fresh drawer each.
+                // With a light stride, also the stride − 1 flip-book frames after each kept one
+                // (drawn by the playing drawer, whose light for a time depends on that time alone),
+                // so that every frame's place in its span is checked, not only the spans' middle
+                // frames that the checkpoints may all fall on.
+                let mut checked = kept.clone();
+                for (t, _) in &kept {
+                    for j in 1..a.light_stride.min(frames as u32) {
+                        let span = if hold { frames } else { frames - 1.0 };
+                        let t = ((*t as f64 + j as f64) % span) as f32;
+                        let stride = (t, a.light_stride);
+                        let (_, img) = frame(&gpu, &mut drawer, None, &s, stride, &shading, true)?;
+                        checked.push((t, img.unwrap_or_default()));
+                    }
+                }
+                // The same views and times drawn from nothing: a fresh drawer each, every frame
+                // its own light.
                 let mut error = 0.0f64;
-                for (t, img) in &kept {
+                for (t, img) in &checked {
                     let mut fresh = fresh_drawer(resolution, light)?;
-                    let (_, exact) = frame(&gpu, &mut fresh, None, &s, *t, &shading, true)?;
-                    error = worse(error, exact.map_or(f64::NAN, |x| rel_rmse(img, &x)));
+                    let (_, exact) = frame(&gpu, &mut fresh, None, &s, (*t, 1), &shading, true)?;
+                    let e = match exact {
+                        Some(x) if img.len() == x.len() => rel_rmse(img, &x),
+                        _ => f64::NAN,
+                    };
+                    error = worse(error, e);
                 }
                 // A dithered lit crossfade against the lerp of both frames, at the same
                 // times (only where some kept time falls between two frames). One drawer draws
@@ -591,7 +631,15 @@ mod imp {
                     let mut lerp = fresh_drawer(resolution, LitCrossfade::Lerp)?;
                     let mut worst = 0.0f64;
                     for (t, img) in &kept {
-                        let (_, want) = frame(&gpu, &mut lerp, None, &s, *t, &shading, true)?;
+                        let (_, want) = frame(
+                            &gpu,
+                            &mut lerp,
+                            None,
+                            &s,
+                            (*t, a.light_stride),
+                            &shading,
+                            true,
+                        )?;
                         worst = worse(worst, want.map_or(f64::NAN, |x| rel_rmse(img, &x)));
                     }
                     Some(worst)
@@ -613,7 +661,7 @@ mod imp {
                         })?;
                         crate::render::write_png(&dir.join(name), a.width, a.height, &rgba)
                     };
-                    let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
+                    let (_, img) = frame(&gpu, &mut drawer, None, &s, (0.0, 1), &shading, true)?;
                     if let Some(img) = img {
                         write(format!("{mode_name}-{n}-{}.png", a.march_resolution), &img)?;
                     }
@@ -628,9 +676,9 @@ mod imp {
                 }
                 // The reduced-resolution march against the full one, static frame (same view).
                 let resolution_error = if resolution != MarchResolution::Full {
-                    let (_, img) = frame(&gpu, &mut drawer, None, &s, 0.0, &shading, true)?;
+                    let (_, img) = frame(&gpu, &mut drawer, None, &s, (0.0, 1), &shading, true)?;
                     let mut full = fresh_drawer(MarchResolution::Full, light)?;
-                    let (_, exact) = frame(&gpu, &mut full, None, &s, 0.0, &shading, true)?;
+                    let (_, exact) = frame(&gpu, &mut full, None, &s, (0.0, 1), &shading, true)?;
                     match (img, exact) {
                         (Some(i), Some(x)) => Some(rel_rmse(&i, &x)),
                         _ => None,
@@ -685,6 +733,7 @@ mod imp {
                 "blend": a.blend,
                 "lit_crossfade": a.lit_crossfade,
                 "light_ahead": a.light_ahead,
+                "light_stride": a.light_stride,
                 "march_resolution": a.march_resolution,
                 "frames": a.frames,
                 "runs": a.runs,

@@ -27,8 +27,8 @@ use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
 use vdbcook_scene::{
-    light_dirs, Affine, DiffusionInputs, Integrator, LightGrid, Lighting, Medium, Mode, MsModel,
-    RenderSettings, MAX_SIDE,
+    light_dirs, light_span, Affine, DiffusionInputs, Integrator, LightGrid, Lighting, Medium, Mode,
+    MsModel, RenderSettings, MAX_SIDE,
 };
 
 use std::sync::Arc;
@@ -298,6 +298,15 @@ impl ViewRays {
 /// absorption) and which colour (`tint` ≥ 0: the flat-lit radiance is `tint·(1 − T)`). On a
 /// volume set ([`GpuVolume::upload_set`]) `asset` picks the asset (its index in the set; 0 for
 /// a volume of one asset); `time` counts that asset's frames.
+///
+/// `light_stride` (lit instances; 0 or 1, the default: every frame's own light) lights the
+/// flip-book's frames in spans of `n`: frames `[k·n, k·n + n)` share one light volume, built from
+/// the span's middle frame over the span's joint content box, so a playing effect builds a light
+/// volume every `n` frames instead of every frame. The near field toward the sun is still walked
+/// through the drawn frame; the light volume's far shadow and multiple scattering lag or lead
+/// by up to `n / 2` frames (`vdbcook bench --light-stride N` states the image error beside the
+/// time). Set it while an effect plays and back to 1 when it stops: a still frame then gets
+/// its exact light (`docs/engine.md` §6, "Light every n frames").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Instance {
     pub world_from_volume: Affine3A,
@@ -305,6 +314,7 @@ pub struct Instance {
     pub density_scale: f32,
     pub tint: Vec3,
     pub asset: usize,
+    pub light_stride: u32,
 }
 
 impl Default for Instance {
@@ -315,6 +325,7 @@ impl Default for Instance {
             density_scale: 1.0,
             tint: Vec3::ONE,
             asset: 0,
+            light_stride: 1,
         }
     }
 }
@@ -1230,8 +1241,10 @@ impl VolumeDrawer {
                 let extinction = k * inst.density_scale as f64;
                 // A light volume per frame of the crossfade, in the instance's cell space; the
                 // bases hold their indices in `volumes` until `prepare` places them.
-                let grids = [f0, f1]
-                    .map(|f| LightGrid::with_levels(meta.content[f], l.light_res, meta.lod().0));
+                // (With a light stride, the light of each frame's span.)
+                let lit_by = [f0, f1].map(|f| light_span(f, inst.light_stride, &meta.content));
+                let grids =
+                    lit_by.map(|(_, b)| LightGrid::with_levels(b, l.light_res, meta.lod().0));
                 // The light volume of frame `f` over `grid`, and (only for a volume not listed
                 // yet) its diffusion inputs.
                 let volume = |grid: &LightGrid, f: usize| {
@@ -1262,8 +1275,10 @@ impl VolumeDrawer {
                     })
                 };
                 let mut idx = [0u32; 2];
+                let mut pair = Vec::with_capacity(2);
                 for (n, grid) in grids.iter().enumerate() {
-                    let lp = volume(grid, [f0, f1][n]);
+                    let lp = volume(grid, lit_by[n].0);
+                    pair.push(lp);
                     idx[n] = volumes
                         .volumes
                         .iter()
@@ -1274,14 +1289,17 @@ impl VolumeDrawer {
                             volumes.volumes.len() - 1
                         }) as u32;
                 }
-                // The flip-book frame after the pair (the first after the last: effects loop),
-                // which a drawer building light ahead builds next.
-                let next = (f1 + 1) % meta.frames;
-                if self.light_ahead > 0 && next != f1 && next != f0 {
-                    let grid =
-                        LightGrid::with_levels(meta.content[next], l.light_res, meta.lod().0);
-                    let lp = volume(&grid, next);
-                    if !ahead.volumes.contains(&lp) {
+                // The flip-book frame after the pair (the first after the last: effects loop;
+                // with a light stride, the first frame of the next span), whose light a drawer
+                // building light ahead builds next.
+                let n = inst.light_stride.max(1) as usize;
+                let next = (f1 / n + 1).saturating_mul(n);
+                let next = if next >= meta.frames { 0 } else { next };
+                if self.light_ahead > 0 {
+                    let (key, b) = light_span(next, inst.light_stride, &meta.content);
+                    let grid = LightGrid::with_levels(b, l.light_res, meta.lod().0);
+                    let lp = volume(&grid, key);
+                    if !pair.contains(&lp) && !ahead.volumes.contains(&lp) {
                         ahead.volumes.push(lp);
                         ahead.diffusion.push(inputs(&grid));
                     }

@@ -18,6 +18,7 @@ use vdbcook_runtime::{
     DrawTarget, Filter, GpuVolume, Instance, LitCrossfade, MarchResolution, RuntimeError, Shading,
     View, ViewRays, VolumeDrawer, DRAW_DEPTH_FORMATS,
 };
+use vdbcook_scene::content_box;
 use vdbcook_trace::{
     Camera, Integrator, LengthUnit, Lighting, Medium, MsModel, Output, RenderSettings, Scratch,
     Tracer,
@@ -1758,6 +1759,95 @@ fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
     }
     let counts = both.light_builds();
     assert!(counts.ahead >= 4, "two lights: {counts:?}");
+}
+
+/// A light stride (`Instance::light_stride`, issue 34 item 2: a playing effect lit by one light
+/// volume per span of frames). The 3-frame cloud at stride 3 is one span, lit by frame 1's light
+/// volume over the union of the three frames' content boxes: each frame drawn so matches the
+/// CPU's lit mode of that frame with its light taken from frame 1 over that box
+/// (`Tracer::with_light_from`, the box taken here from `content_box` of each frame), in both
+/// multiple-scattering models, and frames 0 and 2 visibly differ from their exact light (so the
+/// test sees the stride). The span builds one light volume for its three frames; stopped
+/// (stride 1) the drawer builds the frame's own volume and draws what a fresh drawer draws, bit
+/// for bit.
+/// A cell-space box `(lo, hi)`.
+type Box3 = ([f64; 3], [f64; 3]);
+
+#[test]
+fn a_light_stride_lights_a_span_from_its_middle_frame() {
+    let Some(gpu) = Gpu::new("a_light_stride_lights_a_span_from_its_middle_frame") else {
+        return;
+    };
+    let asset = cloud(PayloadFormat::F32);
+    let f = gpu.frame();
+    let (view, cam) = framing_view(&asset);
+    let rays = view.rays().unwrap();
+    let boxes: Vec<_> = (0..3).map(|k| content_box(&asset, k).unwrap()).collect();
+    let union = (
+        [0, 1, 2].map(|k| boxes.iter().map(|b| b.0[k]).fold(f64::INFINITY, f64::min)),
+        [0, 1, 2].map(|k| {
+            boxes
+                .iter()
+                .map(|b| b.1[k])
+                .fold(f64::NEG_INFINITY, f64::max)
+        }),
+    );
+    assert!(
+        boxes.iter().all(|b| *b != union),
+        "the frames' boxes differ"
+    );
+    for ms_model in [MsModel::Diffusion, MsModel::Octaves] {
+        let medium = lit_with(ms_model);
+        let cpu = |frame: usize, light: Option<(usize, Option<Box3>)>| {
+            let base = medium.settings();
+            let s = RenderSettings {
+                output: Output {
+                    frame,
+                    ..base.output
+                },
+                ..base
+            };
+            let tracer = Tracer::with_light_from(&asset, &cam, &s, light).unwrap();
+            let mut scratch = Scratch::default();
+            let mut out = Vec::new();
+            for y in 0..H {
+                for x in 0..W {
+                    let (o, d) = rays.ray(x, y);
+                    let px = tracer.trace(o.into(), d.into(), y * W + x, &mut scratch);
+                    let r = px.rgba;
+                    out.push([r[0] as f64, r[1] as f64, r[2] as f64, px.value as f64]);
+                }
+            }
+            out
+        };
+        let (_vol, mut drawer) = setup(&gpu, &asset);
+        for frame in [0usize, 1, 2] {
+            let inst = [Instance {
+                time: frame as f32,
+                light_stride: 3,
+                ..Default::default()
+            }];
+            let g = gpu.draw(&mut drawer, &f, &view, &inst, &medium, BG, None);
+            let what = format!("{ms_model:?}, frame {frame} at stride 3");
+            assert_matches(&what, &g, &cpu(frame, Some((1, Some(union)))), 2.0 * TOL);
+            if frame != 1 {
+                let (d, at) = max_diff(&g, &cpu(frame, None), BG);
+                eprintln!("{what}: against its exact light {d:.2e} {at}");
+                assert!(d > 10.0 * TOL, "{what}: the stride shows ({d})");
+            }
+        }
+        assert_eq!(
+            drawer.light_builds().built,
+            1,
+            "{ms_model:?}: one volume a span"
+        );
+        // Stopped: the frame's own light, as a fresh drawer draws it.
+        let got = gpu.draw(&mut drawer, &f, &view, &at_time(2.0), &medium, BG, None);
+        assert_eq!(drawer.light_builds().built, 2, "{ms_model:?}: stopped");
+        let (_vol2, mut fresh) = setup(&gpu, &asset);
+        let want = gpu.draw(&mut fresh, &f, &view, &at_time(2.0), &medium, BG, None);
+        assert!(got == want, "{ms_model:?}: stopped, the exact light");
+    }
 }
 
 /// `LitCrossfade::Dither` takes each sample (density and light) from one frame: frame 1 where

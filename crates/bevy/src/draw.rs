@@ -200,6 +200,11 @@ pub fn prepare_volume_draws(
                 density_scale: v.density_scale,
                 tint: v.tint,
                 asset: 0,
+                light_stride: if v.playing {
+                    vc.settings.light_stride
+                } else {
+                    1
+                },
             };
             match groups
                 .iter_mut()

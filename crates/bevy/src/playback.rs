@@ -74,6 +74,19 @@ pub fn drawn_time(p: &VdbPlayback, frames: usize) -> f32 {
     }
 }
 
+/// Whether `p` moves through a flip-book of `frames` frames (not paused, a finite non-zero
+/// rate, more than one frame, and under [`PlayMode::Once`] not stopped at the end it heads for):
+/// the instance's light may then come from every n-th frame (`VolumeCamera::light_stride`), and
+/// a still one gets its exact light.
+pub fn playing(p: &VdbPlayback, frames: usize) -> bool {
+    let rate = p.fps * p.speed;
+    if p.paused || frames < 2 || !rate.is_finite() || rate == 0.0 {
+        return false;
+    }
+    let (t, last) = (finite_time(p), (frames - 1) as f32);
+    !(p.mode == PlayMode::Once && (rate > 0.0 && t >= last || rate < 0.0 && t <= 0.0))
+}
+
 /// Advances every volume's playback by `Time::delta_secs()` (the virtual clock in `Update`).
 pub fn advance_playback(
     time: Res<Time>,
@@ -181,5 +194,30 @@ mod tests {
         advance(&mut p, f32::INFINITY, 10);
         assert_eq!(p.time, 0.0);
         assert_eq!(drawn_time(&p, 0), 0.0);
+    }
+
+    #[test]
+    fn playing_is_moving_through_frames() {
+        let p = play(PlayMode::Loop);
+        assert!(playing(&p, 10));
+        assert!(!playing(&p, 1), "one frame: nothing to move through");
+        let paused = VdbPlayback {
+            paused: true,
+            ..p.clone()
+        };
+        assert!(!playing(&paused, 10));
+        let still = VdbPlayback {
+            speed: 0.0,
+            ..p.clone()
+        };
+        assert!(!playing(&still, 10));
+        // Once: stopped at the end it heads for, playing from the other.
+        let mut once = play(PlayMode::Once);
+        advance(&mut once, 100.0, 10);
+        assert!(!playing(&once, 10));
+        once.speed = -1.0;
+        assert!(playing(&once, 10));
+        advance(&mut once, 100.0, 10);
+        assert!(!playing(&once, 10));
     }
 }

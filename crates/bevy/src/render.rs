@@ -21,7 +21,7 @@ use vdbcook_runtime::{fire_convention, glam as rt, Emission, GpuVolume};
 use crate::asset::VdbAsset;
 use crate::component::{VdbPlayback, VdbVolume, VolumeCamera, VolumeEmission, VolumeShading};
 use crate::convert::{self, SceneLight};
-use crate::playback::drawn_time;
+use crate::playback::{drawn_time, playing};
 
 /// One instance as the draw needs it, in the runtime's terms.
 #[derive(Clone, Debug)]
@@ -34,6 +34,9 @@ pub struct ExtractedVolume {
     pub tint: rt::Vec3,
     pub emission: VolumeEmission,
     pub emission_scale: f32,
+    /// Whether its flip-book moves (`playback::playing`): its light may then come from every
+    /// n-th frame (`VolumeCamera::light_stride`).
+    pub playing: bool,
 }
 
 /// This frame's visible instances (rebuilt every frame: instances cost no render entities).
@@ -109,6 +112,7 @@ pub fn extract_volumes(
             tint: rt::Vec3::from_array(volume.tint.to_array()),
             emission: volume.emission.clone(),
             emission_scale: volume.emission_scale,
+            playing: playing(playback, asset.frame_count()),
         });
     }
 }

@@ -15,6 +15,41 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
     content_box_above(asset, frame, 0, 0.0)
 }
 
+/// The light a frame gets under a light stride of `n` (the engine drawer's
+/// `Instance::light_stride`: a playing effect lit by one light volume per `n` frames): frame
+/// `f` of a flip-book whose frames have the content boxes `boxes` lies in the span
+/// `[k·n, k·n + n)` (cut at the last frame), lit by the light volume of the span's middle frame
+/// (`k·n + (len − 1)/2`, the earlier of two middles) over the union of the span's boxes, so that
+/// every frame of the span lies inside it. Returns that frame and box; `n ≤ 1` gives `f` and its
+/// own box.
+#[allow(clippy::type_complexity)]
+pub fn light_span(
+    f: usize,
+    n: u32,
+    boxes: &[Option<([f64; 3], [f64; 3])>],
+) -> (usize, Option<([f64; 3], [f64; 3])>) {
+    let n = n.max(1) as usize;
+    if n == 1 || f >= boxes.len() {
+        return (f, boxes.get(f).copied().flatten());
+    }
+    let start = f / n * n;
+    let end = (start + n).min(boxes.len());
+    type Box3 = ([f64; 3], [f64; 3]);
+    let union = boxes[start..end]
+        .iter()
+        .flatten()
+        .fold(None::<Box3>, |acc, b| {
+            Some(match acc {
+                None => *b,
+                Some((lo, hi)) => (
+                    [0, 1, 2].map(|k| f64::min(lo[k], b.0[k])),
+                    [0, 1, 2].map(|k| f64::max(hi[k], b.1[k])),
+                ),
+            })
+        });
+    (start + (end - start - 1) / 2, union)
+}
+
 /// [`content_box`] of channel `c` with values `≤ floor` counting as nothing (an emission
 /// channel's box: where it glows).
 pub fn content_box_above(
@@ -117,5 +152,39 @@ pub fn for_each_slot_max_c(
             };
             f(w, bit, v);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::light_span;
+
+    #[test]
+    fn a_light_span_is_its_middle_frame_over_its_joint_box() {
+        let b = |x: f64| Some(([x, 0.0, 0.0], [x + 1.0, 2.0, 3.0]));
+        let boxes = [b(0.0), b(4.0), None, b(-2.0), b(1.0), b(7.0), b(3.0)];
+        // Stride 1 (and 0): the frame's own light.
+        for n in [0, 1] {
+            for f in 0..boxes.len() {
+                assert_eq!(light_span(f, n, &boxes), (f, boxes[f]));
+            }
+        }
+        // Stride 3: spans [0, 3), [3, 6), [6, 7); middles 1, 4, 6.
+        let want = |key: usize, lo: f64, hi: f64| (key, Some(([lo, 0.0, 0.0], [hi, 2.0, 3.0])));
+        for f in 0..3 {
+            assert_eq!(light_span(f, 3, &boxes), want(1, 0.0, 5.0), "frame {f}");
+        }
+        for f in 3..6 {
+            assert_eq!(light_span(f, 3, &boxes), want(4, -2.0, 8.0), "frame {f}");
+        }
+        assert_eq!(light_span(6, 3, &boxes), want(6, 3.0, 4.0));
+        // Stride 2: the earlier middle of an even span; an empty frame's span keeps the other's box.
+        assert_eq!(light_span(1, 2, &boxes), want(0, 0.0, 5.0));
+        assert_eq!(light_span(2, 2, &boxes), want(2, -2.0, -1.0));
+        // Past the asset: the frame alone, no box.
+        assert_eq!(light_span(9, 2, &boxes), (9, None));
+        // A stride longer than the asset: one span.
+        assert_eq!(light_span(6, 100, &boxes), want(3, -2.0, 8.0));
+        assert_eq!(light_span(0, 2, &[None, None]), (0, None));
     }
 }

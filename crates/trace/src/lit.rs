@@ -67,8 +67,8 @@
 use rayon::prelude::*;
 pub use vdbcook_scene::LIT_NEAR_TRANS;
 use vdbcook_scene::{
-    content_box, light_dirs, near_scatter_source, normalize, octave_source, sky_diffusion,
-    sky_source, sun_pass_stop, transport_density, Affine, Filter, LevelChain, LightGrid, MsModel,
+    light_dirs, near_scatter_source, normalize, octave_source, sky_diffusion, sky_source,
+    sun_pass_stop, transport_density, Affine, Filter, LevelChain, LightGrid, MsModel,
     RenderSettings, LIT_NEAR_DEPTH, MAX_MS_OCTAVES, MAX_SUB,
 };
 
@@ -109,17 +109,19 @@ pub struct LightVolume {
 
 impl LightVolume {
     /// Builds the light volume of the frame `frame` walks (its `Grid`, which the sun pass
-    /// walks where the density pass reads full resolution) for the settings' light and medium
-    /// (`extinction` = absorb + scatter).
+    /// walks where the density pass reads full resolution) over `bbox` (the frame's content
+    /// box; a span's joint box under a light stride, `Tracer::with_light_from`) for the
+    /// settings' light and medium (`extinction` = absorb + scatter).
     pub(crate) fn build(
         frame: &Grid,
+        bbox: Option<([f64; 3], [f64; 3])>,
         xf: &Affine,
         s: &RenderSettings,
         extinction: f64,
     ) -> LightVolume {
         let (asset, walked, frame) = (frame.asset, frame, frame.frame);
         let chain = LevelChain::of(asset);
-        let grid = LightGrid::with_levels(content_box(asset, frame), s.lighting.light_res, chain);
+        let grid = LightGrid::with_levels(bbox, s.lighting.light_res, chain);
         let [nx, ny, _] = grid.dims.map(|d| d as usize);
         let slab = nx * ny;
         let n = grid.cells();

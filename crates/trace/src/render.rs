@@ -104,7 +104,33 @@ impl<'a> Tracer<'a> {
         camera: &Camera,
         settings: &RenderSettings,
     ) -> Result<Tracer<'a>, TraceError> {
+        Self::with_light_from(asset, camera, settings, None)
+    }
+
+    /// [`Tracer::new`] whose lit mode takes its light volume from frame `light.0` over the
+    /// cell-space box `light.1` (`None`: the output frame's own light over its content box):
+    /// what the engine drawer draws for an instance with a light stride
+    /// (`vdbcook_scene::light_span`), the light of a span's middle frame over the span's joint
+    /// box. The march, its near field and emission read the output frame.
+    #[allow(clippy::type_complexity)]
+    pub fn with_light_from(
+        asset: &'a Asset,
+        camera: &Camera,
+        settings: &RenderSettings,
+        light: Option<(usize, Option<([f64; 3], [f64; 3])>)>,
+    ) -> Result<Tracer<'a>, TraceError> {
         settings.validate(asset.frame_count())?;
+        let light = light.unwrap_or_else(|| {
+            let f = settings.output.frame;
+            (f, vdbcook_scene::content_box(asset, f))
+        });
+        if light.0 >= asset.frame_count() {
+            return Err(TraceError::Setting(format!(
+                "light frame {} is not in the asset ({} frame(s))",
+                light.0,
+                asset.frame_count()
+            )));
+        }
         camera.basis(settings.output.width, settings.output.height)?;
         let mut settings = settings.clone();
         let mut channel_emission = None;
@@ -150,8 +176,11 @@ impl<'a> Tracer<'a> {
         let depth_range = depth_range(&xf, bbox, camera.eye);
         let value_max = asset.frame_range(settings.output.frame, 0)[1];
         let grid = Grid::new(asset, settings.output.frame);
-        let light = (settings.integrator.mode == Mode::Lit)
-            .then(|| LightVolume::build(&grid, &xf, settings, extinction));
+        let light = (settings.integrator.mode == Mode::Lit).then(|| {
+            let other = (light.0 != settings.output.frame).then(|| Grid::new(asset, light.0));
+            let of = other.as_ref().unwrap_or(&grid);
+            LightVolume::build(of, light.1, &xf, settings, extinction)
+        });
         let levels = if settings.integrator.mode == Mode::Lit && settings.integrator.primary_lod {
             // Primary rays by footprint read one level per octave: the levels from full
             // resolution on that skip none (none above it in a `--lod-from` asset).
