@@ -289,9 +289,10 @@ struct MsParams {
 // per field: `3·sr + |∇φ|/φ`, the resistance along axis a being ½·h_a times it), the sun's
 // open faces [9n, 15n) (`ms_vacuum_main`: per axis the face's resistance less the cell's half
 // and the far side's φ, six per cell). Before the solve the gather keeps each level's
-// beam sources in the resistances' place, [7n, 12n) (five per cell:
-// `vdbcook_trace::diffusion`'s `Level::beam`), level 0's second-order φ in the last
-// resistance's, [12n, 13n), and each level's shared gather paths (`ms_paths_main`, `mp.paths`)
+// beam sources in the resistances' and open faces' place, [7n, 12n) (five per cell:
+// `vdbcook_trace::diffusion`'s `Level::beam`), level 0's second-order φ in [12n, 13n) (both
+// over before `ms_vacuum_main` writes there), and each level's shared gather paths
+// (`ms_paths_main`, `mp.paths`)
 // in the φ A and φ B place, [3n, 7n), of the level below where they fit (else after the
 // levels); the gathered light of both orders (φ, then J per axis) waits in the first four of
 // the cell's six output words in `lv_ms_out` (`ms_gathered`), which `ms_store_main` reads
@@ -611,7 +612,7 @@ fn ms_second_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n = ms_cells(dims);
     let o = mp.off.x;
     // The order just gathered: the first alone is in the gathered sum; of the second only its
-    // φ is read, which `ms_gather_main` left in the last resistance's place.
+    // φ is read, which `ms_gather_main` left at [12n, 13n) (the open faces' place later).
     var g = vec4<f32>(0.0);
     if (mp.dims.w == 1u) {
         g.x = lv_ms[o + 12u * n + i];
@@ -653,8 +654,8 @@ fn ms_restrict_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cn = ms_cells(cd);
     let co = mp.off.y;
     var acc = vec3<f32>(0.0);
-    // The gather's beams too (before the solve they sit in the resistances' place, which the
-    // solve's `ms_limit_main` writes before it reads).
+    // The gather's beams too (before the solve they sit in the resistances' and open faces'
+    // place, which the solve's `ms_vacuum_main` and `ms_limit_main` write before they are read).
     var beam = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
     for (var k = 0u; k < 8u; k++) {
         let c = 2u * gid + vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u);

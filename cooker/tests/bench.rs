@@ -161,6 +161,55 @@ fn bench_builds_each_frames_light_volume_about_once() {
     }
 }
 
+/// `--light-stride 2` (whole frames): the JSON says so, the playing path builds fewer light
+/// volumes than with every frame's own light, and its playing error, now the light's, is stated
+/// and not 0 (the 5-frame smoke's blob moves about a light cell a frame), while every frame's
+/// own light reads 0 up to f16 rounding; a stride of 0 is a usage error.
+#[test]
+fn bench_light_stride_builds_less_and_states_its_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = cook_smoke(dir.path());
+    let mut runs = Vec::new();
+    for stride in ["1", "2"] {
+        let Some(doc) = bench_json(&[
+            "bench",
+            &asset,
+            "--width",
+            "48",
+            "--height",
+            "27",
+            "--modes",
+            "lit",
+            "--frames",
+            "10",
+            "--runs",
+            "1",
+            "--blend",
+            "hold",
+            "--light-stride",
+            stride,
+            "--json",
+        ]) else {
+            return;
+        };
+        assert_eq!(doc["light_stride"].to_string(), stride);
+        let r = &doc["results"][0];
+        let builds = r["playing_light_builds"].as_f64().unwrap();
+        let e = r["playing_error"].as_f64().unwrap();
+        eprintln!("stride {stride}: {builds} builds per frame, playing error {e}");
+        runs.push((builds, e));
+    }
+    let [(b1, e1), (b2, e2)] = runs[..] else {
+        panic!("two runs")
+    };
+    assert!(b2 < b1, "stride 2 builds {b2} per frame against {b1}");
+    assert!(e1 < 1e-3, "every frame's own light: {e1}");
+    assert!(e2 > 1e-3, "a stride's light is another frame's: {e2}");
+    let (code, _, err) = vdbcook(&["bench", &asset, "--light-stride", "0", "--json"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--light-stride"), "{err}");
+}
+
 /// `--march-resolution half`: the JSON says so and states the static frame's error against the
 /// full march (not 0: fewer rays; small on the smoke), `--png` writes the frame it timed.
 #[test]

@@ -1411,7 +1411,7 @@ impl VolumeDrawer {
     /// rotation or scale changes every frame (each frame then needs new volumes; up to one
     /// build a call goes unused), nor for effects played backwards or not looping (one unused
     /// build at the end). Costs a second scratch while on (the solve's, about
-    /// `light_res³ · 60` bytes, and the density's, `light_res³ · 4`); 0 frees it.
+    /// `light_res³ · 69` bytes, and the density's, `light_res³ · 4`); 0 frees it.
     /// `docs/engine.md` §6 has its figures.
     pub fn set_light_ahead(&mut self, displayed_frames: u32) {
         self.light_ahead = displayed_frames;

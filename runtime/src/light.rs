@@ -354,7 +354,7 @@ pub(crate) struct LightPass {
     /// `light_build.wgsl`'s passes in their order: density, sun, the three axes, sky.
     passes: [wgpu::ComputePipeline; 6],
     /// The diffusion solve's: source, gather, second, restrict, prolong, limit, update, store,
-    /// paths.
+    /// paths, vacuum.
     ms_passes: [wgpu::ComputePipeline; 10],
     build_layout: wgpu::BindGroupLayout,
     ms_layout: wgpu::BindGroupLayout,
@@ -1077,7 +1077,8 @@ impl Plan {
 /// Relative cost per cell of the light-volume passes (the sun's per cell and voxel of the grid's
 /// longest side, in the level the density pass reads; the three axes, sky; the density pass's is
 /// `2·sub³`, not measured) and of the
-/// diffusion passes (source, gather, second, restrict, prolong, limit, update, store, paths), by
+/// diffusion passes (source, gather, second, restrict, prolong, limit, update, store, paths,
+/// vacuum — the last not measured: taken as an update's, once per level), by
 /// which [`LightPass::ahead`] shares a build out. Measured on lavapipe, one dispatch per
 /// displayed frame of a 64³ stormscape volume (`vdbcook bench --light-ahead 1000 --fps 0.5`,
 /// the spans less the static frame; a unit ≈ 2.5 ms there): sun 49 ms, axes 0.5–2.7, sky 1.3,

@@ -1761,6 +1761,9 @@ fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
     assert!(counts.ahead >= 4, "two lights: {counts:?}");
 }
 
+/// A cell-space box `(lo, hi)`.
+type Box3 = ([f64; 3], [f64; 3]);
+
 /// A light stride (`Instance::light_stride`, issue 34 item 2: a playing effect lit by one light
 /// volume per span of frames). The 3-frame cloud at stride 3 is one span, lit by frame 1's light
 /// volume over the union of the three frames' content boxes: each frame drawn so matches the
@@ -1770,9 +1773,6 @@ fn light_built_ahead_is_the_exact_build_spread_over_displayed_frames() {
 /// test sees the stride). The span builds one light volume for its three frames; stopped
 /// (stride 1) the drawer builds the frame's own volume and draws what a fresh drawer draws, bit
 /// for bit.
-/// A cell-space box `(lo, hi)`.
-type Box3 = ([f64; 3], [f64; 3]);
-
 #[test]
 fn a_light_stride_lights_a_span_from_its_middle_frame() {
     let Some(gpu) = Gpu::new("a_light_stride_lights_a_span_from_its_middle_frame") else {
@@ -1847,6 +1847,36 @@ fn a_light_stride_lights_a_span_from_its_middle_frame() {
         let (_vol2, mut fresh) = setup(&gpu, &asset);
         let want = gpu.draw(&mut fresh, &f, &view, &at_time(2.0), &medium, BG, None);
         assert!(got == want, "{ms_model:?}: stopped, the exact light");
+        // Stride 2: spans [0, 2) (frame 0's light over frames 0 and 1's boxes) and the short
+        // last span [2, 3), which is frame 2's own light, the exact build's bits. A crossfade
+        // within the first span builds nothing more and reads one light volume.
+        let union01 = (
+            [0, 1, 2].map(|k| boxes[0].0[k].min(boxes[1].0[k])),
+            [0, 1, 2].map(|k| boxes[0].1[k].max(boxes[1].1[k])),
+        );
+        let (_vol3, mut two) = setup(&gpu, &asset);
+        let stride2 = |time: f32| {
+            [Instance {
+                time,
+                light_stride: 2,
+                ..Default::default()
+            }]
+        };
+        let g = gpu.draw(&mut two, &f, &view, &stride2(1.0), &medium, BG, None);
+        let what = format!("{ms_model:?}, frame 1 at stride 2");
+        assert_matches(&what, &g, &cpu(1, Some((0, Some(union01)))), 2.0 * TOL);
+        let half = gpu.draw(&mut two, &f, &view, &stride2(0.5), &medium, BG, None);
+        assert_eq!(
+            two.light_builds().built,
+            1,
+            "{ms_model:?}: a crossfade in one span"
+        );
+        assert!(half != g, "{ms_model:?}: the crossfade draws");
+        let last = gpu.draw(&mut two, &f, &view, &stride2(2.0), &medium, BG, None);
+        assert!(
+            last == want,
+            "{ms_model:?}: the short last span is frame 2's own light"
+        );
     }
 }
 

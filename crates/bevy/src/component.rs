@@ -139,10 +139,12 @@ pub struct VolumeCamera {
     /// a 24-fps effect on a 60-Hz display.
     pub light_ahead: u32,
     /// While a lit volume plays, lights its flip-book's frames in spans of this many frames,
-    /// one light volume each, built from the span's middle frame (0 or 1, the default: every
-    /// frame its own light). A paused or stopped volume gets its frame's exact light. 2 halves
-    /// the light builds of a playing effect, for light that lags or leads by up to a frame
-    /// (`Instance::light_stride`; `vdbcook bench --light-stride N` states the image error).
+    /// one light volume each, built from the span's middle frame (0, the default, or 1: every
+    /// frame its own light). A volume whose `VdbPlayback` is paused, still or stopped gets its
+    /// frame's exact light (a paused `Time<Virtual>` alone does not count: pause the playback
+    /// too). 2 halves the light builds of a playing effect, for light that lags or leads by up
+    /// to a frame (`Instance::light_stride`; `vdbcook bench --light-stride N` states the image
+    /// error).
     pub light_stride: u32,
 }
 

@@ -19,9 +19,10 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
 /// `Instance::light_stride`: a playing effect lit by one light volume per `n` frames): frame
 /// `f` of a flip-book whose frames have the content boxes `boxes` lies in the span
 /// `[k·n, k·n + n)` (cut at the last frame), lit by the light volume of the span's middle frame
-/// (`k·n + (len − 1)/2`, the earlier of two middles) over the union of the span's boxes, so that
-/// every frame of the span lies inside it. Returns that frame and box; `n ≤ 1` gives `f` and its
-/// own box.
+/// (`k·n + (len − 1)/2`, the earlier of two middles; where that frame is empty, the nearest
+/// frame of the span with content, the earlier on a tie) over the union of the span's boxes, so
+/// that every frame of the span lies inside it. Returns that frame and box; `n ≤ 1` gives `f`
+/// and its own box.
 #[allow(clippy::type_complexity)]
 pub fn light_span(
     f: usize,
@@ -47,7 +48,13 @@ pub fn light_span(
                 ),
             })
         });
-    (start + (end - start - 1) / 2, union)
+    let middle = start + (end - start - 1) / 2;
+    let key = (0..end - start)
+        .flat_map(|d| [middle.checked_sub(d), Some(middle + d)])
+        .flatten()
+        .find(|&g| (start..end).contains(&g) && boxes[g].is_some())
+        .unwrap_or(middle);
+    (key, union)
 }
 
 /// [`content_box`] of channel `c` with values `≤ floor` counting as nothing (an emission
@@ -178,9 +185,12 @@ mod tests {
             assert_eq!(light_span(f, 3, &boxes), want(4, -2.0, 8.0), "frame {f}");
         }
         assert_eq!(light_span(6, 3, &boxes), want(6, 3.0, 4.0));
-        // Stride 2: the earlier middle of an even span; an empty frame's span keeps the other's box.
+        // Stride 2: the earlier middle of an even span; an empty middle frame gives way to the
+        // span's frame with content (its box is the span's).
         assert_eq!(light_span(1, 2, &boxes), want(0, 0.0, 5.0));
-        assert_eq!(light_span(2, 2, &boxes), want(2, -2.0, -1.0));
+        assert_eq!(light_span(2, 2, &boxes), want(3, -2.0, -1.0));
+        // Stride 5 over [0, 5): middle 2 is empty; 1 and 3 are as near, the earlier wins.
+        assert_eq!(light_span(4, 5, &boxes), want(1, -2.0, 5.0));
         // Past the asset: the frame alone, no box.
         assert_eq!(light_span(9, 2, &boxes), (9, None));
         // A stride longer than the asset: one span.
