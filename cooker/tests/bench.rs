@@ -113,6 +113,16 @@ fn bench_reports_static_and_playing_costs_and_the_playing_error() {
     assert_eq!(doc["lit_crossfade"].as_str(), Some("dither"));
 }
 
+/// A small lit bench of `asset` playing 10 displayed frames (one static run) with `flags`.
+fn lit_playing(asset: &str, flags: &[&str]) -> Option<Value> {
+    let mut args = vec![
+        "bench", asset, "--width", "48", "--height", "27", "--modes", "lit", "--frames", "10",
+        "--runs", "1", "--json",
+    ];
+    args.extend_from_slice(flags);
+    bench_json(&args)
+}
+
 /// Playing the 5-frame smoke at 24 fps under 60 for 10 displayed frames reaches frames 2, 3 and
 /// 4 for the first time (frames 0 and 1 were built before the timed frames): with a volume a
 /// kept build holds copied rather than rebuilt, about 3 builds in 10 frames, in both blends;
@@ -123,25 +133,7 @@ fn bench_builds_each_frames_light_volume_about_once() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     for (blend, ahead) in [("crossfade", "0"), ("hold", "0"), ("crossfade", "2")] {
-        let Some(doc) = bench_json(&[
-            "bench",
-            &asset,
-            "--width",
-            "48",
-            "--height",
-            "27",
-            "--modes",
-            "lit",
-            "--frames",
-            "10",
-            "--runs",
-            "1",
-            "--blend",
-            blend,
-            "--light-ahead",
-            ahead,
-            "--json",
-        ]) else {
+        let Some(doc) = lit_playing(&asset, &["--blend", blend, "--light-ahead", ahead]) else {
             return;
         };
         assert_eq!(doc["blend"].as_str(), Some(blend));
@@ -171,25 +163,7 @@ fn bench_light_stride_builds_less_and_states_its_error() {
     let asset = cook_smoke(dir.path());
     let mut runs = Vec::new();
     for stride in ["1", "2"] {
-        let Some(doc) = bench_json(&[
-            "bench",
-            &asset,
-            "--width",
-            "48",
-            "--height",
-            "27",
-            "--modes",
-            "lit",
-            "--frames",
-            "10",
-            "--runs",
-            "1",
-            "--blend",
-            "hold",
-            "--light-stride",
-            stride,
-            "--json",
-        ]) else {
+        let Some(doc) = lit_playing(&asset, &["--blend", "hold", "--light-stride", stride]) else {
             return;
         };
         assert_eq!(doc["light_stride"].to_string(), stride);
