@@ -155,7 +155,7 @@ fn bench_builds_each_frames_light_volume_about_once() {
 
 /// `--light-stride 2` (whole frames): the JSON says so, the playing path builds fewer light
 /// volumes than with every frame's own light, and its playing error, now the light's, is stated
-/// and not 0 (the 5-frame smoke's blob moves about a light cell a frame), while every frame's
+/// and not 0 (the 5-frame smoke's blob moves every frame), while every frame's
 /// own light reads 0 up to f16 rounding; a stride of 0 is a usage error.
 #[test]
 fn bench_light_stride_builds_less_and_states_its_error() {
