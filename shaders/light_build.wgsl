@@ -773,11 +773,12 @@ fn ms_vacuum_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let up = ms_filled(c + e);
         let down = ms_filled(c - e);
         var v = vec2<f32>(0.0);
-        if (!(up.filled && down.filled)) {
+        if (up < 0 || down < 0) {
             // The inward cell of the open face (none when both are open).
             var q_in = -1.0;
-            if (up.filled != down.filled) {
-                q_in = select(down.q, up.q, up.filled);
+            let inward = max(up, down);
+            if (inward >= 0) {
+                q_in = lv_ms[o + 2u * n + u32(inward)];
             }
             let h = mp.h[a];
             v = ms_vacuum_face(h, st, sr, lv_ms[o + 2u * n + i], q_in, -1.5 * h * sr);
@@ -787,17 +788,16 @@ fn ms_vacuum_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-// Whether cell `c` lies in the level and is filled, and its source q (−1 when not).
-fn ms_filled(c: vec3<i32>) -> MsFilled {
+// Cell `c`'s index when it lies in the level and is filled, else −1.
+fn ms_filled(c: vec3<i32>) -> i32 {
     let dims = mp.dims.xyz;
     if (all(c >= vec3<i32>(0)) && all(vec3<u32>(c) < dims)) {
-        let n = ms_cells(dims);
         let k = lv_index(vec3<u32>(c), dims);
         if (lv_ms[mp.off.x + k] > 0.0) {
-            return MsFilled(true, lv_ms[mp.off.x + 2u * n + k]);
+            return i32(k);
         }
     }
-    return MsFilled(false, -1.0);
+    return -1;
 }
 
 // Cell `i`'s (at `c`) neighbour along axis `a` on side `s` (1: +1) for field `f`: the face's
@@ -811,12 +811,10 @@ fn ms_face(i: u32, c: vec3<i32>, a: u32, s: u32, f: u32) -> vec2<f32> {
     e[a] = select(-1, 1, s == 1u);
     let cj = c + e;
     let hi = ms_half_r(i, a, f);
-    if (all(cj >= vec3<i32>(0)) && all(vec3<u32>(cj) < dims)) {
-        let j = lv_index(vec3<u32>(cj), dims);
-        if (lv_ms[o + j] > 0.0) {
-            let r = hi + ms_half_r(j, a, f);
-            return vec2<f32>(1.0 / (mp.h[a] * r), ms_phi(cj, f));
-        }
+    let j = ms_filled(cj);
+    if (j >= 0) {
+        let r = hi + ms_half_r(u32(j), a, f);
+        return vec2<f32>(1.0 / (mp.h[a] * r), ms_phi(cj, f));
     }
     if (f == 1u) {
         return vec2<f32>(1.0 / (mp.h[a] * (hi + MS_VACUUM)), ms_boundary(f));
@@ -827,12 +825,6 @@ fn ms_face(i: u32, c: vec3<i32>, a: u32, s: u32, f: u32) -> vec2<f32> {
     let v = o + 9u * n + 6u * i + 2u * a;
     let r = lv_ms[v] + hi;
     return vec2<f32>(1.0 / (mp.h[a] * r), lv_ms[v + 1u]);
-}
-
-// `ms_filled`'s answer.
-struct MsFilled {
-    filled: bool,
-    q: f32,
 }
 
 // `sinh(x)/x` (`vdbcook_scene`'s `sinhc`).

@@ -214,7 +214,7 @@ fn lit_scattered(P: VdbLitPlace, ray: VdbRay, sa: f32, len: f32, q: vec3<f32>, r
             d[f] = lit_diffuse(select(P.lv_lo0, P.lv_lo1, one), select(P.lv_dims0, P.lv_dims1, one), q, eye);
         }
         var diffuse = d[0];
-        if (a > 0.0 && reads == 2u) {
+        if (reads == 2u) {
             diffuse = mix(d[0], d[1], a);
         }
         sun = (*ph)[0] * direct_mean

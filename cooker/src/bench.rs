@@ -562,11 +562,10 @@ mod imp {
                 let mut builds_before = 0;
                 let checks = [a.frames / 3, 2 * a.frames / 3, a.frames];
                 let mut kept = Vec::new();
+                // Crossfaded times wrap over [0, frames − 1] (the last frame has no successor to
+                // fade to), whole frames over all of them; a one-frame asset stays at 0.
+                let span = if hold { frames } else { frames - 1.0 };
                 for k in 0..=a.frames {
-                    // Crossfaded times wrap over [0, frames − 1] (the last frame has no
-                    // successor to fade to), whole frames over all of them; a one-frame asset
-                    // stays at 0.
-                    let span = if hold { frames } else { frames - 1.0 };
                     let t = if frames > 1.0 {
                         ((k as f64 + 1.0) * a.fps / a.display_fps) % span
                     } else {
@@ -602,7 +601,6 @@ mod imp {
                 let mut checked = kept.clone();
                 for (t, _) in &kept {
                     for j in 1..a.light_stride.min(frames as u32) {
-                        let span = if hold { frames } else { frames - 1.0 };
                         let t = ((*t as f64 + j as f64) % span) as f32;
                         let stride = (t, a.light_stride);
                         let (_, img) = frame(&gpu, &mut drawer, None, &s, stride, &shading, true)?;

@@ -27,8 +27,8 @@ use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
 use vdbcook_scene::{
-    light_dirs, light_span, Affine, DiffusionInputs, Integrator, LightGrid, Lighting, Medium, Mode,
-    MsModel, RenderSettings, MAX_SIDE,
+    box_union, light_dirs, light_span, Affine, DiffusionInputs, Integrator, LightGrid, Lighting,
+    Medium, Mode, MsModel, RenderSettings, MAX_SIDE,
 };
 
 use std::sync::Arc;
@@ -1187,12 +1187,7 @@ impl VolumeDrawer {
             let xf = Affine::cells(&inst.index_to_world(&meta.index_to_world))
                 .map_err(|e| RuntimeError::Transform(format!("instance {i}: {e}")))?;
             let union = |boxes: [Option<([f64; 3], [f64; 3])>; 2]| {
-                boxes.into_iter().flatten().reduce(|x, y| {
-                    (
-                        [0, 1, 2].map(|k| x.0[k].min(y.0[k])),
-                        [0, 1, 2].map(|k| x.1[k].max(y.1[k])),
-                    )
-                })
+                boxes.into_iter().flatten().reduce(box_union)
             };
             let emit_box = match &medium.emission {
                 Some(e) => union([meta.emission_box(e, f0)?, meta.emission_box(e, f1)?]),
@@ -1274,11 +1269,9 @@ impl VolumeDrawer {
                         )
                     })
                 };
+                let pair = [0, 1].map(|n| volume(&grids[n], lit_by[n].0));
                 let mut idx = [0u32; 2];
-                let mut pair = Vec::with_capacity(2);
-                for (n, grid) in grids.iter().enumerate() {
-                    let lp = volume(grid, lit_by[n].0);
-                    pair.push(lp);
+                for (n, (grid, &lp)) in grids.iter().zip(&pair).enumerate() {
                     idx[n] = volumes
                         .volumes
                         .iter()

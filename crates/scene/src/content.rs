@@ -15,6 +15,14 @@ pub fn content_box(asset: &Asset, frame: usize) -> Option<([f64; 3], [f64; 3])> 
     content_box_above(asset, frame, 0, 0.0)
 }
 
+/// The smallest box `[lo, hi)` holding both boxes.
+pub fn box_union(a: ([f64; 3], [f64; 3]), b: ([f64; 3], [f64; 3])) -> ([f64; 3], [f64; 3]) {
+    (
+        [0, 1, 2].map(|k| a.0[k].min(b.0[k])),
+        [0, 1, 2].map(|k| a.1[k].max(b.1[k])),
+    )
+}
+
 /// The light a frame gets under a light stride of `n` (the engine drawer's
 /// `Instance::light_stride`: a playing effect lit by one light volume per `n` frames): frame
 /// `f` of a flip-book whose frames have the content boxes `boxes` lies in the span
@@ -35,19 +43,11 @@ pub fn light_span(
     }
     let start = f / n * n;
     let end = (start + n).min(boxes.len());
-    type Box3 = ([f64; 3], [f64; 3]);
     let union = boxes[start..end]
         .iter()
         .flatten()
-        .fold(None::<Box3>, |acc, b| {
-            Some(match acc {
-                None => *b,
-                Some((lo, hi)) => (
-                    [0, 1, 2].map(|k| f64::min(lo[k], b.0[k])),
-                    [0, 1, 2].map(|k| f64::max(hi[k], b.1[k])),
-                ),
-            })
-        });
+        .copied()
+        .reduce(box_union);
     let middle = start + (end - start - 1) / 2;
     let key = (0..end - start)
         .flat_map(|d| [middle.checked_sub(d), Some(middle + d)])

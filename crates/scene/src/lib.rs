@@ -24,7 +24,7 @@ mod space;
 
 pub use camera::{from_up_frame, source_up, stored_bbox, stored_boxes, up_frame, Basis, Camera};
 pub use content::{
-    content_box, content_box_above, for_each_slot_max, for_each_slot_max_c, light_span,
+    box_union, content_box, content_box_above, for_each_slot_max, for_each_slot_max_c, light_span,
 };
 pub use diffusion::{
     ms_beam_norm, ms_gather_dirs, ms_gather_steps, ms_gather_weights, ms_levels, ms_own_cell,
