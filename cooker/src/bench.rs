@@ -83,7 +83,7 @@ pub struct Args {
     march_resolution: String,
     /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png and the playing frames
     /// checked for `playing_error` as DIR/MODE-N-RESOLUTION-BLEND-LITCROSSFADE-tTIME.png
-    /// (tone-mapped sRGB over the bench's backdrop, as `render` maps radiance): to see what was
+    /// (`…-LITCROSSFADE-strideN-tTIME.png` with `--light-stride N` above 1; tone-mapped sRGB over the bench's backdrop, as `render` maps radiance): to see what was
     /// timed.
     #[arg(long, value_name = "DIR")]
     png: Option<PathBuf>,
@@ -664,9 +664,13 @@ mod imp {
                         write(format!("{mode_name}-{n}-{}.png", a.march_resolution), &img)?;
                     }
                     // The playing path's checked frames, named by how they were drawn and when.
+                    let stride = match a.light_stride {
+                        1 => String::new(),
+                        n => format!("-stride{n}"),
+                    };
                     for (t, img) in &kept {
                         let name = format!(
-                            "{mode_name}-{n}-{}-{}-{}-t{t:.3}.png",
+                            "{mode_name}-{n}-{}-{}-{}{stride}-t{t:.3}.png",
                             a.march_resolution, a.blend, a.lit_crossfade
                         );
                         write(name, img)?;

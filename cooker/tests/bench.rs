@@ -156,16 +156,30 @@ fn bench_builds_each_frames_light_volume_about_once() {
 /// `--light-stride 2` (whole frames): the JSON says so, the playing path builds fewer light
 /// volumes than with every frame's own light, and its playing error, now the light's, is stated
 /// and not 0 (the 5-frame smoke's blob moves every frame), while every frame's
-/// own light reads 0 up to f16 rounding; a stride of 0 is a usage error.
+/// own light reads 0 up to f16 rounding; `--png` names the stride in the playing frames' files;
+/// a stride of 0 is a usage error.
 #[test]
 fn bench_light_stride_builds_less_and_states_its_error() {
     let dir = tempfile::tempdir().unwrap();
     let asset = cook_smoke(dir.path());
     let mut runs = Vec::new();
     for stride in ["1", "2"] {
-        let Some(doc) = lit_playing(&asset, &["--blend", "hold", "--light-stride", stride]) else {
+        let pngs = dir.path().join(format!("frames{stride}"));
+        let flags = ["--blend", "hold", "--light-stride", stride, "--png"];
+        let Some(doc) = lit_playing(&asset, &[&flags[..], &[pngs.to_str().unwrap()]].concat())
+        else {
             return;
         };
+        // The playing frames' PNGs name a stride above 1 (`…-hold-lerp-stride2-tTIME.png`).
+        let names: Vec<String> = std::fs::read_dir(&pngs)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains("-hold-lerp-"))
+            .collect();
+        assert!(!names.is_empty(), "{names:?}");
+        for n in &names {
+            assert_eq!(n.contains("-hold-lerp-stride2-t"), stride == "2", "{n}");
+        }
         assert_eq!(doc["light_stride"].to_string(), stride);
         let r = &doc["results"][0];
         let builds = r["playing_light_builds"].as_f64().unwrap();
