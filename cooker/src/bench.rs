@@ -81,10 +81,10 @@ pub struct Args {
     /// `resolution_error` is the static frame's relative RMSE against the full-resolution draw.
     #[arg(long, default_value = "full", value_parser = ["full", "half", "quarter"])]
     march_resolution: String,
-    /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png and the playing frames
-    /// checked for `playing_error` as DIR/MODE-N-RESOLUTION-BLEND-LITCROSSFADE-tTIME.png
-    /// (`…-LITCROSSFADE-strideN-tTIME.png` with `--light-stride N` above 1; tone-mapped sRGB over the bench's backdrop, as `render` maps radiance): to see what was
-    /// timed.
+    /// Also write each run's static frame as DIR/MODE-N-RESOLUTION.png and the three playing
+    /// checkpoints of `playing_error` as DIR/MODE-N-RESOLUTION-BLEND-LITCROSSFADE-tTIME.png
+    /// (…-LITCROSSFADE-strideS-tTIME.png with `--light-stride S` above 1; tone-mapped sRGB over
+    /// the bench's backdrop, as `render` maps radiance): to see what was timed.
     #[arg(long, value_name = "DIR")]
     png: Option<PathBuf>,
     /// Displayed frames timed while playing (after one warm-up frame).
@@ -666,7 +666,7 @@ mod imp {
                     // The playing path's checked frames, named by how they were drawn and when.
                     let stride = match a.light_stride {
                         1 => String::new(),
-                        n => format!("-stride{n}"),
+                        stride => format!("-stride{stride}"),
                     };
                     for (t, img) in &kept {
                         let name = format!(
