@@ -4,16 +4,18 @@
 Issue 34 item 3 asks for the lit march within 2x the density march and for the optional half-
 and quarter-resolution march's error charted. This runs `vdbcook bench` on each asset at each
 `--march-resolution` (alternating the assets and resolutions, `--rounds` times), keeps every
-run's JSON, and draws one SVG: the lit static frame's GPU ms over the same round's full-resolution
-density static frame (x) against the lit `resolution_error`, the static frame's relative RMSE
-against the full-resolution lit draw (y, log). The full march has no error: it sits on the x
-axis. Medians over the rounds; the table printed on stdout has every figure.
+run's JSON, and draws one SVG: the median of the lit static frame's GPU ms over the median of
+the full-resolution density static frame's (x) against the lit `resolution_error`, the static
+frame's relative RMSE against the full-resolution lit draw (y, log). The full march has no
+error: it is drawn on the x axis, labelled "none" (the y axis runs from 1e-4 up; an error below
+it would be drawn there too). The table printed on stdout has every
+median and each round's own lit / full-density ratio.
 
     python3 tools/lighting/resolution_chart.py --bin target/release/vdbcook \\
         --asset stormscape=/tmp/storm.vdbc --asset wdas=/tmp/wdas.vdbc \\
         --asset fire=/tmp/fire.vdbc --out docs/images/march_resolution_error_cost.svg
 
-`--jsonl FILE` keeps the runs (one bench JSON a line, with `asset` and `round` added); with
+`--jsonl FILE` keeps the runs (one bench JSON a line, with `name` and `round` added); with
 `--from FILE` nothing is run and the chart is drawn from those lines. Needs Python 3 only. Like
 the rest of tools/, it is run by people, not by cargo or CI; on a 2-core VM with lavapipe a round
 of three assets takes about 8 minutes.
@@ -34,8 +36,20 @@ COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e"]
 def run_bench(binary, path, resolution, runs):
     cmd = [binary, "bench", path, "--modes", "density,lit", "--march-resolution", resolution,
            "--frames", "1", "--runs", str(runs), "--json"]
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    return json.loads(out)
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
+    return json.loads(done.stdout)
+
+
+def round_of(d):
+    """The run's round (`round`; runs kept before it existed put it in `run`)."""
+    return d.get("round", d.get("run"))
+
+
+def name_of(d):
+    """The run's asset name (`name`; runs kept before it existed put it in `asset`)."""
+    return d.get("name", d.get("asset"))
 
 
 def summarize(lines):
@@ -45,12 +59,15 @@ def summarize(lines):
     for d in lines:
         r = d.get("march_resolution", "full")
         modes = {x["mode"]: x for x in d["results"]}
-        by.setdefault(d["asset"], {}).setdefault(r, []).append(modes)
+        modes["round"] = round_of(d)
+        by.setdefault(name_of(d), {}).setdefault(r, []).append(modes)
         if r == "full":
-            full_density.setdefault(d["asset"], []).append(modes["density"]["static_ms"])
+            full_density.setdefault(name_of(d), {})[round_of(d)] = modes["density"]["static_ms"]
     out = {}
     for asset, per in by.items():
-        base = statistics.median(full_density[asset])
+        if asset not in full_density:
+            sys.exit(f"{asset}: no full-resolution run to measure against")
+        base = statistics.median(full_density[asset].values())
         out[asset] = {}
         for r, runs in per.items():
             lit = statistics.median(m["lit"]["static_ms"] for m in runs)
@@ -63,6 +80,8 @@ def summarize(lines):
                 "lit_ms": lit,
                 "density_ms": den,
                 "lit_over_full_density": lit / base,
+                "rounds_ratio": [m["lit"]["static_ms"] / full_density[asset][m["round"]]
+                                 for m in runs if m["round"] in full_density[asset]],
                 "lit_error": statistics.median(errs) if errs else None,
                 "density_error": statistics.median(derrs) if derrs else None,
                 "rounds": len(runs),
@@ -80,6 +99,8 @@ def chart(summary, adapter, path):
         return left + (right - left) * x / xmax
 
     def py(e):
+        if e is None:
+            return bottom + 0.0  # no error (the full march): on the axis, below the 1e-4 tick
         e = min(max(e, ylo), yhi)
         return bottom - (bottom - top) * (math.log10(e) - math.log10(ylo)) / (
             math.log10(yhi) - math.log10(ylo))
@@ -94,10 +115,12 @@ def chart(summary, adapter, path):
         x = px(i)
         s.append(f'<line x1="{x:.1f}" y1="{bottom}" x2="{x:.1f}" y2="{bottom + 5}" stroke="black"/>'
                  f'<text x="{x:.1f}" y="{bottom + 18}" text-anchor="middle">{i}</text>')
-    for k in range(-4, 1):
+    for k in range(-3, 1):
         y = py(10.0 ** k)
         s.append(f'<line x1="{left - 5}" y1="{y:.1f}" x2="{left}" y2="{y:.1f}" stroke="black"/>'
                  f'<text x="{left - 8}" y="{y + 4:.1f}" text-anchor="end">1e{k}</text>')
+    s.append(f'<line x1="{left - 5}" y1="{bottom}" x2="{left}" y2="{bottom}" stroke="black"/>'
+             f'<text x="{left - 8}" y="{bottom + 4}" text-anchor="end">none</text>')
     x2 = px(2.0)
     s.append(f'<line x1="{x2:.1f}" y1="{top}" x2="{x2:.1f}" y2="{bottom}" stroke="#999" '
              f'stroke-dasharray="4,3"/><text x="{x2 + 4:.1f}" y="{top + 12}" fill="#666">'
@@ -110,7 +133,7 @@ def chart(summary, adapter, path):
              '--march-resolution R, medians</text>')
     for i, (asset, per) in enumerate(summary.items()):
         c = COLOURS[i % len(COLOURS)]
-        pts = [(per[r]["lit_over_full_density"], per[r]["lit_error"] or ylo, r)
+        pts = [(per[r]["lit_over_full_density"], per[r]["lit_error"], r)
                for r in RESOLUTIONS if r in per]
         s.append('<polyline fill="none" stroke="{}" points="{}"/>'.format(
             c, " ".join(f"{px(x):.1f},{py(e):.1f}" for x, e, _ in pts)))
@@ -135,21 +158,28 @@ def main():
     ap.add_argument("--from", dest="source", help="chart these JSON lines, run nothing")
     ap.add_argument("--out", required=True, help="the SVG to write")
     a = ap.parse_args()
+    assets = []
+    for spec in a.asset:
+        name, eq, path = spec.partition("=")
+        if not eq or not name or not path:
+            ap.error(f"--asset {spec}: NAME=PATH")
+        if not os.path.exists(path):
+            ap.error(f"--asset {spec}: {path}: no such file")
+        assets.append((name, path))
     lines = []
     if a.source:
         with open(a.source) as f:
             lines = [json.loads(l) for l in f if l.strip()]
     else:
-        if not a.bin or not a.asset:
+        if not a.bin or not assets:
             ap.error("--bin and at least one --asset, or --from")
+        if not os.access(a.bin, os.X_OK):
+            ap.error(f"--bin {a.bin}: not an executable")
         for k in range(a.rounds):
-            for spec in a.asset:
-                name, _, path = spec.partition("=")
-                if not os.path.exists(path):
-                    ap.error(f"{path}: no such asset")
+            for name, path in assets:
                 for r in RESOLUTIONS:
                     d = run_bench(a.bin, path, r, a.runs)
-                    d["asset"], d["round"] = name, k + 1
+                    d["name"], d["round"] = name, k + 1
                     lines.append(d)
                     if a.jsonl:
                         with open(a.jsonl, "a") as f:
@@ -159,16 +189,18 @@ def main():
         sys.exit("no runs")
     summary = summarize(lines)
     chart(summary, lines[0].get("adapter", "?"), a.out)
-    print("| asset | march | density ms | lit ms | lit / full density | error lit | error density |")
+    print("| asset | march | density ms | lit ms | lit / full density (each round) | error density "
+          "| error lit |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for asset, per in summary.items():
         for r in RESOLUTIONS:
             if r in per:
                 v = per[r]
                 fmt = lambda e: "–" if e is None else f"{e:.4f}"
+                each = " / ".join(f"{x:.2f}" for x in v["rounds_ratio"])
                 print(f"| {asset} | {r} | {v['density_ms']:.1f} | {v['lit_ms']:.1f} | "
-                      f"{v['lit_over_full_density']:.2f}× | {fmt(v['lit_error'])} | "
-                      f"{fmt(v['density_error'])} |")
+                      f"{v['lit_over_full_density']:.2f}× ({each}) | {fmt(v['density_error'])} | "
+                      f"{fmt(v['lit_error'])} |")
 
 
 if __name__ == "__main__":
