@@ -42,16 +42,6 @@ def run_bench(binary, path, resolution, runs):
     return json.loads(done.stdout)
 
 
-def round_of(d):
-    """The run's round (`round`; runs kept before it existed put it in `run`)."""
-    return d.get("round", d.get("run"))
-
-
-def name_of(d):
-    """The run's asset name (`name`; runs kept before it existed put it in `asset`)."""
-    return d.get("name", d.get("asset"))
-
-
 def summarize(lines):
     """{asset: {resolution: {density, lit, error, density_full}}} as medians over rounds."""
     by = {}
@@ -59,10 +49,10 @@ def summarize(lines):
     for d in lines:
         r = d.get("march_resolution", "full")
         modes = {x["mode"]: x for x in d["results"]}
-        modes["round"] = round_of(d)
-        by.setdefault(name_of(d), {}).setdefault(r, []).append(modes)
+        modes["round"] = d["round"]
+        by.setdefault(d["name"], {}).setdefault(r, []).append(modes)
         if r == "full":
-            full_density.setdefault(name_of(d), {})[round_of(d)] = modes["density"]["static_ms"]
+            full_density.setdefault(d["name"], {})[d["round"]] = modes["density"]["static_ms"]
     out = {}
     for asset, per in by.items():
         if asset not in full_density:
